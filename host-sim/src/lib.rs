@@ -1,0 +1,1 @@
+//! Host-side simulator and tools for the cable-joint core.

@@ -1,0 +1,46 @@
+//! `host-sim`: the simulated prototype and the host tools of the cable-joint
+//! project.
+//!
+//! Subcommands (each module owns its arguments and its `run`):
+//!
+//! * `report` (default): the seed's experimental programme on the simulated
+//!   prototype, with a report.
+//! * `simulate`: one scenario, written as a CSV log.
+//! * `import`: convert a measured run (MRDLab) to the project's CSV schema.
+//! * `residual`: identification and the residual → effect → refit loop.
+//! * `ingest`: decoded defmt telemetry → CSV log.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "host-sim", version, about = "Simulated cable-driven joint prototype and host tools")]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    // Each helper adds its variant here: `Name(host_sim::module::Args)`.
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result: anyhow::Result<()> = match cli.command {
+        None => {
+            eprintln!("no subcommand yet");
+            Ok(())
+        }
+        #[allow(unreachable_patterns)]
+        Some(_) => Ok(()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

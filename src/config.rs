@@ -1,0 +1,458 @@
+//! The project's configuration: datasheet constants, identified parameters,
+//! controller gains and fault limits, in SI units.
+//!
+//! Defaults are DESIGN.md's datasheet values and the seed's identified values.
+//! [`Config::validate`] rejects impossible values with an error that names the
+//! field; the hot path never checks again. With the `serde` feature the whole
+//! struct (de)serializes (the host tool reads and writes it as TOML) without the
+//! core depending on `std`.
+
+use core::fmt;
+
+use crate::units::Scales;
+
+/// Datasheet constants of the machine (DESIGN.md §1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct Machine {
+    /// Motor torque constant `K_m`, N·m/A (RE25 20 W: 23.4 mN·m/A).
+    pub torque_constant_nm_a: f32,
+    /// Rotor inertia `J_m`, kg·m² (RE25: 1.08e-6).
+    pub rotor_inertia_kg_m2: f32,
+    /// Gear ratio `z_i` (35).
+    pub gear_ratio: f32,
+    /// Rope wheel radius `r_m`, m (6 mm).
+    pub rope_wheel_radius_m: f32,
+    /// Joint pulley radius `r`, m (4 mm).
+    pub pulley_radius_m: f32,
+    /// Gripper length `l_e`, m (20 mm).
+    pub gripper_length_m: f32,
+    /// Return-spring stiffness `K_s`, N/m (nominal 656.6).
+    pub spring_n_m: f32,
+    /// Cable preload `F_0`, N (nominal 19.5).
+    pub preload_n: f32,
+    /// Drive current limit, A (±2).
+    pub current_limit_a: f32,
+}
+
+impl Default for Machine {
+    fn default() -> Self {
+        Self {
+            torque_constant_nm_a: 23.4e-3,
+            rotor_inertia_kg_m2: 1.08e-6,
+            gear_ratio: 35.0,
+            rope_wheel_radius_m: 6e-3,
+            pulley_radius_m: 4e-3,
+            gripper_length_m: 20e-3,
+            spring_n_m: 656.6,
+            preload_n: 19.5,
+            current_limit_a: 2.0,
+        }
+    }
+}
+
+impl Machine {
+    /// Motor-shaft angle that winds 1 m of cable onto the rope wheel: `z_i / r_m`.
+    #[inline]
+    pub fn motor_rad_per_cable_m(&self) -> f32 {
+        self.gear_ratio / self.rope_wheel_radius_m
+    }
+
+    /// Joint angle implied by the motor angle through rigid cables:
+    /// `theta = phi * r_m / (z_i * r)` (the "motor-encoder-only" estimate).
+    #[inline]
+    pub fn joint_rad_from_motor_rad(&self, phi_rad: f32) -> f32 {
+        phi_rad * self.rope_wheel_radius_m / (self.gear_ratio * self.pulley_radius_m)
+    }
+}
+
+/// Differentiator / filter settings for the position signals.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct Differentiators {
+    /// Bandwidth of the grating differentiators (x1, x2), Hz.
+    pub grating_bandwidth_hz: f32,
+    /// Bandwidth of the motor-encoder differentiator (phi), Hz.
+    pub motor_bandwidth_hz: f32,
+    /// Damping ratio of the second-order state-variable filters.
+    pub damping: f32,
+}
+
+impl Default for Differentiators {
+    fn default() -> Self {
+        Self {
+            grating_bandwidth_hz: 30.0,
+            motor_bandwidth_hz: 150.0,
+            damping: 0.9,
+        }
+    }
+}
+
+/// Joint-angle estimator (seed Eq. 16, 25-26):
+/// `theta = c1 x2'' + c2 x2' + c3 sgn(x2') + c4 x2 + offset`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct JaeConfig {
+    /// `c1 = m_1 / (K_w2 r)`, rad per m/s².
+    pub c_acc_rad_s2_m: f32,
+    /// `c2 = f_sv2 / (K_w2 r)`, rad per m/s.
+    pub c_vel_rad_s_m: f32,
+    /// `c3 = f_sc2 / (K_w2 r)`, rad.
+    pub c_sign_rad: f32,
+    /// `c4 = (K_s + K_w2) / (K_w2 r)`, rad per m.
+    pub c_pos_rad_m: f32,
+    /// Constant offset, rad (identification treats it as a parameter).
+    pub offset_rad: f32,
+    /// Slider-2 speed above which the friction sign switches, m/s. Below it the
+    /// last sign is held (stiction keeps the presliding direction), so the sign
+    /// term does not chatter at standstill.
+    pub sign_switch_m_s: f32,
+}
+
+impl Default for JaeConfig {
+    fn default() -> Self {
+        // Seed Sect. 4.1: chi_s = [0.0805 0.5225 0.0025 264.356].
+        Self {
+            c_acc_rad_s2_m: 0.0805,
+            c_vel_rad_s_m: 0.5225,
+            c_sign_rad: 0.0025,
+            c_pos_rad_m: 264.356,
+            offset_rad: 0.0,
+            sign_switch_m_s: 2e-4,
+        }
+    }
+}
+
+/// PD position / PI velocity cascade (seed Fig. 11).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct CascadeConfig {
+    /// Position-loop proportional gain: motor rad/s per joint rad of error.
+    pub kp_pos_1_s: f32,
+    /// Position-loop derivative gain: motor rad/s per joint rad/s of error rate.
+    pub kd_pos: f32,
+    /// Velocity-loop proportional gain, A per motor rad/s.
+    pub kp_vel_a_s_rad: f32,
+    /// Velocity-loop integral gain, A per motor rad.
+    pub ki_vel_a_rad: f32,
+    /// Motor-velocity reference limit, rad/s.
+    pub vel_limit_rad_s: f32,
+    /// Feed-forward of the motor-velocity reference from the trajectory's
+    /// velocity (0 = none, 1 = full).
+    pub vel_feedforward: f32,
+    /// Feed-forward the current that holds the modelled cable tension
+    /// (`F_1' r_m / (z_i K_m)`), so the integrator only trims.
+    pub tension_feedforward: bool,
+    /// Output current limit, A (at most the drive's limit).
+    pub current_limit_a: f32,
+}
+
+impl Default for CascadeConfig {
+    fn default() -> Self {
+        Self {
+            kp_pos_1_s: 2500.0,
+            kd_pos: 0.0,
+            kp_vel_a_s_rad: 0.02,
+            ki_vel_a_rad: 1.0,
+            vel_limit_rad_s: 500.0,
+            vel_feedforward: 1.0,
+            tension_feedforward: true,
+            current_limit_a: 2.0,
+        }
+    }
+}
+
+/// Disturbance observer and force estimator (seed Eq. 17-21, Fig. 5-6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct DobConfig {
+    /// Observer cut-off `g_dis`, rad/s.
+    pub cutoff_rad_s: f32,
+    /// Motor viscous damping `B_m`, N·m·s/rad (seed: 1.6934e-5).
+    pub viscous_nm_s_rad: f32,
+    /// Use the measured current instead of the reference in `K_m i`.
+    pub use_measured_current: bool,
+}
+
+impl Default for DobConfig {
+    fn default() -> Self {
+        Self {
+            cutoff_rad_s: 2.0 * crate::math::PI * 10.0,
+            viscous_nm_s_rad: 1.6934e-5,
+            use_measured_current: false,
+        }
+    }
+}
+
+/// No-load cable-1 tension, simplified model C (seed Eq. 28-29):
+/// `F_1' = f_sc1 sgn(x1') + f_cp2 sgn(x2') + K_s x2 + F_0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct TensionConfig {
+    /// Slider-1 Coulomb term `f_sc1`, N.
+    pub f_sc1_n: f32,
+    /// Slider-2/joint Coulomb term `f_cp2`, N.
+    pub f_cp2_n: f32,
+    /// Spring term `K_s`, N/m.
+    pub k_s_n_m: f32,
+    /// Preload `F_0`, N.
+    pub f_0_n: f32,
+    /// Slider-1 speed above which its friction sign switches, m/s (held below).
+    pub sign_switch_x1_m_s: f32,
+    /// Slider-2 speed above which its friction sign switches, m/s (held below).
+    pub sign_switch_x2_m_s: f32,
+}
+
+impl Default for TensionConfig {
+    fn default() -> Self {
+        // Seed Eq. 29 fit: chi_p = [3.879 N, 5.027 N, 707.7 N/m, 19.52 N].
+        Self {
+            f_sc1_n: 3.879,
+            f_cp2_n: 5.027,
+            k_s_n_m: 707.7,
+            f_0_n: 19.52,
+            sign_switch_x1_m_s: 2e-4,
+            sign_switch_x2_m_s: 2e-4,
+        }
+    }
+}
+
+/// Limits beyond which a reading is impossible (a fault).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct FaultLimits {
+    /// Largest physically possible grating speed, m/s.
+    pub max_grating_speed_m_s: f32,
+    /// Largest physically possible motor speed, rad/s (RE25: about 11 000 rpm).
+    pub max_motor_speed_rad_s: f32,
+    /// Joint-angle range, rad (|theta_hat| beyond it is a fault).
+    pub max_joint_angle_rad: f32,
+}
+
+impl Default for FaultLimits {
+    fn default() -> Self {
+        Self {
+            max_grating_speed_m_s: 0.5,
+            max_motor_speed_rad_s: 1200.0,
+            max_joint_angle_rad: 1.6,
+        }
+    }
+}
+
+/// The whole configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct Config {
+    /// Control rate, Hz (default 2 kHz, up to 20 kHz).
+    pub control_rate_hz: f32,
+    /// Datasheet constants.
+    pub machine: Machine,
+    /// Sensor and converter scales.
+    pub scales: Scales,
+    /// Differentiators.
+    pub differentiators: Differentiators,
+    /// Joint-angle estimator.
+    pub jae: JaeConfig,
+    /// Position/velocity cascade.
+    pub cascade: CascadeConfig,
+    /// Disturbance observer.
+    pub dob: DobConfig,
+    /// No-load tension model.
+    pub tension: TensionConfig,
+    /// Fault limits.
+    pub limits: FaultLimits,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            control_rate_hz: 2000.0,
+            machine: Machine::default(),
+            scales: Scales::default(),
+            differentiators: Differentiators::default(),
+            jae: JaeConfig::default(),
+            cascade: CascadeConfig::default(),
+            dob: DobConfig::default(),
+            tension: TensionConfig::default(),
+            limits: FaultLimits::default(),
+        }
+    }
+}
+
+/// Why a configuration was rejected: the field and what is wrong with it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConfigError {
+    /// Dotted path of the offending field, e.g. `"machine.gear_ratio"`.
+    pub field: &'static str,
+    /// What a valid value is.
+    pub expected: &'static str,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "invalid configuration: `{}` must be {}", self.field, self.expected)
+    }
+}
+
+fn positive(field: &'static str, v: f32) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError { field, expected: "finite and > 0" })
+    }
+}
+
+fn non_negative(field: &'static str, v: f32) -> Result<(), ConfigError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError { field, expected: "finite and >= 0" })
+    }
+}
+
+fn finite(field: &'static str, v: f32) -> Result<(), ConfigError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError { field, expected: "finite" })
+    }
+}
+
+impl Config {
+    /// Control period, s.
+    #[inline]
+    pub fn period_s(&self) -> f32 {
+        1.0 / self.control_rate_hz
+    }
+
+    /// Check every field; the first impossible one is returned.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !(self.control_rate_hz.is_finite()
+            && self.control_rate_hz >= 100.0
+            && self.control_rate_hz <= 20_000.0)
+        {
+            return Err(ConfigError {
+                field: "control_rate_hz",
+                expected: "between 100 and 20000 Hz",
+            });
+        }
+        let m = &self.machine;
+        positive("machine.torque_constant_nm_a", m.torque_constant_nm_a)?;
+        positive("machine.rotor_inertia_kg_m2", m.rotor_inertia_kg_m2)?;
+        positive("machine.gear_ratio", m.gear_ratio)?;
+        positive("machine.rope_wheel_radius_m", m.rope_wheel_radius_m)?;
+        positive("machine.pulley_radius_m", m.pulley_radius_m)?;
+        positive("machine.gripper_length_m", m.gripper_length_m)?;
+        non_negative("machine.spring_n_m", m.spring_n_m)?;
+        non_negative("machine.preload_n", m.preload_n)?;
+        positive("machine.current_limit_a", m.current_limit_a)?;
+
+        let s = &self.scales;
+        positive("scales.grating_m_per_count", s.grating_m_per_count)?;
+        if s.motor_counts_per_rev == 0 {
+            return Err(ConfigError { field: "scales.motor_counts_per_rev", expected: "> 0" });
+        }
+        if s.magnetic_counts_per_rev == 0 {
+            return Err(ConfigError { field: "scales.magnetic_counts_per_rev", expected: "> 0" });
+        }
+        positive("scales.adc_a_per_code", s.adc_a_per_code)?;
+        positive("scales.dac_a_per_code", s.dac_a_per_code)?;
+        if !(s.adc_zero_code.is_finite() && (0.0..=4095.0).contains(&s.adc_zero_code)) {
+            return Err(ConfigError { field: "scales.adc_zero_code", expected: "within 0..=4095" });
+        }
+        if !(s.dac_zero_code.is_finite() && (0.0..=4095.0).contains(&s.dac_zero_code)) {
+            return Err(ConfigError { field: "scales.dac_zero_code", expected: "within 0..=4095" });
+        }
+
+        let nyquist = 0.5 * self.control_rate_hz;
+        let d = &self.differentiators;
+        for (field, bw) in [
+            ("differentiators.grating_bandwidth_hz", d.grating_bandwidth_hz),
+            ("differentiators.motor_bandwidth_hz", d.motor_bandwidth_hz),
+        ] {
+            positive(field, bw)?;
+            if bw > 0.25 * nyquist {
+                return Err(ConfigError { field, expected: "below a quarter of the Nyquist rate" });
+            }
+        }
+        positive("differentiators.damping", d.damping)?;
+
+        let j = &self.jae;
+        finite("jae.c_acc_rad_s2_m", j.c_acc_rad_s2_m)?;
+        finite("jae.c_vel_rad_s_m", j.c_vel_rad_s_m)?;
+        finite("jae.c_sign_rad", j.c_sign_rad)?;
+        positive("jae.c_pos_rad_m", j.c_pos_rad_m)?;
+        finite("jae.offset_rad", j.offset_rad)?;
+        positive("jae.sign_switch_m_s", j.sign_switch_m_s)?;
+
+        let c = &self.cascade;
+        non_negative("cascade.kp_pos_1_s", c.kp_pos_1_s)?;
+        non_negative("cascade.kd_pos", c.kd_pos)?;
+        non_negative("cascade.kp_vel_a_s_rad", c.kp_vel_a_s_rad)?;
+        non_negative("cascade.ki_vel_a_rad", c.ki_vel_a_rad)?;
+        positive("cascade.vel_limit_rad_s", c.vel_limit_rad_s)?;
+        non_negative("cascade.vel_feedforward", c.vel_feedforward)?;
+        positive("cascade.current_limit_a", c.current_limit_a)?;
+        if c.current_limit_a > m.current_limit_a {
+            return Err(ConfigError {
+                field: "cascade.current_limit_a",
+                expected: "at most machine.current_limit_a",
+            });
+        }
+
+        let o = &self.dob;
+        positive("dob.cutoff_rad_s", o.cutoff_rad_s)?;
+        if o.cutoff_rad_s * self.period_s() > 1.0 {
+            return Err(ConfigError { field: "dob.cutoff_rad_s", expected: "below the control rate (g*T <= 1)" });
+        }
+        non_negative("dob.viscous_nm_s_rad", o.viscous_nm_s_rad)?;
+
+        let t = &self.tension;
+        finite("tension.f_sc1_n", t.f_sc1_n)?;
+        finite("tension.f_cp2_n", t.f_cp2_n)?;
+        finite("tension.k_s_n_m", t.k_s_n_m)?;
+        finite("tension.f_0_n", t.f_0_n)?;
+        positive("tension.sign_switch_x1_m_s", t.sign_switch_x1_m_s)?;
+        positive("tension.sign_switch_x2_m_s", t.sign_switch_x2_m_s)?;
+
+        let l = &self.limits;
+        positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
+        positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;
+        positive("limits.max_joint_angle_rad", l.max_joint_angle_rad)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid() {
+        Config::default().validate().unwrap();
+    }
+
+    #[test]
+    fn impossible_values_name_their_field() {
+        let mut c = Config::default();
+        c.machine.gear_ratio = -35.0;
+        assert_eq!(c.validate().unwrap_err().field, "machine.gear_ratio");
+        let mut c = Config::default();
+        c.jae.c_pos_rad_m = f32::NAN;
+        assert_eq!(c.validate().unwrap_err().field, "jae.c_pos_rad_m");
+        let mut c = Config::default();
+        c.control_rate_hz = 50_000.0;
+        assert_eq!(c.validate().unwrap_err().field, "control_rate_hz");
+        let mut c = Config::default();
+        c.cascade.current_limit_a = 3.0;
+        assert_eq!(c.validate().unwrap_err().field, "cascade.current_limit_a");
+    }
+}

@@ -1,0 +1,139 @@
+//! Faults: a `Copy` enum with stable numeric codes.
+//!
+//! A fault disables the drive within the tick in which it is detected, is
+//! latched by the [`crate::Controller`], and is cleared only by an explicit
+//! [`crate::Controller::clear_fault`]. The host tool decodes telemetry with the
+//! same numbers ([`Fault::from_code`]); never renumber a variant.
+
+use core::fmt;
+
+/// Which sensor a fault is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Sensor {
+    /// Grating 1 (slider 1).
+    Grating1,
+    /// Grating 2 (slider 2).
+    Grating2,
+    /// Motor encoder.
+    Motor,
+    /// Magnetic joint encoder.
+    Magnetic,
+    /// Drive current monitor (ADC).
+    Current,
+}
+
+/// A latched fault. Codes are stable (`code()`), 0 means "no fault".
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Fault {
+    /// A counter moved further in one tick than the mechanism can.
+    EncoderJump(Sensor),
+    /// The current-monitor ADC sits at a rail.
+    AdcRail,
+    /// A filter or estimator produced NaN or infinity.
+    NonFinite,
+    /// The joint-angle estimate left the mechanical range.
+    AngleRange,
+    /// The motor's velocity exceeded its limit.
+    Overspeed,
+    /// The control task missed its deadline.
+    Overrun,
+    /// The drive reported a fault on its fault line.
+    DriveFault,
+    /// The origin switch triggered while the joint was moving in a mode that
+    /// does not expect it.
+    OriginDuringMotion,
+    /// Start-up sensor check failed or homing did not find the origin.
+    Homing,
+    /// The firmware panicked (reported by the panic handler).
+    Panic,
+}
+
+impl Fault {
+    /// Stable numeric code (1..=255). Telemetry carries this number.
+    pub const fn code(self) -> u8 {
+        match self {
+            Fault::EncoderJump(Sensor::Grating1) => 1,
+            Fault::EncoderJump(Sensor::Grating2) => 2,
+            Fault::EncoderJump(Sensor::Motor) => 3,
+            Fault::EncoderJump(Sensor::Magnetic) => 4,
+            Fault::EncoderJump(Sensor::Current) => 5,
+            Fault::AdcRail => 10,
+            Fault::NonFinite => 11,
+            Fault::AngleRange => 12,
+            Fault::Overspeed => 13,
+            Fault::Overrun => 20,
+            Fault::DriveFault => 21,
+            Fault::OriginDuringMotion => 22,
+            Fault::Homing => 23,
+            Fault::Panic => 30,
+        }
+    }
+
+    /// Decode a telemetry code; `None` for 0 or an unknown code.
+    pub const fn from_code(code: u8) -> Option<Fault> {
+        Some(match code {
+            1 => Fault::EncoderJump(Sensor::Grating1),
+            2 => Fault::EncoderJump(Sensor::Grating2),
+            3 => Fault::EncoderJump(Sensor::Motor),
+            4 => Fault::EncoderJump(Sensor::Magnetic),
+            5 => Fault::EncoderJump(Sensor::Current),
+            10 => Fault::AdcRail,
+            11 => Fault::NonFinite,
+            12 => Fault::AngleRange,
+            13 => Fault::Overspeed,
+            20 => Fault::Overrun,
+            21 => Fault::DriveFault,
+            22 => Fault::OriginDuringMotion,
+            23 => Fault::Homing,
+            30 => Fault::Panic,
+            _ => return None,
+        })
+    }
+
+    /// Code of an optional fault (0 = none), as telemetry carries it.
+    pub const fn code_of(fault: Option<Fault>) -> u8 {
+        match fault {
+            Some(f) => f.code(),
+            None => 0,
+        }
+    }
+}
+
+impl fmt::Display for Fault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Fault::EncoderJump(s) => write!(f, "encoder jump beyond physical speed on {s:?}"),
+            Fault::AdcRail => f.write_str("current-monitor ADC at a rail"),
+            Fault::NonFinite => f.write_str("non-finite value in a filter or estimator"),
+            Fault::AngleRange => f.write_str("joint-angle estimate out of mechanical range"),
+            Fault::Overspeed => f.write_str("motor overspeed"),
+            Fault::Overrun => f.write_str("control tick overran its deadline"),
+            Fault::DriveFault => f.write_str("drive reported a fault"),
+            Fault::OriginDuringMotion => f.write_str("origin switch hit during motion"),
+            Fault::Homing => f.write_str("start-up check or homing failed"),
+            Fault::Panic => f.write_str("firmware panic"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_round_trip_and_are_unique() {
+        let mut seen = [false; 256];
+        for code in 0..=255u8 {
+            if let Some(f) = Fault::from_code(code) {
+                assert_eq!(f.code(), code);
+                assert!(!seen[code as usize]);
+                seen[code as usize] = true;
+            }
+        }
+        assert_eq!(seen.iter().filter(|s| **s).count(), 14);
+        assert_eq!(Fault::from_code(0), None);
+        assert_eq!(Fault::code_of(None), 0);
+    }
+}

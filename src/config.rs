@@ -298,7 +298,11 @@ pub struct ConfigError {
 
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "invalid configuration: `{}` must be {}", self.field, self.expected)
+        write!(
+            f,
+            "invalid configuration: `{}` must be {}",
+            self.field, self.expected
+        )
     }
 }
 
@@ -306,7 +310,10 @@ fn positive(field: &'static str, v: f32) -> Result<(), ConfigError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(ConfigError { field, expected: "finite and > 0" })
+        Err(ConfigError {
+            field,
+            expected: "finite and > 0",
+        })
     }
 }
 
@@ -314,7 +321,10 @@ fn non_negative(field: &'static str, v: f32) -> Result<(), ConfigError> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {
-        Err(ConfigError { field, expected: "finite and >= 0" })
+        Err(ConfigError {
+            field,
+            expected: "finite and >= 0",
+        })
     }
 }
 
@@ -322,7 +332,10 @@ fn finite(field: &'static str, v: f32) -> Result<(), ConfigError> {
     if v.is_finite() {
         Ok(())
     } else {
-        Err(ConfigError { field, expected: "finite" })
+        Err(ConfigError {
+            field,
+            expected: "finite",
+        })
     }
 }
 
@@ -358,29 +371,47 @@ impl Config {
         let s = &self.scales;
         positive("scales.grating_m_per_count", s.grating_m_per_count)?;
         if s.motor_counts_per_rev == 0 {
-            return Err(ConfigError { field: "scales.motor_counts_per_rev", expected: "> 0" });
+            return Err(ConfigError {
+                field: "scales.motor_counts_per_rev",
+                expected: "> 0",
+            });
         }
         if s.magnetic_counts_per_rev == 0 {
-            return Err(ConfigError { field: "scales.magnetic_counts_per_rev", expected: "> 0" });
+            return Err(ConfigError {
+                field: "scales.magnetic_counts_per_rev",
+                expected: "> 0",
+            });
         }
         positive("scales.adc_a_per_code", s.adc_a_per_code)?;
         positive("scales.dac_a_per_code", s.dac_a_per_code)?;
         if !(s.adc_zero_code.is_finite() && (0.0..=4095.0).contains(&s.adc_zero_code)) {
-            return Err(ConfigError { field: "scales.adc_zero_code", expected: "within 0..=4095" });
+            return Err(ConfigError {
+                field: "scales.adc_zero_code",
+                expected: "within 0..=4095",
+            });
         }
         if !(s.dac_zero_code.is_finite() && (0.0..=4095.0).contains(&s.dac_zero_code)) {
-            return Err(ConfigError { field: "scales.dac_zero_code", expected: "within 0..=4095" });
+            return Err(ConfigError {
+                field: "scales.dac_zero_code",
+                expected: "within 0..=4095",
+            });
         }
 
         let nyquist = 0.5 * self.control_rate_hz;
         let d = &self.differentiators;
         for (field, bw) in [
-            ("differentiators.grating_bandwidth_hz", d.grating_bandwidth_hz),
+            (
+                "differentiators.grating_bandwidth_hz",
+                d.grating_bandwidth_hz,
+            ),
             ("differentiators.motor_bandwidth_hz", d.motor_bandwidth_hz),
         ] {
             positive(field, bw)?;
             if bw > 0.25 * nyquist {
-                return Err(ConfigError { field, expected: "below a quarter of the Nyquist rate" });
+                return Err(ConfigError {
+                    field,
+                    expected: "below a quarter of the Nyquist rate",
+                });
             }
         }
         positive("differentiators.damping", d.damping)?;
@@ -411,7 +442,10 @@ impl Config {
         let o = &self.dob;
         positive("dob.cutoff_rad_s", o.cutoff_rad_s)?;
         if o.cutoff_rad_s * self.period_s() > 1.0 {
-            return Err(ConfigError { field: "dob.cutoff_rad_s", expected: "below the control rate (g*T <= 1)" });
+            return Err(ConfigError {
+                field: "dob.cutoff_rad_s",
+                expected: "below the control rate (g*T <= 1)",
+            });
         }
         non_negative("dob.viscous_nm_s_rad", o.viscous_nm_s_rad)?;
 

@@ -1,1 +1,635 @@
-//! (being written)
+//! The one control step: raw sample in, current command and estimates out.
+//!
+//! [`Controller::step`] is the whole control path. The firmware's control task
+//! and the simulator are its only two callers. It never allocates, never
+//! panics, and reports faults as values: on a fault the drive is disabled in
+//! the same tick, the fault is latched, and only [`Controller::clear_fault`]
+//! re-arms it.
+//!
+//! Stages (each can be timed by a [`StageTimer`], e.g. TIM2 under QEMU or
+//! DWT on hardware): sensing (counter extension, jump checks, scaling,
+//! differentiators), JAE, cascade, DOB.
+
+use crate::cascade::{self, CascadeIn, CascadeState};
+use crate::config::{Config, ConfigError};
+use crate::dob::{self, Dob, DobOut, DobState, TensionState};
+use crate::fault::{Fault, Sensor};
+use crate::filter::{Kinematics, TrackingObserver};
+use crate::jae::{self, JaeState};
+use crate::math;
+use crate::trajectory::{Reference, Trajectory};
+use crate::units::{AdcCode, DacCode, Extender16, GratingCount, MagneticCount, MotorCount};
+
+/// One raw sample, as the board reads it at the tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RawSample {
+    /// Grating 1 (slider 1), 32-bit timer.
+    pub grating1: GratingCount,
+    /// Grating 2 (slider 2), 32-bit timer.
+    pub grating2: GratingCount,
+    /// Motor encoder, 16-bit timer (wraps).
+    pub motor: MotorCount,
+    /// Magnetic joint encoder, 16-bit timer (wraps; calibration only).
+    pub magnetic: MagneticCount,
+    /// Current monitor, 12-bit ADC.
+    pub current: AdcCode,
+}
+
+/// Operating mode.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Mode {
+    /// Drive disabled, estimators running.
+    #[default]
+    Idle,
+    /// Motor in closed loop on the motor encoder, joint in open loop (seed
+    /// Fig. 8 and Fig. 10: the motor-implied angle is the feedback).
+    MotorPosition,
+    /// Joint in closed loop on the estimated angle (seed Fig. 11).
+    JointClosedLoop,
+}
+
+impl Mode {
+    /// Stable numeric code for telemetry.
+    pub const fn code(self) -> u8 {
+        match self {
+            Mode::Idle => 0,
+            Mode::MotorPosition => 1,
+            Mode::JointClosedLoop => 2,
+        }
+    }
+
+    /// Decode a telemetry code.
+    pub const fn from_code(code: u8) -> Option<Mode> {
+        match code {
+            0 => Some(Mode::Idle),
+            1 => Some(Mode::MotorPosition),
+            2 => Some(Mode::JointClosedLoop),
+            _ => None,
+        }
+    }
+}
+
+/// What to do: a mode and the joint-angle trajectory it follows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Command {
+    /// Mode.
+    pub mode: Mode,
+    /// Joint-angle reference (ignored in [`Mode::Idle`]).
+    pub trajectory: Trajectory,
+}
+
+impl Default for Command {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Idle,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        }
+    }
+}
+
+/// Everything the step estimates, SI units.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Estimates {
+    /// Time since the controller started, s.
+    pub t_s: f32,
+    /// Joint-angle reference, rad.
+    pub theta_ref_rad: f32,
+    /// Estimated joint angle (JAE), rad.
+    pub theta_hat_rad: f32,
+    /// Joint angle implied by the motor through rigid cables, rad.
+    pub theta_motor_rad: f32,
+    /// Magnetic encoder (calibration ground truth when fitted), rad.
+    pub theta_mag_rad: f32,
+    /// Slider 1, m.
+    pub x1_m: f32,
+    /// Slider 2, m.
+    pub x2_m: f32,
+    /// Slider 1 speed, m/s.
+    pub x1_vel_m_s: f32,
+    /// Slider 1 acceleration, m/s².
+    pub x1_acc_m_s2: f32,
+    /// Slider 2 speed, m/s.
+    pub x2_vel_m_s: f32,
+    /// Slider 2 acceleration, m/s².
+    pub x2_acc_m_s2: f32,
+    /// Motor shaft angle, rad.
+    pub phi_rad: f32,
+    /// Motor speed, rad/s.
+    pub phi_vel_rad_s: f32,
+    /// Motor acceleration, rad/s².
+    pub phi_acc_rad_s2: f32,
+    /// Measured drive current, A.
+    pub i_meas_a: f32,
+    /// Motor-velocity reference of the cascade, rad/s.
+    pub motor_vel_ref_rad_s: f32,
+    /// DOB load torque at the motor, N·m.
+    pub load_torque_nm: f32,
+    /// Cable-1 tension from the DOB, N.
+    pub tension1_n: f32,
+    /// Modelled no-load cable-1 tension (filtered like the DOB), N.
+    pub tension1_model_n: f32,
+    /// Estimated external tip force, N.
+    pub f_ext_hat_n: f32,
+}
+
+/// Result of one step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Output {
+    /// Current reference for the drive, A (0 when disabled).
+    pub current_ref_a: f32,
+    /// The same as a DAC code (the board writes this).
+    pub dac: DacCode,
+    /// Drive enable line.
+    pub drive_enable: bool,
+    /// Latched fault, if any.
+    pub fault: Option<Fault>,
+    /// Mode in force.
+    pub mode: Mode,
+    /// Estimates.
+    pub est: Estimates,
+}
+
+/// The stages of a step, for timing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Stage {
+    /// Step entered.
+    Start,
+    /// Counters extended, checked, scaled and differentiated.
+    Sensing,
+    /// Joint angle estimated.
+    Jae,
+    /// Tension model and DOB updated.
+    Dob,
+    /// Reference and cascade computed, output ready.
+    Cascade,
+}
+
+/// Receives a mark at the end of each stage (a cycle counter on the target).
+pub trait StageTimer {
+    /// Called when `stage` ends.
+    fn mark(&mut self, stage: Stage);
+}
+
+/// A timer that records nothing.
+pub struct NoTimer;
+
+impl StageTimer for NoTimer {
+    #[inline(always)]
+    fn mark(&mut self, _stage: Stage) {}
+}
+
+/// Zeroing offsets taken at the origin (homing).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Origin {
+    grating1: i32,
+    grating2: i32,
+    motor: i32,
+    magnetic: i32,
+}
+
+/// Precomputed constants derived from the configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Derived {
+    period_s: f32,
+    grating_obs: TrackingObserver,
+    motor_obs: TrackingObserver,
+    dob: Dob,
+    motor_per_joint: f32,
+    max_grating_step: i32,
+    max_motor_step: i32,
+    max_magnetic_step: i32,
+}
+
+impl Derived {
+    fn new(c: &Config) -> Self {
+        let period_s = c.period_s();
+        let d = &c.differentiators;
+        let m = &c.machine;
+        let s = &c.scales;
+        // Largest possible counter step per tick, plus two counts of jitter.
+        let grating = c.limits.max_grating_speed_m_s * period_s / s.grating_m_per_count;
+        let motor = c.limits.max_motor_speed_rad_s * period_s * s.motor_counts_per_rev as f32
+            / (2.0 * math::PI);
+        let joint_rad_s = c.limits.max_motor_speed_rad_s
+            / (m.gear_ratio * m.pulley_radius_m / m.rope_wheel_radius_m);
+        let magnetic =
+            4.0 * joint_rad_s * period_s * s.magnetic_counts_per_rev as f32 / (2.0 * math::PI);
+        Self {
+            period_s,
+            grating_obs: TrackingObserver::new(d.grating_bandwidth_hz, period_s),
+            motor_obs: TrackingObserver::new(d.motor_bandwidth_hz, period_s),
+            dob: Dob::new(&c.dob, m, period_s),
+            motor_per_joint: m.gear_ratio * m.pulley_radius_m / m.rope_wheel_radius_m,
+            max_grating_step: grating as i32 + 2,
+            max_motor_step: motor as i32 + 2,
+            max_magnetic_step: magnetic as i32 + 2,
+        }
+    }
+}
+
+/// All mutable state of the control path (snapshot-able by the simulator).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct State {
+    motor_ext: Extender16,
+    magnetic_ext: Extender16,
+    last_grating: Option<(i32, i32)>,
+    origin: Origin,
+    x1: Kinematics,
+    x2: Kinematics,
+    phi: Kinematics,
+    jae: JaeState,
+    tension: TensionState,
+    dob: DobState,
+    cascade: CascadeState,
+    last_current_a: f32,
+    tick: u32,
+    command_tick: u32,
+    primed: bool,
+    fault: Option<Fault>,
+}
+
+/// The controller: configuration, derived constants, command and state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Controller {
+    config: Config,
+    derived: Derived,
+    command: Command,
+    state: State,
+}
+
+impl Controller {
+    /// Validate the configuration and build a controller in [`Mode::Idle`].
+    pub fn new(config: Config) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(Self {
+            derived: Derived::new(&config),
+            config,
+            command: Command::default(),
+            state: State::default(),
+        })
+    }
+
+    /// The configuration in force.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The command in force.
+    pub fn command(&self) -> Command {
+        self.command
+    }
+
+    /// The latched fault, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        self.state.fault
+    }
+
+    /// Control period, s.
+    pub fn period_s(&self) -> f32 {
+        self.derived.period_s
+    }
+
+    /// Replace the configuration (e.g. new identified parameters). Filters
+    /// keep their state; the cascade integrator is kept (bumpless).
+    pub fn set_config(&mut self, config: Config) -> Result<(), ConfigError> {
+        config.validate()?;
+        self.derived = Derived::new(&config);
+        self.config = config;
+        Ok(())
+    }
+
+    /// Start a new command; its trajectory time starts now. Leaving
+    /// [`Mode::Idle`] starts the velocity integrator from zero.
+    pub fn set_command(&mut self, command: Command) {
+        if command.mode != self.command.mode {
+            self.state.cascade = CascadeState::default();
+        } else {
+            self.state.cascade.primed = false;
+        }
+        self.command = command;
+        self.state.command_tick = self.state.tick;
+    }
+
+    /// Latch an external fault (drive fault line, overrun, origin switch).
+    /// The next step outputs zero current with the drive disabled.
+    pub fn report_fault(&mut self, fault: Fault) {
+        if self.state.fault.is_none() {
+            self.state.fault = Some(fault);
+        }
+    }
+
+    /// Clear a latched fault and fall back to [`Mode::Idle`]; the operator
+    /// must command a mode again.
+    pub fn clear_fault(&mut self) {
+        self.state.fault = None;
+        self.set_command(Command::default());
+    }
+
+    /// Homing: take `raw` as the origin of every counter. Estimators restart
+    /// from rest at zero.
+    pub fn set_origin(&mut self, raw: &RawSample) {
+        let mut motor_ext = Extender16::default();
+        let mut magnetic_ext = Extender16::default();
+        let (motor, _) = motor_ext.update(raw.motor.0);
+        let (magnetic, _) = magnetic_ext.update(raw.magnetic.0);
+        let fault = self.state.fault;
+        let tick = self.state.tick;
+        self.state = State {
+            motor_ext,
+            magnetic_ext,
+            origin: Origin {
+                grating1: raw.grating1.0,
+                grating2: raw.grating2.0,
+                motor,
+                magnetic,
+            },
+            fault,
+            tick,
+            command_tick: tick,
+            ..State::default()
+        };
+        self.state.primed = false;
+    }
+
+    /// Trajectory time of the command in force, s.
+    fn command_time_s(&self) -> f32 {
+        self.state.tick.wrapping_sub(self.state.command_tick) as f32 * self.derived.period_s
+    }
+
+    /// One control tick (see [`Controller::step_timed`]).
+    #[inline]
+    pub fn step(&mut self, raw: &RawSample) -> Output {
+        self.step_timed(raw, &mut NoTimer)
+    }
+
+    /// One control tick with stage marks for timing.
+    pub fn step_timed(&mut self, raw: &RawSample, timer: &mut impl StageTimer) -> Output {
+        timer.mark(Stage::Start);
+        let cfg = &self.config;
+        let d = &self.derived;
+        let st = &mut self.state;
+        let mut fault = None;
+
+        // --- Sensing ---------------------------------------------------------
+        let (motor_c, motor_step) = st.motor_ext.update(raw.motor.0);
+        let (mag_c, mag_step) = st.magnetic_ext.update(raw.magnetic.0);
+        if let Some((g1, g2)) = st.last_grating {
+            if raw.grating1.0.wrapping_sub(g1).unsigned_abs() > d.max_grating_step as u32 {
+                fault = Some(Fault::EncoderJump(Sensor::Grating1));
+            } else if raw.grating2.0.wrapping_sub(g2).unsigned_abs() > d.max_grating_step as u32 {
+                fault = Some(Fault::EncoderJump(Sensor::Grating2));
+            }
+        }
+        if motor_step.unsigned_abs() > d.max_motor_step as u32 {
+            fault = fault.or(Some(Fault::EncoderJump(Sensor::Motor)));
+        }
+        if mag_step.unsigned_abs() > d.max_magnetic_step as u32 {
+            fault = fault.or(Some(Fault::EncoderJump(Sensor::Magnetic)));
+        }
+        st.last_grating = Some((raw.grating1.0, raw.grating2.0));
+        if cfg.scales.adc_at_rail(raw.current) {
+            fault = fault.or(Some(Fault::AdcRail));
+        }
+        let s = &cfg.scales;
+        let x1_m = s.grating_m(GratingCount(
+            raw.grating1.0.wrapping_sub(st.origin.grating1),
+        ));
+        let x2_m = s.grating_m(GratingCount(
+            raw.grating2.0.wrapping_sub(st.origin.grating2),
+        ));
+        let phi_rad = s.motor_rad(motor_c.wrapping_sub(st.origin.motor));
+        let theta_mag_rad = s.magnetic_rad(mag_c.wrapping_sub(st.origin.magnetic));
+        let i_meas_a = s.adc_a(raw.current);
+        if !st.primed {
+            d.grating_obs.reset(&mut st.x1, x1_m);
+            d.grating_obs.reset(&mut st.x2, x2_m);
+            d.motor_obs.reset(&mut st.phi, phi_rad);
+        }
+        let x1 = d.grating_obs.update(&mut st.x1, x1_m);
+        let x2 = d.grating_obs.update(&mut st.x2, x2_m);
+        let phi = d.motor_obs.update(&mut st.phi, phi_rad);
+        if math::abs(phi.vel) > cfg.limits.max_motor_speed_rad_s {
+            fault = fault.or(Some(Fault::Overspeed));
+        }
+        timer.mark(Stage::Sensing);
+
+        // --- JAE -------------------------------------------------------------
+        let theta_hat_rad = jae::estimate(&cfg.jae, &mut st.jae, x2_m, &x2);
+        let theta_motor_rad = cfg.machine.joint_rad_from_motor_rad(phi_rad);
+        if math::abs(theta_hat_rad) > cfg.limits.max_joint_angle_rad {
+            fault = fault.or(Some(Fault::AngleRange));
+        }
+        timer.mark(Stage::Jae);
+
+        // --- Tension model and DOB ---------------------------------------------
+        let model_n = dob::tension_model(&cfg.tension, &mut st.tension, x1.vel, x2_m, x2.vel);
+        if !st.primed {
+            d.dob.reset(&mut st.dob, model_n);
+            st.last_current_a = 0.0;
+        }
+        let drive_current = if cfg.dob.use_measured_current {
+            i_meas_a
+        } else {
+            st.last_current_a
+        };
+        let dob_out: DobOut = d.dob.update(&mut st.dob, drive_current, phi.vel, model_n);
+        timer.mark(Stage::Dob);
+
+        // --- Reference and cascade -------------------------------------------
+        let t_cmd = st.tick.wrapping_sub(st.command_tick) as f32 * d.period_s;
+        let reference = match self.command.mode {
+            Mode::Idle => Reference {
+                angle_rad: theta_hat_rad,
+                vel_rad_s: 0.0,
+            },
+            _ => self.command.trajectory.at(t_cmd),
+        };
+        let feedback = match self.command.mode {
+            Mode::JointClosedLoop => theta_hat_rad,
+            _ => theta_motor_rad,
+        };
+        let m = &cfg.machine;
+        let current_ff_a = if cfg.cascade.tension_feedforward {
+            (model_n * m.rope_wheel_radius_m / m.gear_ratio + cfg.dob.viscous_nm_s_rad * phi.vel)
+                / m.torque_constant_nm_a
+        } else {
+            0.0
+        };
+        let casc = cascade::step(
+            &cfg.cascade,
+            &mut st.cascade,
+            &CascadeIn {
+                angle_ref_rad: reference.angle_rad,
+                vel_ref_rad_s: reference.vel_rad_s,
+                angle_fb_rad: feedback,
+                motor_vel_rad_s: phi.vel,
+                current_ff_a,
+                motor_per_joint: d.motor_per_joint,
+            },
+            d.period_s,
+        );
+
+        let est = Estimates {
+            t_s: st.tick as f32 * d.period_s,
+            theta_ref_rad: reference.angle_rad,
+            theta_hat_rad,
+            theta_motor_rad,
+            theta_mag_rad,
+            x1_m,
+            x2_m,
+            x1_vel_m_s: x1.vel,
+            x1_acc_m_s2: x1.acc,
+            x2_vel_m_s: x2.vel,
+            x2_acc_m_s2: x2.acc,
+            phi_rad,
+            phi_vel_rad_s: phi.vel,
+            phi_acc_rad_s2: phi.acc,
+            i_meas_a,
+            motor_vel_ref_rad_s: casc.motor_vel_ref_rad_s,
+            load_torque_nm: dob_out.load_torque_nm,
+            tension1_n: dob_out.tension1_n,
+            tension1_model_n: dob_out.tension1_model_n,
+            f_ext_hat_n: dob_out.f_ext_n,
+        };
+        let finite = casc.current_a.is_finite()
+            && theta_hat_rad.is_finite()
+            && dob_out.f_ext_n.is_finite()
+            && dob_out.tension1_n.is_finite()
+            && x1.acc.is_finite()
+            && phi.acc.is_finite();
+        if !finite {
+            fault = fault.or(Some(Fault::NonFinite));
+            // Restart the estimators from the measurements on the next tick.
+            st.primed = false;
+        } else {
+            st.primed = true;
+        }
+        if st.fault.is_none() {
+            st.fault = fault;
+        }
+
+        let enabled = st.fault.is_none() && self.command.mode != Mode::Idle;
+        let current_ref_a = if enabled { casc.current_a } else { 0.0 };
+        if !enabled {
+            st.cascade = CascadeState::default();
+        }
+        st.last_current_a = current_ref_a;
+        st.tick = st.tick.wrapping_add(1);
+        timer.mark(Stage::Cascade);
+        Output {
+            current_ref_a,
+            dac: s.dac_code(current_ref_a),
+            drive_enable: enabled,
+            fault: st.fault,
+            mode: self.command.mode,
+            est,
+        }
+    }
+
+    /// Time since the command in force started, s.
+    pub fn command_elapsed_s(&self) -> f32 {
+        self.command_time_s()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at_rest() -> RawSample {
+        RawSample {
+            current: AdcCode(2048),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn idle_outputs_zero_with_drive_disabled() {
+        let mut c = Controller::new(Config::default()).unwrap();
+        for _ in 0..10 {
+            let out = c.step(&at_rest());
+            assert_eq!(out.current_ref_a, 0.0);
+            assert!(!out.drive_enable);
+            assert_eq!(out.fault, None);
+        }
+    }
+
+    #[test]
+    fn encoder_jump_disables_drive_in_the_same_tick_and_latches() {
+        let mut c = Controller::new(Config::default()).unwrap();
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Hold { angle_rad: 0.1 },
+        });
+        let mut raw = at_rest();
+        let out = c.step(&raw);
+        assert!(out.drive_enable && out.current_ref_a != 0.0);
+        raw.grating2 = GratingCount(5000); // 5 mm in 0.5 ms: impossible
+        let out = c.step(&raw);
+        assert_eq!(out.fault, Some(Fault::EncoderJump(Sensor::Grating2)));
+        assert!(!out.drive_enable);
+        assert_eq!(out.current_ref_a, 0.0);
+        assert_eq!(out.dac, c.config().scales.dac_code(0.0));
+        for _ in 0..100 {
+            let out = c.step(&raw);
+            assert!(!out.drive_enable, "does not re-enable on its own");
+        }
+        c.clear_fault();
+        let out = c.step(&raw);
+        assert_eq!(
+            (out.fault, out.mode, out.drive_enable),
+            (None, Mode::Idle, false)
+        );
+    }
+
+    #[test]
+    fn adc_rail_is_a_fault() {
+        let mut c = Controller::new(Config::default()).unwrap();
+        c.set_command(Command {
+            mode: Mode::JointClosedLoop,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        });
+        let out = c.step(&RawSample {
+            current: AdcCode(4095),
+            ..Default::default()
+        });
+        assert_eq!(out.fault, Some(Fault::AdcRail));
+        assert_eq!(out.current_ref_a, 0.0);
+    }
+
+    #[test]
+    fn motor_counter_wrap_is_not_a_jump() {
+        let mut c = Controller::new(Config::default()).unwrap();
+        let mut raw = at_rest();
+        raw.motor = MotorCount(65530);
+        c.step(&raw);
+        c.set_origin(&raw);
+        for k in 1..200u16 {
+            raw.motor = MotorCount(65530u16.wrapping_add(k * 3));
+            let out = c.step(&raw);
+            assert_eq!(out.fault, None);
+            assert!((out.est.phi_rad - c.config().scales.motor_rad(k as i32 * 3)).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn external_fault_latches() {
+        let mut c = Controller::new(Config::default()).unwrap();
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        });
+        c.step(&at_rest());
+        c.report_fault(Fault::DriveFault);
+        let out = c.step(&at_rest());
+        assert_eq!(out.fault, Some(Fault::DriveFault));
+        assert!(!out.drive_enable);
+    }
+}

@@ -3,6 +3,10 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+#[cfg(test)]
+extern crate std;
+
+pub mod cascade;
 pub mod config;
 pub mod controller;
 pub mod dob;
@@ -10,11 +14,12 @@ pub mod effects;
 pub mod fault;
 pub mod filter;
 pub mod jae;
-pub mod cascade;
 pub mod lsq;
 pub mod math;
 pub mod trajectory;
 pub mod units;
+
+pub use controller::{Command, Controller, Estimates, Mode, Output, RawSample, Stage, StageTimer};
 
 pub use config::{Config, ConfigError};
 

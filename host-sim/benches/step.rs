@@ -1,0 +1,49 @@
+//! `cargo bench -p host-sim --bench step`: host cost of one control step.
+//!
+//! The step is fed a recorded-style sample stream (a slow sine on every
+//! counter) in joint closed-loop mode, so every stage of the control path runs.
+
+use cable_joint::trajectory::Trajectory;
+use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount};
+use cable_joint::{Command, Config, Controller, Mode, RawSample};
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+
+fn samples(n: usize) -> Vec<RawSample> {
+    (0..n)
+        .map(|k| {
+            let t = k as f32 / 2000.0;
+            let s = libm::sinf(2.0 * std::f32::consts::PI * t);
+            RawSample {
+                grating1: GratingCount((2000.0 * s) as i32),
+                grating2: GratingCount((1900.0 * s) as i32),
+                motor: MotorCount((12_000.0 * s) as i32 as u16),
+                magnetic: MagneticCount((300.0 * s) as i32 as u16),
+                current: AdcCode(2048 + (100.0 * s) as u16),
+            }
+        })
+        .collect()
+}
+
+fn bench_step(c: &mut Criterion) {
+    let input = samples(4096);
+    let mut ctl = Controller::new(Config::default()).expect("default config is valid");
+    ctl.set_command(Command {
+        mode: Mode::JointClosedLoop,
+        trajectory: Trajectory::Sine {
+            offset_rad: 0.0,
+            amplitude_rad: 0.5,
+            freq_hz: 1.0,
+        },
+    });
+    let mut k = 0usize;
+    c.bench_function("controller_step", |b| {
+        b.iter(|| {
+            let out = ctl.step(black_box(&input[k & 4095]));
+            k += 1;
+            black_box(out)
+        })
+    });
+}
+
+criterion_group!(benches, bench_step);
+criterion_main!(benches);

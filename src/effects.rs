@@ -1,1 +1,1105 @@
-//! (being written)
+//! Effect library: candidate regressor columns for the residual analysis.
+//!
+//! The seed's models (JAE Eq. 26, tension model C Eq. 24) are linear in their
+//! parameters, with regressors built from the measured signals. Effects the
+//! seed leaves out (presliding hysteresis, backlash, cable creep, winding
+//! heating, slow zero drift, nonlinear stiffness) are added the same way: each
+//! is one more column `w_k(t)` computed from the log's signals, sample by
+//! sample, with an unknown coefficient fitted by [`crate::lsq`]. The host's
+//! residual tool ranks the [`candidate_library`] against a model's residual;
+//! the selected [`Term`]s go into the configuration and the firmware evaluates
+//! them at run time with an [`EffectBank`], the same code.
+//!
+//! A term reads its input(s) from a per-sample slice of signals by index
+//! (`input`, and `aux` for products); the host maps CSV columns to indices.
+//! Configuration ([`Term`]) is apart from state ([`TermState`]).
+//!
+//! Conventions of the stateful terms: on the first sample after a reset the
+//! state is initialised from the input (filters start settled, play operators
+//! centred, the Dahl state at 0, time at 0), so a log that starts at rest has
+//! no start-up transient. `dt_s` is the time since the previous sample; a
+//! non-positive or non-finite `dt_s` advances nothing. A non-finite input
+//! returns NaN and leaves the state unchanged. First-order states are kept in
+//! `f64`: with time constants of minutes at 2 kHz the per-sample increment is
+//! far below one `f32` ulp.
+
+use core::fmt;
+
+use crate::math;
+
+/// One kind of effect column and its parameters. Widths, lengths and
+/// velocity scales are in the unit of the term's input signal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum EffectKind {
+    /// `1`: an offset (preload `F_0`, sensor zero).
+    Constant,
+    /// `u`: a stiffness (on a position), viscous friction (on a velocity), a
+    /// gain (on a current or a force).
+    Linear,
+    /// `t / scale_s`, `t` the time since the reset: a linear zero drift
+    /// (seed 001's sensor zero-drift); `scale_s = 3600` gives drift per hour.
+    Time {
+        /// Time unit of the coefficient, s.
+        scale_s: f32,
+    },
+    /// `1 - exp(-t / tau_s)`: a warm-up drift that settles after power-on.
+    Warmup {
+        /// Settling time constant, s.
+        tau_s: f32,
+    },
+    /// `tanh(v / v_eps)`: Coulomb friction with a smooth sign (seed's
+    /// `f_sc sgn(x')`), `v_eps` the velocity below which it is linear.
+    SmoothSign {
+        /// Smoothing velocity (input unit).
+        v_eps: f32,
+    },
+    /// `exp(-(v / v_s)^2) tanh(v / v_eps)`: the Stribeck excess of static over
+    /// Coulomb friction, fading above the Stribeck velocity `v_s`.
+    Stribeck {
+        /// Stribeck velocity (input unit).
+        v_s: f32,
+        /// Smoothing velocity of the sign (input unit).
+        v_eps: f32,
+    },
+    /// Play (backlash) operator `y = clamp(y, u - w, u + w)`: the position
+    /// passed through a gap of total width `2 w` (the output lags the input by
+    /// `w` after each reversal).
+    Play {
+        /// Half width of the play, input unit.
+        half_width: f32,
+    },
+    /// Stop operator `u - play(u)`, in `[-w, w]`: elasto-plastic presliding
+    /// hysteresis, a spring of deflection up to `w` that slips beyond it
+    /// (coefficient = presliding stiffness). Equals `Linear - Play`.
+    Stop {
+        /// Slip deflection, input unit.
+        half_width: f32,
+    },
+    /// Dahl friction state `z` in `[-1, 1]`, `dz/dx = (1 - z sgn(dx)) / L`:
+    /// smooth rate-independent presliding hysteresis, `L` the displacement
+    /// over which friction builds up after a reversal (coefficient = Coulomb
+    /// level).
+    Dahl {
+        /// Characteristic length `L`, input unit.
+        length: f32,
+    },
+    /// Dead zone `u - clamp(u, c - w, c + w)`: zero inside a gap around `c`,
+    /// linear outside: backlash on a position (slack cable).
+    DeadZone {
+        /// Centre of the gap, input unit.
+        center: f32,
+        /// Half width of the gap, input unit.
+        half_width: f32,
+    },
+    /// `u * a`: load-dependent stretch (e.g. tension times position, the
+    /// stiffening or softening of a cable with load), or `u^2` with `a = u`.
+    Product,
+    /// First-order lag `y' = (u - y) / tau`: the part of a response that
+    /// follows the input slowly (viscoelastic relaxation).
+    Relaxation {
+        /// Time constant, s.
+        tau_s: f32,
+    },
+    /// `u - lag(u)`: creep, the deformation still to come after a change of
+    /// the input (cable creep under tension); decays as `exp(-t / tau)`.
+    Creep {
+        /// Time constant, s.
+        tau_s: f32,
+    },
+    /// First-order lag of `u^2` (unit DC gain): winding temperature rise
+    /// driven by `i^2 R` losses, with the thermal time constant `tau`.
+    Thermal {
+        /// Thermal time constant, s.
+        tau_s: f32,
+    },
+    /// `u |u|`: quadratic stiffening, odd in `u`.
+    SignedSquare,
+    /// `u^3`: cubic stiffening.
+    Cube,
+}
+
+/// One candidate column: a kind, its input signal index and (for
+/// [`EffectKind::Product`]) the second signal's index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Term {
+    /// What to compute.
+    pub kind: EffectKind,
+    /// Index of the input signal in the per-sample slice.
+    pub input: u8,
+    /// Index of the second signal (products only; ignored otherwise).
+    pub aux: u8,
+}
+
+/// State of one [`Term`] (zero-size in meaning for stateless kinds).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TermState {
+    started: bool,
+    /// Filter output, play output or Dahl state.
+    y: f64,
+    /// Previous input (Dahl) or elapsed time (Time, Warmup), s.
+    aux: f64,
+    /// Step of the cached filter coefficient and the coefficient.
+    dt_cached_s: f32,
+    alpha: f64,
+}
+
+/// Why a term set was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EffectError {
+    /// A term reads a signal index that the sample will not have.
+    InputOutOfRange {
+        /// Position of the term in the set.
+        term: u8,
+        /// The index it reads.
+        index: u8,
+        /// Number of signals per sample.
+        n_signals: u8,
+    },
+    /// A width, length, velocity scale or time constant is not finite and
+    /// positive.
+    BadParameter {
+        /// Position of the term in the set.
+        term: u8,
+        /// Name of the parameter.
+        name: &'static str,
+    },
+    /// More terms than the bank holds.
+    TooManyTerms {
+        /// Terms given.
+        given: usize,
+        /// Capacity `M`.
+        capacity: usize,
+    },
+}
+
+impl fmt::Display for EffectError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            EffectError::InputOutOfRange {
+                term,
+                index,
+                n_signals,
+            } => write!(
+                f,
+                "term {term} reads signal {index}, but a sample has {n_signals} signals"
+            ),
+            EffectError::BadParameter { term, name } => {
+                write!(f, "term {term}: `{name}` must be finite and positive")
+            }
+            EffectError::TooManyTerms { given, capacity } => {
+                write!(f, "{given} terms given, the bank holds {capacity}")
+            }
+        }
+    }
+}
+
+/// `1 - exp(-x)` for `x >= 0` in `f64`, accurate also for tiny `x` (where
+/// `1 - exp(-x)` in `f32` would lose all digits): a Taylor series of
+/// `-expm1(-x)` (plain arithmetic) below 0.25, the `f32` exponential above.
+fn one_minus_exp_neg(x: f64) -> f64 {
+    if x >= 0.25 {
+        return 1.0 - f64::from(math::exp(-(x as f32)));
+    }
+    // x - x^2/2 + x^3/6 - ... ; 10 terms: truncation below 0.25^11/11! ~ 1e-14.
+    let (mut term, mut sum) = (x, x);
+    for k in 2..=10 {
+        term *= -x / k as f64;
+        sum += term;
+    }
+    sum
+}
+
+impl EffectKind {
+    /// Short name for reports and CSV headers.
+    pub const fn name(&self) -> &'static str {
+        match self {
+            EffectKind::Constant => "const",
+            EffectKind::Linear => "linear",
+            EffectKind::Time { .. } => "time",
+            EffectKind::Warmup { .. } => "warmup",
+            EffectKind::SmoothSign { .. } => "coulomb",
+            EffectKind::Stribeck { .. } => "stribeck",
+            EffectKind::Play { .. } => "play",
+            EffectKind::Stop { .. } => "stop",
+            EffectKind::Dahl { .. } => "dahl",
+            EffectKind::DeadZone { .. } => "deadzone",
+            EffectKind::Product => "product",
+            EffectKind::Relaxation { .. } => "relax",
+            EffectKind::Creep { .. } => "creep",
+            EffectKind::Thermal { .. } => "thermal",
+            EffectKind::SignedSquare => "sqr_sign",
+            EffectKind::Cube => "cube",
+        }
+    }
+
+    /// One-sentence physical meaning for reports.
+    pub const fn meaning(&self) -> &'static str {
+        match self {
+            EffectKind::Constant => "constant offset (preload, sensor zero)",
+            EffectKind::Linear => "linear in the signal: stiffness, viscous friction or gain",
+            EffectKind::Time { .. } => "linear drift of the zero over time",
+            EffectKind::Warmup { .. } => "exponentially settling drift after power-on (warm-up)",
+            EffectKind::SmoothSign { .. } => {
+                "Coulomb friction with a smoothed sign of the velocity"
+            }
+            EffectKind::Stribeck { .. } => {
+                "Stribeck excess of static over Coulomb friction at low speed"
+            }
+            EffectKind::Play { .. } => "position passed through a backlash gap (play operator)",
+            EffectKind::Stop { .. } => "elasto-plastic presliding hysteresis (stop operator)",
+            EffectKind::Dahl { .. } => {
+                "Dahl presliding friction state building up over a characteristic length"
+            }
+            EffectKind::DeadZone { .. } => "dead zone on a position: slack cable or backlash",
+            EffectKind::Product => "product of two signals: load-dependent stretch or stiffness",
+            EffectKind::Relaxation { .. } => {
+                "first-order lagged copy of the signal: viscoelastic relaxation"
+            }
+            EffectKind::Creep { .. } => {
+                "signal minus its lagged copy: creep still to come after a change"
+            }
+            EffectKind::Thermal { .. } => {
+                "first-order lag of the squared current: winding temperature rise"
+            }
+            EffectKind::SignedSquare => "odd quadratic stiffening",
+            EffectKind::Cube => "cubic stiffening",
+        }
+    }
+
+    /// Whether the kind reads its `input` signal.
+    pub const fn uses_input(&self) -> bool {
+        !matches!(
+            self,
+            EffectKind::Constant | EffectKind::Time { .. } | EffectKind::Warmup { .. }
+        )
+    }
+
+    /// The positive parameters of the kind, with their names.
+    fn positive_params(&self) -> [(&'static str, f32); 2] {
+        const NONE: (&str, f32) = ("", 1.0);
+        match *self {
+            EffectKind::Time { scale_s } => [("scale_s", scale_s), NONE],
+            EffectKind::Warmup { tau_s }
+            | EffectKind::Relaxation { tau_s }
+            | EffectKind::Creep { tau_s }
+            | EffectKind::Thermal { tau_s } => [("tau_s", tau_s), NONE],
+            EffectKind::SmoothSign { v_eps } => [("v_eps", v_eps), NONE],
+            EffectKind::Stribeck { v_s, v_eps } => [("v_s", v_s), ("v_eps", v_eps)],
+            EffectKind::Play { half_width } | EffectKind::Stop { half_width } => {
+                [("half_width", half_width), NONE]
+            }
+            EffectKind::DeadZone { center, half_width } => {
+                // The centre may be any finite value: map finite to 1.
+                let c = if center.is_finite() { 1.0 } else { f32::NAN };
+                [("half_width", half_width), ("center", c)]
+            }
+            EffectKind::Dahl { length } => [("length", length), NONE],
+            EffectKind::Constant
+            | EffectKind::Linear
+            | EffectKind::Product
+            | EffectKind::SignedSquare
+            | EffectKind::Cube => [NONE, NONE],
+        }
+    }
+}
+
+impl Term {
+    /// A constant-1 term (also the filler of unused bank slots).
+    pub const CONSTANT: Term = Term {
+        kind: EffectKind::Constant,
+        input: 0,
+        aux: 0,
+    };
+
+    /// A single-input term.
+    pub const fn new(kind: EffectKind, input: u8) -> Self {
+        Self {
+            kind,
+            input,
+            aux: 0,
+        }
+    }
+
+    /// The product `signal[a] * signal[b]`.
+    pub const fn product(a: u8, b: u8) -> Self {
+        Self {
+            kind: EffectKind::Product,
+            input: a,
+            aux: b,
+        }
+    }
+
+    /// Short name of the kind.
+    pub const fn name(&self) -> &'static str {
+        self.kind.name()
+    }
+
+    /// One-sentence meaning of the kind.
+    pub const fn meaning(&self) -> &'static str {
+        self.kind.meaning()
+    }
+
+    /// Check the indices against `n_signals` and the parameters (`term` is the
+    /// position reported in the error).
+    pub fn validate(&self, term: usize, n_signals: usize) -> Result<(), EffectError> {
+        let term_u8 = term.min(u8::MAX as usize) as u8;
+        let out = |index: u8| EffectError::InputOutOfRange {
+            term: term_u8,
+            index,
+            n_signals: n_signals.min(u8::MAX as usize) as u8,
+        };
+        if self.kind.uses_input() && self.input as usize >= n_signals {
+            return Err(out(self.input));
+        }
+        if self.kind == EffectKind::Product && self.aux as usize >= n_signals {
+            return Err(out(self.aux));
+        }
+        for (name, v) in self.kind.positive_params() {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(EffectError::BadParameter {
+                    term: term_u8,
+                    name,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Compute this term's column for one sample and advance its state.
+    /// Out-of-range indices read 0 (validate first to rule them out).
+    pub fn update(&self, state: &mut TermState, signals: &[f32], dt_s: f32) -> f32 {
+        let u = signals.get(self.input as usize).copied().unwrap_or(0.0);
+        if self.kind.uses_input() && !u.is_finite() {
+            return f32::NAN;
+        }
+        let dt_s = if dt_s > 0.0 && dt_s.is_finite() {
+            dt_s
+        } else {
+            0.0
+        };
+        let first = !state.started;
+        state.started = true;
+        match self.kind {
+            EffectKind::Constant => 1.0,
+            EffectKind::Linear => u,
+            EffectKind::Time { scale_s } => {
+                if !first {
+                    state.aux += f64::from(dt_s);
+                }
+                (state.aux / f64::from(scale_s)) as f32
+            }
+            EffectKind::Warmup { tau_s } => {
+                state.y = if first {
+                    0.0
+                } else {
+                    lag(state, state.y, 1.0, dt_s, tau_s)
+                };
+                state.y as f32
+            }
+            EffectKind::SmoothSign { v_eps } => math::tanh(u / v_eps),
+            EffectKind::Stribeck { v_s, v_eps } => {
+                let r = u / v_s;
+                math::exp(-r * r) * math::tanh(u / v_eps)
+            }
+            EffectKind::Play { half_width } => play(state, u, half_width, first) as f32,
+            EffectKind::Stop { half_width } => {
+                (f64::from(u) - play(state, u, half_width, first)) as f32
+            }
+            EffectKind::Dahl { length } => {
+                let x = f64::from(u);
+                if first {
+                    state.y = 0.0;
+                } else {
+                    let dx = x - state.aux;
+                    if dx != 0.0 {
+                        // Exact solution over a monotone step:
+                        // z = s - (s - z0) exp(-|dx| / L).
+                        let s = if dx > 0.0 { 1.0 } else { -1.0 };
+                        let a =
+                            one_minus_exp_neg(if dx > 0.0 { dx } else { -dx } / f64::from(length));
+                        state.y += (s - state.y) * a;
+                    }
+                }
+                state.aux = x;
+                state.y as f32
+            }
+            EffectKind::DeadZone { center, half_width } => {
+                u - math::clamp(u, center - half_width, center + half_width)
+            }
+            EffectKind::Product => {
+                let a = signals.get(self.aux as usize).copied().unwrap_or(0.0);
+                u * a
+            }
+            EffectKind::Relaxation { tau_s } => {
+                let x = f64::from(u);
+                state.y = if first {
+                    x
+                } else {
+                    lag(state, state.y, x, dt_s, tau_s)
+                };
+                state.y as f32
+            }
+            EffectKind::Creep { tau_s } => {
+                let x = f64::from(u);
+                state.y = if first {
+                    x
+                } else {
+                    lag(state, state.y, x, dt_s, tau_s)
+                };
+                (x - state.y) as f32
+            }
+            EffectKind::Thermal { tau_s } => {
+                let x = f64::from(u) * f64::from(u);
+                state.y = if first {
+                    x
+                } else {
+                    lag(state, state.y, x, dt_s, tau_s)
+                };
+                state.y as f32
+            }
+            EffectKind::SignedSquare => u * math::abs(u),
+            EffectKind::Cube => u * u * u,
+        }
+    }
+}
+
+/// One step of `y' = (x - y) / tau` with this sample's input `x` held since the
+/// previous sample (exact for a piecewise-constant input): `y += (1 - exp(-dt/tau)) (x - y)`. The
+/// coefficient is cached for the last `dt`.
+fn lag(state: &mut TermState, y: f64, x: f64, dt_s: f32, tau_s: f32) -> f64 {
+    if dt_s != state.dt_cached_s {
+        state.dt_cached_s = dt_s;
+        state.alpha = one_minus_exp_neg(f64::from(dt_s) / f64::from(tau_s));
+    }
+    y + state.alpha * (x - y)
+}
+
+/// Play operator: the output stays put until the input is more than `w` away,
+/// then is dragged along at distance `w`.
+fn play(state: &mut TermState, u: f32, w: f32, first: bool) -> f64 {
+    let x = f64::from(u);
+    let w = f64::from(w);
+    // max/min, not clamp: no panic even for an unvalidated negative width.
+    state.y = if first {
+        x
+    } else {
+        state.y.max(x - w).min(x + w)
+    };
+    state.y
+}
+
+impl fmt::Display for Term {
+    /// `name[input]` with the parameters, e.g. `creep[3](tau=12.5s)`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let n = self.name();
+        match self.kind {
+            EffectKind::Constant => write!(f, "{n}"),
+            EffectKind::Time { scale_s } => write!(f, "{n}(per {scale_s}s)"),
+            EffectKind::Warmup { tau_s } => write!(f, "{n}(tau={tau_s}s)"),
+            EffectKind::Linear | EffectKind::SignedSquare | EffectKind::Cube => {
+                write!(f, "{n}[{}]", self.input)
+            }
+            EffectKind::Product => write!(f, "{n}[{}*{}]", self.input, self.aux),
+            EffectKind::SmoothSign { v_eps } => write!(f, "{n}[{}](eps={v_eps:e})", self.input),
+            EffectKind::Stribeck { v_s, v_eps } => {
+                write!(f, "{n}[{}](vs={v_s:e},eps={v_eps:e})", self.input)
+            }
+            EffectKind::Play { half_width } | EffectKind::Stop { half_width } => {
+                write!(f, "{n}[{}](w={half_width:e})", self.input)
+            }
+            EffectKind::Dahl { length } => write!(f, "{n}[{}](L={length:e})", self.input),
+            EffectKind::DeadZone { center, half_width } => {
+                write!(f, "{n}[{}](c={center:e},w={half_width:e})", self.input)
+            }
+            EffectKind::Relaxation { tau_s }
+            | EffectKind::Creep { tau_s }
+            | EffectKind::Thermal { tau_s } => write!(f, "{n}[{}](tau={tau_s}s)", self.input),
+        }
+    }
+}
+
+/// Up to `M` terms with their states: computes all selected columns of one
+/// sample.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EffectBank<const M: usize> {
+    terms: [Term; M],
+    states: [TermState; M],
+    len: usize,
+}
+
+impl<const M: usize> EffectBank<M> {
+    /// A bank of `terms`, validated against `n_signals` signals per sample.
+    pub fn new(terms: &[Term], n_signals: usize) -> Result<Self, EffectError> {
+        if terms.len() > M {
+            return Err(EffectError::TooManyTerms {
+                given: terms.len(),
+                capacity: M,
+            });
+        }
+        let mut bank = Self {
+            terms: [Term::CONSTANT; M],
+            states: [TermState::default(); M],
+            len: terms.len(),
+        };
+        for (k, (t, slot)) in terms.iter().zip(bank.terms.iter_mut()).enumerate() {
+            t.validate(k, n_signals)?;
+            *slot = *t;
+        }
+        Ok(bank)
+    }
+
+    /// The terms, in column order.
+    pub fn terms(&self) -> &[Term] {
+        self.terms.get(..self.len).unwrap_or(&[])
+    }
+
+    /// Number of terms (columns).
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the bank has no terms.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Compute the columns of one sample into `out` (as many as fit) and
+    /// advance the states; returns the number of columns written.
+    pub fn update(&mut self, signals: &[f32], dt_s: f32, out: &mut [f32]) -> usize {
+        let mut n = 0;
+        for ((t, s), o) in self
+            .terms
+            .iter()
+            .zip(self.states.iter_mut())
+            .take(self.len)
+            .zip(out.iter_mut())
+        {
+            *o = t.update(s, signals, dt_s);
+            n += 1;
+        }
+        n
+    }
+
+    /// Forget all states (the next sample re-initialises them).
+    pub fn reset(&mut self) {
+        self.states = [TermState::default(); M];
+    }
+}
+
+/// A signal of the log for the [`candidate_library`]: its index and the range
+/// it covers in the data at hand.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SignalRange {
+    /// Index in the per-sample slice.
+    pub index: u8,
+    /// Smallest value in the log.
+    pub min: f32,
+    /// Largest value in the log.
+    pub max: f32,
+}
+
+impl SignalRange {
+    fn span(&self) -> Option<f32> {
+        let s = self.max - self.min;
+        (s > 0.0 && s.is_finite()).then_some(s)
+    }
+
+    fn magnitude(&self) -> f32 {
+        let (a, b) = (math::abs(self.min), math::abs(self.max));
+        if a > b {
+            a
+        } else {
+            b
+        }
+    }
+}
+
+/// What the [`candidate_library`] knows about a log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LibrarySpec {
+    /// A position signal (e.g. `x2_m`), or none.
+    pub position: Option<SignalRange>,
+    /// A velocity signal (e.g. the differentiated `x2`), or none.
+    pub velocity: Option<SignalRange>,
+    /// A motor current signal (`i_ref_a` / `i_meas_a`), or none.
+    pub current: Option<SignalRange>,
+    /// A load signal (tension or force), or none.
+    pub load: Option<SignalRange>,
+    /// Sample period, s.
+    pub sample_period_s: f32,
+    /// Length of the log, s.
+    pub duration_s: f32,
+}
+
+/// Capacity of the [`candidate_library`].
+pub const LIBRARY_MAX: usize = 40;
+
+/// The standard candidate set for a log, with widths scaled to each signal's
+/// range and time constants spread between the sample rate and the log length:
+///
+/// * always: `const`, `time` (per hour), `warmup` at three time constants;
+/// * position: linear, `sqr_sign`, `cube`, `stop` and `dahl` at 0.5/2/8 % of
+///   the span, `deadzone` at 1/5 % of the span (centred on 0 when the range
+///   holds 0, else mid-range), `creep` at three time constants;
+/// * velocity: linear (viscous), `coulomb` at 0.5/2 % and `stribeck` at 5/20 %
+///   of the largest speed;
+/// * current: linear, `thermal` at three time constants;
+/// * load: linear, `load x position`, `load^2`, `creep` at three time constants.
+///
+/// Time constants are `tau_lo = max(20 dt, T/100)`, `tau_hi = T/3` and their
+/// geometric mean. `play` and `relax` are left out because with the linear
+/// term present they span the same space as `stop` and `creep`. Signals with
+/// an empty range are skipped.
+pub fn candidate_library(spec: &LibrarySpec) -> heapless::Vec<Term, LIBRARY_MAX> {
+    let mut v = heapless::Vec::new();
+    // LIBRARY_MAX exceeds the largest set (34 terms), so pushes cannot fail.
+    let mut add = |t: Term| {
+        let _ = v.push(t);
+    };
+    let dt = if spec.sample_period_s > 0.0 {
+        spec.sample_period_s
+    } else {
+        1e-3
+    };
+    let t_total = if spec.duration_s > dt {
+        spec.duration_s
+    } else {
+        dt
+    };
+    let lo = (20.0 * dt).max(t_total / 100.0);
+    let hi = (t_total / 3.0).max(lo);
+    let taus = [lo, math::sqrt(lo * hi), hi];
+
+    add(Term::CONSTANT);
+    add(Term::new(EffectKind::Time { scale_s: 3600.0 }, 0));
+    for tau_s in taus {
+        add(Term::new(EffectKind::Warmup { tau_s }, 0));
+    }
+    let pos = spec.position.filter(|s| s.span().is_some());
+    if let Some(p) = pos {
+        let (i, span) = (p.index, p.span().unwrap_or(1.0));
+        add(Term::new(EffectKind::Linear, i));
+        add(Term::new(EffectKind::SignedSquare, i));
+        add(Term::new(EffectKind::Cube, i));
+        for f in [0.005, 0.02, 0.08] {
+            add(Term::new(
+                EffectKind::Stop {
+                    half_width: f * span,
+                },
+                i,
+            ));
+        }
+        for f in [0.005, 0.02, 0.08] {
+            add(Term::new(EffectKind::Dahl { length: f * span }, i));
+        }
+        let center = if p.min < 0.0 && p.max > 0.0 {
+            0.0
+        } else {
+            0.5 * (p.min + p.max)
+        };
+        for f in [0.01, 0.05] {
+            let half_width = f * span;
+            add(Term::new(EffectKind::DeadZone { center, half_width }, i));
+        }
+        for tau_s in taus {
+            add(Term::new(EffectKind::Creep { tau_s }, i));
+        }
+    }
+    if let Some(s) = spec.velocity.filter(|s| s.span().is_some()) {
+        let (i, m) = (s.index, s.magnitude());
+        add(Term::new(EffectKind::Linear, i));
+        for f in [0.005, 0.02] {
+            add(Term::new(EffectKind::SmoothSign { v_eps: f * m }, i));
+        }
+        for f in [0.05, 0.2] {
+            let kind = EffectKind::Stribeck {
+                v_s: f * m,
+                v_eps: 0.005 * m,
+            };
+            add(Term::new(kind, i));
+        }
+    }
+    if let Some(s) = spec.current.filter(|s| s.span().is_some()) {
+        add(Term::new(EffectKind::Linear, s.index));
+        for tau_s in taus {
+            add(Term::new(EffectKind::Thermal { tau_s }, s.index));
+        }
+    }
+    if let Some(s) = spec.load.filter(|s| s.span().is_some()) {
+        add(Term::new(EffectKind::Linear, s.index));
+        if let Some(p) = pos {
+            add(Term::product(s.index, p.index));
+        }
+        add(Term::product(s.index, s.index));
+        for tau_s in taus {
+            add(Term::new(EffectKind::Creep { tau_s }, s.index));
+        }
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(
+        term: Term,
+        inputs: impl IntoIterator<Item = f32>,
+        dt_s: f32,
+    ) -> heapless::Vec<f32, 4096> {
+        let mut st = TermState::default();
+        let mut out = heapless::Vec::new();
+        for u in inputs {
+            out.push(term.update(&mut st, &[u, 0.0], dt_s)).unwrap();
+        }
+        out
+    }
+
+    /// Triangle wave between -a and a, `n` samples per half period.
+    fn triangle(a: f32, n: usize, periods: usize) -> impl Iterator<Item = f32> {
+        (0..2 * n * periods + 1).map(move |k| {
+            let ph = (k % (2 * n)) as f32 / n as f32; // 0..2
+            if ph <= 1.0 {
+                -a + 2.0 * a * ph
+            } else {
+                a - 2.0 * a * (ph - 1.0)
+            }
+        })
+    }
+
+    #[test]
+    fn play_operator_gives_the_backlash_loop() {
+        let (a, w) = (1.0f32, 0.25f32);
+        let inputs: heapless::Vec<f32, 1024> = triangle(a, 100, 3).collect();
+        let play = run(
+            Term::new(EffectKind::Play { half_width: w }, 0),
+            inputs.iter().copied(),
+            1e-3,
+        );
+        let stop = run(
+            Term::new(EffectKind::Stop { half_width: w }, 0),
+            inputs.iter().copied(),
+            1e-3,
+        );
+        // After the first half period the loop is periodic: rising branch
+        // y = u - w, falling branch y = u + w, flat for 2w after each reversal.
+        for k in 200..inputs.len() {
+            let (u, y, s) = (inputs[k], play[k], stop[k]);
+            assert!((u - y - s).abs() < 1e-6, "stop = u - play at {k}");
+            assert!(s.abs() <= w + 1e-6, "stop bounded by w at {k}: {s}");
+            let ph = k % 200;
+            if (50..=100).contains(&ph) {
+                // rising, at least 2w past the minimum
+                assert!(
+                    (y - (u - w)).abs() < 1e-5,
+                    "rising branch at {k}: {y} vs {}",
+                    u - w
+                );
+            } else if ph >= 150 {
+                assert!(
+                    (y - (u + w)).abs() < 1e-5,
+                    "falling branch at {k}: {y} vs {}",
+                    u + w
+                );
+            } else if (1..25).contains(&ph) {
+                // just after the minimum: output held at -a + w
+                assert!(
+                    (y - (-a + w)).abs() < 1e-5,
+                    "held after reversal at {k}: {y}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn relaxation_and_creep_step_response() {
+        let (tau, dt) = (0.05f32, 1e-3f32);
+        let step = (0..400).map(|k| if k == 0 { 0.0 } else { 1.0 });
+        let relax = run(
+            Term::new(EffectKind::Relaxation { tau_s: tau }, 0),
+            step.clone(),
+            dt,
+        );
+        let creep = run(Term::new(EffectKind::Creep { tau_s: tau }, 0), step, dt);
+        for k in 1..400 {
+            // The input steps to 1 at sample 1 (held since sample 0).
+            let t = k as f32 * dt;
+            let want = 1.0 - math::exp(-t / tau);
+            assert!(
+                (relax[k] - want).abs() < 2e-6,
+                "relax at t={t}: {} vs {want}",
+                relax[k]
+            );
+            assert!((creep[k] - (1.0 - want)).abs() < 2e-6, "creep at t={t}");
+        }
+        // Very slow filter (tau = 1e5 samples): f32 increments would vanish.
+        let slow = run(
+            Term::new(EffectKind::Relaxation { tau_s: 100.0 }, 0),
+            (0..2001).map(|k| if k == 0 { 0.0 } else { 1.0 }),
+            5e-4,
+        );
+        let want = 1.0 - math::exp(-2000.0 * 5e-4 / 100.0);
+        assert!(
+            (slow[2000] - want).abs() / want < 1e-4,
+            "slow lag {} vs {want}",
+            slow[2000]
+        );
+    }
+
+    #[test]
+    fn thermal_steady_state_is_i_squared() {
+        let (tau, dt) = (0.2f32, 1e-3f32);
+        for i_a in [0.5f32, -1.0, 2.0] {
+            // Starts cold (zero current), then a constant current.
+            let th = run(
+                Term::new(EffectKind::Thermal { tau_s: tau }, 0),
+                (0..4000).map(|k| if k == 0 { 0.0 } else { i_a }),
+                dt,
+            );
+            let last = th[th.len() - 1];
+            assert!(
+                (last - i_a * i_a).abs() < 1e-5 * i_a * i_a,
+                "i={i_a}: {last}"
+            );
+            // One time constant in: 63 %.
+            let at_tau = th[(tau / dt + 0.5) as usize];
+            assert!((at_tau / (i_a * i_a) - (1.0 - math::exp(-1.0))).abs() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn smooth_sign_and_stribeck_shapes() {
+        let c = Term::new(EffectKind::SmoothSign { v_eps: 0.01 }, 0);
+        let s = Term::new(
+            EffectKind::Stribeck {
+                v_s: 0.1,
+                v_eps: 0.001,
+            },
+            0,
+        );
+        let mut st = TermState::default();
+        for k in -200..=200 {
+            let v = k as f32 * 1e-3;
+            let (p, n) = (
+                c.update(&mut st, &[v], 1e-3),
+                c.update(&mut st, &[-v], 1e-3),
+            );
+            assert_eq!(p, -n, "odd at v={v}");
+            assert!(p.abs() <= 1.0, "bounded");
+            let (sp, sn) = (
+                s.update(&mut st, &[v], 1e-3),
+                s.update(&mut st, &[-v], 1e-3),
+            );
+            assert_eq!(sp, -sn, "stribeck odd at v={v}");
+        }
+        assert!(
+            (c.update(&mut st, &[0.1], 0.0) - 1.0).abs() < 1e-6,
+            "saturates at 10 v_eps"
+        );
+        assert!(
+            (c.update(&mut st, &[0.001], 0.0) - 0.1).abs() < 1e-3,
+            "linear below v_eps"
+        );
+        // Stribeck: ~1 just above v_eps, exp(-1) at v_s, ~0 far above.
+        assert!((s.update(&mut st, &[0.005], 0.0) - 1.0).abs() < 0.01);
+        assert!((s.update(&mut st, &[0.1], 0.0) - math::exp(-1.0)).abs() < 1e-5);
+        assert!(s.update(&mut st, &[0.4], 0.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn dahl_saturates_in_large_motion_and_is_rate_independent() {
+        let l = 0.01f32;
+        let t = Term::new(EffectKind::Dahl { length: l }, 0);
+        let z = run(t, triangle(1.0, 500, 2), 1e-3);
+        // At the top of a stroke (200 L of travel): +1; at the bottom -1.
+        assert!((z[1500] - 1.0).abs() < 1e-6, "top {}", z[1500]);
+        assert!((z[2000] + 1.0).abs() < 1e-6, "bottom {}", z[2000]);
+        // After a reversal from +1, moving back by d: z = 1 - 2 (1 - exp(-d/L)).
+        let d = 2.0 * 10.0 / 500.0; // 10 samples of a 2/500 slope
+        let want = 1.0 - 2.0 * (1.0 - math::exp(-d / l));
+        assert!(
+            (z[1510] - want).abs() < 1e-5,
+            "after reversal {} vs {want}",
+            z[1510]
+        );
+        // Same path at a tenth of the sample density -> same z at the same x.
+        let z2 = run(t, triangle(1.0, 50, 2), 1e-3);
+        assert!((z2[151] - z[1510]).abs() < 1e-5, "rate independent");
+        // Bounded everywhere.
+        assert!(z.iter().all(|v| v.abs() <= 1.0));
+    }
+
+    #[test]
+    fn deadzone_polynomials_product_time() {
+        let dz = Term::new(
+            EffectKind::DeadZone {
+                center: 0.5,
+                half_width: 0.25,
+            },
+            0,
+        );
+        let mut st = TermState::default();
+        for (u, want) in [
+            (0.5, 0.0),
+            (0.7, 0.0),
+            (1.0, 0.25),
+            (0.0, -0.25),
+            (0.3, 0.0),
+        ] {
+            assert!(
+                (dz.update(&mut st, &[u], 1e-3) - want).abs() < 1e-6,
+                "deadzone({u})"
+            );
+        }
+        let ss = Term::new(EffectKind::SignedSquare, 0);
+        assert_eq!(ss.update(&mut st, &[-3.0], 0.0), -9.0);
+        assert_eq!(
+            Term::new(EffectKind::Cube, 0).update(&mut st, &[-2.0], 0.0),
+            -8.0
+        );
+        assert_eq!(
+            Term::product(0, 1).update(&mut st, &[3.0, -4.0], 0.0),
+            -12.0
+        );
+        // Time: 0 at the first sample, then the sum of dt, in hours.
+        let tt = run(
+            Term::new(EffectKind::Time { scale_s: 3600.0 }, 0),
+            core::iter::repeat_n(0.0, 3601),
+            1.0,
+        );
+        assert_eq!(tt[0], 0.0);
+        assert!((tt[3600] - 1.0).abs() < 1e-6);
+        // Warm-up: 1 - exp(-t/tau).
+        let wu = run(
+            Term::new(EffectKind::Warmup { tau_s: 10.0 }, 0),
+            core::iter::repeat_n(0.0, 11),
+            1.0,
+        );
+        assert!(
+            (wu[10] - (1.0 - math::exp(-1.0))).abs() < 1e-6,
+            "warmup {}",
+            wu[10]
+        );
+        // NaN input: NaN out, state kept.
+        let r = Term::new(EffectKind::Relaxation { tau_s: 1.0 }, 0);
+        let mut st = TermState::default();
+        r.update(&mut st, &[2.0], 0.1);
+        assert!(r.update(&mut st, &[f32::NAN], 0.1).is_nan());
+        assert_eq!(r.update(&mut st, &[2.0], 0.1), 2.0);
+    }
+
+    #[test]
+    fn bank_validates_and_computes() {
+        let terms = [
+            Term::CONSTANT,
+            Term::new(EffectKind::Linear, 1),
+            Term::product(0, 1),
+            Term::new(EffectKind::Creep { tau_s: 1.0 }, 0),
+        ];
+        assert_eq!(
+            EffectBank::<4>::new(&terms, 1),
+            Err(EffectError::InputOutOfRange {
+                term: 1,
+                index: 1,
+                n_signals: 1
+            })
+        );
+        assert_eq!(
+            EffectBank::<3>::new(&terms, 2),
+            Err(EffectError::TooManyTerms {
+                given: 4,
+                capacity: 3
+            })
+        );
+        let bad = [Term::new(EffectKind::Dahl { length: 0.0 }, 0)];
+        assert_eq!(
+            EffectBank::<4>::new(&bad, 2),
+            Err(EffectError::BadParameter {
+                term: 0,
+                name: "length"
+            })
+        );
+        let mut bank = EffectBank::<6>::new(&terms, 2).unwrap();
+        let mut out = [0.0; 6];
+        assert_eq!(bank.update(&[2.0, 3.0], 0.01, &mut out), 4);
+        assert_eq!(&out[..4], &[1.0, 3.0, 6.0, 0.0]);
+        bank.update(&[4.0, 3.0], 0.01, &mut out);
+        assert!(
+            out[3] > 1.9 && out[3] < 2.0,
+            "creep after a step of 2: {}",
+            out[3]
+        );
+        // Short inputs read 0 instead of panicking; short outputs get a prefix.
+        let mut short = [0.0; 2];
+        assert_eq!(bank.update(&[], 0.01, &mut short), 2);
+        assert_eq!(short, [1.0, 0.0]);
+        bank.reset();
+        bank.update(&[4.0, 3.0], 0.01, &mut out);
+        assert_eq!(out[3], 0.0, "reset re-initialises the creep filter");
+    }
+
+    #[test]
+    fn library_is_valid_and_scaled() {
+        let spec = LibrarySpec {
+            position: Some(SignalRange {
+                index: 0,
+                min: -2e-3,
+                max: 6e-3,
+            }),
+            velocity: Some(SignalRange {
+                index: 1,
+                min: -0.02,
+                max: 0.01,
+            }),
+            current: Some(SignalRange {
+                index: 2,
+                min: -1.0,
+                max: 1.5,
+            }),
+            load: Some(SignalRange {
+                index: 3,
+                min: 10.0,
+                max: 30.0,
+            }),
+            sample_period_s: 5e-4,
+            duration_s: 60.0,
+        };
+        let lib = candidate_library(&spec);
+        assert_eq!(lib.len(), 34);
+        let bank = EffectBank::<LIBRARY_MAX>::new(&lib, 4);
+        assert!(bank.is_ok(), "{:?}", bank.err());
+        for t in &lib {
+            match t.kind {
+                EffectKind::Stop { half_width } => {
+                    assert!((0.005 * 8e-3 * 0.99..=0.08 * 8e-3 * 1.01).contains(&half_width))
+                }
+                EffectKind::SmoothSign { v_eps } => assert!(v_eps <= 0.02 * 0.02 * 1.001),
+                EffectKind::Creep { tau_s } | EffectKind::Thermal { tau_s } => {
+                    assert!((0.6 * 0.99..=20.0 * 1.01).contains(&tau_s), "tau {tau_s}")
+                }
+                EffectKind::DeadZone { center, .. } => assert_eq!(center, 0.0),
+                _ => {}
+            }
+            assert!(!t.name().is_empty() && t.meaning().len() > 10);
+        }
+        // A signal without range is skipped; no signal at all leaves the
+        // time terms.
+        let empty = LibrarySpec {
+            position: None,
+            velocity: None,
+            current: None,
+            load: Some(SignalRange {
+                index: 0,
+                min: 1.0,
+                max: 1.0,
+            }),
+            ..spec
+        };
+        assert_eq!(candidate_library(&empty).len(), 5);
+    }
+}

@@ -24,6 +24,8 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     // Each helper adds its variant here: `Name(host_sim::module::Args)`.
+    /// Convert a measured run (MRDLab) to the project's CSV log.
+    Import(host_sim::import::ImportArgs),
 }
 
 fn main() -> ExitCode {
@@ -33,6 +35,7 @@ fn main() -> ExitCode {
             eprintln!("no subcommand yet");
             Ok(())
         }
+        Some(Command::Import(args)) => host_sim::import::run(args),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),
     };

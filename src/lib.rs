@@ -6,6 +6,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod board;
 pub mod cascade;
 pub mod config;
 pub mod controller;
@@ -16,6 +17,8 @@ pub mod filter;
 pub mod jae;
 pub mod lsq;
 pub mod math;
+pub mod model;
+pub mod telemetry;
 pub mod trajectory;
 pub mod units;
 

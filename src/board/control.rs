@@ -1,0 +1,337 @@
+//! One control tick, as the firmware's control task runs it.
+//!
+//! [`ControlLoop::tick`] is the body of the TIM6 task: sample the front end,
+//! latch what the fault tasks left in [`Events`], apply at most one operator
+//! [`Request`], advance the start-up [`Sequencer`], run
+//! [`Controller::step_timed`], write the DAC and the drive line, and build the
+//! raw [`TickRecord`]. The trace generator and the QEMU replay test call the
+//! same function, so the firmware's sequence is not written twice.
+
+use embedded_hal::digital::OutputPin;
+
+use crate::config::{Config, ConfigError};
+use crate::controller::{Command, Controller, Output};
+use crate::fault::Fault;
+use crate::telemetry::{OriginRecord, StartRecord, TickRecord, FORMAT_VERSION};
+
+use super::io::{DriveEnable, Events, SensorFrontEnd};
+use super::sequencer::{Phase, Program, Sequencer};
+use super::timing::{CycleCounter, StageStamps};
+
+/// An operator request, validated by the priority-1 command task and applied
+/// by the control task at the start of a tick (one per tick).
+#[derive(Clone, Copy, Debug, PartialEq)]
+// No allocator: a request (a whole `Config` at most) is copied through a
+// short queue, so the size difference is accepted.
+#[allow(clippy::large_enum_variant)]
+pub enum Request {
+    /// Run a program: sensor check, homing, then its command.
+    Program(Program),
+    /// A new mode and trajectory (accepted only once homed).
+    SetCommand(Command),
+    /// New parameters (e.g. identified ones); filters keep their state.
+    SetConfig(Config),
+    /// Clear the latched fault and start again from the check and homing.
+    ClearFault,
+    /// One telemetry record every this many ticks (at least 1).
+    SetDecimation(u32),
+}
+
+impl Request {
+    /// The command task's check before queueing (the hot path never fails).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        match self {
+            Request::SetConfig(c) => c.validate(),
+            Request::SetDecimation(0) => Err(ConfigError {
+                field: "telemetry.decimation",
+                expected: ">= 1",
+            }),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// What one tick produced.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TickOutcome {
+    /// The controller's output.
+    pub output: Output,
+    /// The raw telemetry record of this tick.
+    pub record: TickRecord,
+    /// The decimation selects this record for telemetry.
+    pub telemetry_due: bool,
+    /// Homing took this tick's sample as the origin.
+    pub origin: Option<OriginRecord>,
+}
+
+/// The control task's state: controller, start-up sequencer, telemetry
+/// decimation and tick counter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ControlLoop {
+    ctrl: Controller,
+    seq: Sequencer,
+    decimation: u32,
+    tick: u32,
+}
+
+impl ControlLoop {
+    /// A loop in [`Phase::Waiting`] (drive disabled until a program arrives).
+    pub fn new(config: Config, decimation: u32) -> Result<Self, ConfigError> {
+        Request::SetDecimation(decimation).validate()?;
+        Ok(Self {
+            ctrl: Controller::new(config)?,
+            seq: Sequencer::default(),
+            decimation,
+            tick: 0,
+        })
+    }
+
+    /// The controller.
+    pub fn controller(&self) -> &Controller {
+        &self.ctrl
+    }
+
+    /// Start-up phase.
+    pub fn phase(&self) -> Phase {
+        self.seq.phase()
+    }
+
+    /// Ticks run so far.
+    pub fn ticks(&self) -> u32 {
+        self.tick
+    }
+
+    /// The record the firmware logs once at boot.
+    pub fn start_record(&self) -> StartRecord {
+        StartRecord {
+            version: FORMAT_VERSION,
+            control_rate_hz: self.ctrl.config().control_rate_hz,
+            decimation: self.decimation,
+        }
+    }
+
+    fn apply(&mut self, request: Request) {
+        match request {
+            Request::Program(p) => self.seq.start(&mut self.ctrl, p),
+            Request::SetCommand(c) => {
+                if self.seq.phase() == Phase::Running {
+                    self.ctrl.set_command(c);
+                }
+            }
+            Request::SetConfig(c) => {
+                // Validated by the command task; a failure leaves the old one.
+                let _ = self.ctrl.set_config(c);
+            }
+            Request::ClearFault => {
+                self.ctrl.clear_fault();
+                self.seq.restart(&mut self.ctrl);
+            }
+            Request::SetDecimation(n) => self.decimation = n.max(1),
+        }
+    }
+
+    /// One control tick (the body of the control task).
+    pub fn tick<F, P, C>(
+        &mut self,
+        fe: &mut F,
+        drive: &mut DriveEnable<P>,
+        events: &Events,
+        request: Option<Request>,
+        counter: &mut C,
+    ) -> TickOutcome
+    where
+        F: SensorFrontEnd,
+        P: OutputPin,
+        C: CycleCounter,
+    {
+        let t0 = counter.now();
+        let raw = fe.sample();
+        if let Some(fault) = events.take_fault() {
+            self.ctrl.report_fault(fault);
+        }
+        if let Some(r) = request {
+            self.apply(r);
+        }
+        let edge = events.take_origin_edge();
+        let origin = self
+            .seq
+            .before_step(&mut self.ctrl, &raw, edge, events.origin_level())
+            .map(|raw| OriginRecord {
+                tick: self.tick,
+                raw,
+            });
+        let mut stamps = StageStamps::new(&mut *counter);
+        let out = self.ctrl.step_timed(&raw, &mut stamps);
+        let stage_cycles = stamps.stages_u16();
+        self.seq.after_step(&mut self.ctrl, &out, events);
+        fe.write_current(out.dac);
+        let enabled = drive.apply(out.drive_enable, events);
+        let cycles = counter.now().wrapping_sub(t0);
+
+        let record = TickRecord {
+            tick: self.tick,
+            raw,
+            inputs: events.inputs(),
+            dac: out.dac,
+            current_ref_a: out.current_ref_a,
+            theta_ref_rad: out.est.theta_ref_rad,
+            theta_hat_rad: out.est.theta_hat_rad,
+            f_ext_hat_n: out.est.f_ext_hat_n,
+            mode: out.mode.code(),
+            fault: Fault::code_of(out.fault),
+            drive_enable: enabled,
+            phase: self.seq.phase().code(),
+            cycles,
+            stage_cycles,
+        };
+        let telemetry_due = self.tick.is_multiple_of(self.decimation);
+        self.tick = self.tick.wrapping_add(1);
+        TickOutcome {
+            output: out,
+            record,
+            telemetry_due,
+            origin,
+        }
+    }
+
+    /// The control task missed its deadline: latch [`Fault::Overrun`] and cut
+    /// the drive now (the controller outputs zero from the next tick on).
+    pub fn overrun<P: OutputPin>(&mut self, drive: &mut DriveEnable<P>) {
+        self.ctrl.report_fault(Fault::Overrun);
+        drive.disable();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::board::mock::MockOut;
+    use crate::board::timing::NoCycles;
+    use crate::controller::{Mode, RawSample};
+    use crate::units::{AdcCode, DacCode};
+
+    /// A front end that holds still and counts DAC writes.
+    #[derive(Default)]
+    struct Still {
+        samples: u32,
+        dac: Option<DacCode>,
+        writes: u32,
+    }
+
+    impl SensorFrontEnd for Still {
+        fn sample(&mut self) -> RawSample {
+            self.samples += 1;
+            RawSample {
+                current: AdcCode(2048),
+                ..Default::default()
+            }
+        }
+        fn write_current(&mut self, dac: DacCode) {
+            self.dac = Some(dac);
+            self.writes += 1;
+        }
+    }
+
+    #[test]
+    fn each_tick_samples_once_writes_the_dac_once_and_drives_the_line() {
+        let mut cl = ControlLoop::new(Config::default(), 4).unwrap();
+        let mut fe = Still::default();
+        let pin = MockOut::default();
+        let mut drive = DriveEnable::new(pin.clone());
+        let events = Events::new();
+        let zero = cl.controller().config().scales.dac_code(0.0);
+        let mut due = 0;
+        for k in 0..8u32 {
+            let req = (k == 0).then_some(Request::Program(Program::default()));
+            let o = cl.tick(&mut fe, &mut drive, &events, req, &mut NoCycles);
+            assert_eq!(o.record.tick, k);
+            assert_eq!(o.record.dac, zero, "idle during the check");
+            assert!(!o.record.drive_enable);
+            assert_eq!(o.record.phase, Phase::Check.code());
+            due += o.telemetry_due as u32;
+        }
+        assert_eq!((fe.samples, fe.writes), (8, 8));
+        assert_eq!(due, 2, "decimation 4 over 8 ticks");
+        assert_eq!(pin.high_count(), 0);
+        assert_eq!(pin.low_count(), 9, "constructor + one write per tick");
+    }
+
+    #[test]
+    fn fault_left_by_a_fault_task_is_latched_at_the_next_tick() {
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        let mut fe = Still::default();
+        let pin = MockOut::default();
+        let mut drive = DriveEnable::new(pin.clone());
+        let events = Events::new();
+        cl.tick(
+            &mut fe,
+            &mut drive,
+            &events,
+            Some(Request::Program(Program::default())),
+            &mut NoCycles,
+        );
+        // Run until homing enables the drive.
+        let mut o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+        while !o.record.drive_enable {
+            o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+            assert!(o.record.tick < 200, "homing should enable the drive");
+        }
+        assert_eq!(o.output.mode, Mode::MotorPosition);
+        assert!(pin.is_high());
+        events.raise(Fault::DriveFault);
+        let o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+        assert_eq!(o.output.fault, Some(Fault::DriveFault));
+        assert_eq!(o.record.fault, Fault::DriveFault.code());
+        assert!(!o.record.drive_enable && !pin.is_high());
+        assert_eq!(o.output.current_ref_a, 0.0);
+        assert_eq!(cl.phase(), Phase::Failed);
+        // Clearing re-runs the check.
+        let o = cl.tick(
+            &mut fe,
+            &mut drive,
+            &events,
+            Some(Request::ClearFault),
+            &mut NoCycles,
+        );
+        assert_eq!((o.output.fault, cl.phase()), (None, Phase::Check));
+    }
+
+    #[test]
+    fn overrun_latches_and_cuts_the_drive() {
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        let pin = MockOut::default();
+        let mut drive = DriveEnable::new(pin.clone());
+        drive.apply(true, &Events::new());
+        assert!(pin.is_high());
+        cl.overrun(&mut drive);
+        assert!(!pin.is_high());
+        assert_eq!(cl.controller().fault(), Some(Fault::Overrun));
+    }
+
+    #[test]
+    fn requests_are_validated_and_commands_wait_for_homing() {
+        assert!(Request::SetDecimation(0).validate().is_err());
+        let mut bad = Config::default();
+        bad.machine.gear_ratio = 0.0;
+        assert_eq!(
+            Request::SetConfig(bad).validate().unwrap_err().field,
+            "machine.gear_ratio"
+        );
+        assert!(ControlLoop::new(Config::default(), 0).is_err());
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        let mut fe = Still::default();
+        let mut drive = DriveEnable::new(MockOut::default());
+        let cmd = Command {
+            mode: Mode::JointClosedLoop,
+            trajectory: crate::trajectory::Trajectory::Hold { angle_rad: 0.2 },
+        };
+        let o = cl.tick(
+            &mut fe,
+            &mut drive,
+            &Events::new(),
+            Some(Request::SetCommand(cmd)),
+            &mut NoCycles,
+        );
+        assert_eq!(o.output.mode, Mode::Idle, "not homed: refused");
+    }
+}

@@ -1,0 +1,427 @@
+//! Start-up sequence, run inside the control tick (tick-deterministic, so the
+//! trace generator, the QEMU firmware and the replay test see the same
+//! commands at the same ticks):
+//!
+//! 1. **Check** (drive disabled, [`Mode::Idle`]): the controller runs its
+//!    estimators for [`HomingConfig::check_s`]; any latched fault (ADC rail,
+//!    encoder jump, drive fault line) or a current-monitor reading above
+//!    [`HomingConfig::max_idle_current_a`] with the drive off ends start-up
+//!    with [`Fault::Homing`] (or the fault itself).
+//! 2. **Leaving** (only if the origin switch is already asserted): move away
+//!    from the switch, opposite to the search direction, until it releases.
+//! 3. **Homing**: in [`Mode::MotorPosition`], a smooth move of
+//!    [`HomingConfig::search_rad`] (joint) at up to
+//!    [`HomingConfig::speed_rad_s`]. The first rising edge of the origin
+//!    switch zeroes every counter ([`Controller::set_origin`] with that
+//!    tick's sample). No edge before the move ends (plus a margin) is
+//!    [`Fault::Homing`].
+//! 4. **Running**: the program's command. From now on a rising origin edge
+//!    farther than [`HomingConfig::origin_tolerance_rad`] from zero (by the
+//!    joint estimate) is [`Fault::OriginDuringMotion`].
+
+use crate::controller::{Command, Controller, Mode, Output, RawSample};
+use crate::fault::Fault;
+use crate::math;
+use crate::trajectory::Trajectory;
+
+use super::io::Events;
+
+/// Start-up and homing settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HomingConfig {
+    /// Sensor check with the drive disabled, s.
+    pub check_s: f32,
+    /// Largest current-monitor reading accepted with the drive disabled, A.
+    pub max_idle_current_a: f32,
+    /// Signed joint-angle span searched for the origin switch, rad.
+    pub search_rad: f32,
+    /// Peak joint speed while homing, rad/s.
+    pub speed_rad_s: f32,
+    /// After homing, an origin edge farther than this from zero (joint
+    /// estimate) is a fault, rad.
+    pub origin_tolerance_rad: f32,
+}
+
+impl Default for HomingConfig {
+    fn default() -> Self {
+        Self {
+            check_s: 0.05,
+            max_idle_current_a: 0.2,
+            search_rad: -0.8,
+            speed_rad_s: 0.5,
+            origin_tolerance_rad: 0.1,
+        }
+    }
+}
+
+/// What the firmware does after start-up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Program {
+    /// Start-up and homing.
+    pub homing: HomingConfig,
+    /// Command run once homed.
+    pub command: Command,
+}
+
+impl Default for Program {
+    /// The seed's loading protocol: move the joint to 30° in one second and
+    /// hold it there (weights are then hung on the tip).
+    fn default() -> Self {
+        Self {
+            homing: HomingConfig::default(),
+            command: Command {
+                mode: Mode::JointClosedLoop,
+                trajectory: Trajectory::PointToPoint {
+                    from_rad: 0.0,
+                    to_rad: 30.0 * math::PI / 180.0,
+                    duration_s: 1.0,
+                },
+            },
+        }
+    }
+}
+
+/// Phase of the start-up sequence.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Phase {
+    /// No program yet (drive disabled).
+    #[default]
+    Waiting,
+    /// Sensor check.
+    Check,
+    /// Moving off an already asserted origin switch.
+    Leaving,
+    /// Searching for the origin edge.
+    Homing,
+    /// Homed, running the program's command.
+    Running,
+    /// Start-up failed (a fault is latched).
+    Failed,
+}
+
+impl Phase {
+    /// Stable code for telemetry.
+    pub const fn code(self) -> u8 {
+        match self {
+            Phase::Waiting => 0,
+            Phase::Check => 1,
+            Phase::Leaving => 2,
+            Phase::Homing => 3,
+            Phase::Running => 4,
+            Phase::Failed => 5,
+        }
+    }
+
+    /// Decode a telemetry code.
+    pub const fn from_code(code: u8) -> Option<Phase> {
+        Some(match code {
+            0 => Phase::Waiting,
+            1 => Phase::Check,
+            2 => Phase::Leaving,
+            3 => Phase::Homing,
+            4 => Phase::Running,
+            5 => Phase::Failed,
+            _ => return None,
+        })
+    }
+}
+
+/// The start-up state machine (configuration: the [`Program`]; state: phase
+/// and ticks in it).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sequencer {
+    program: Option<Program>,
+    phase: Phase,
+    ticks_in_phase: u32,
+    limit_ticks: u32,
+    last_ref_rad: f32,
+}
+
+/// Ticks in `s` seconds at `period_s`, at least one.
+fn ticks(s: f32, period_s: f32) -> u32 {
+    let n = s / period_s;
+    if n >= 1.0 {
+        n as u32
+    } else {
+        1
+    }
+}
+
+impl Sequencer {
+    /// Phase in force.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// Program in force.
+    pub fn program(&self) -> Option<&Program> {
+        self.program.as_ref()
+    }
+
+    /// (Re)start the sequence with `program`: drive disabled, check first.
+    pub fn start(&mut self, ctrl: &mut Controller, program: Program) {
+        self.program = Some(program);
+        self.restart(ctrl);
+    }
+
+    /// Start again from the check (after a cleared fault).
+    pub fn restart(&mut self, ctrl: &mut Controller) {
+        ctrl.set_command(Command::default());
+        self.enter(if self.program.is_some() {
+            Phase::Check
+        } else {
+            Phase::Waiting
+        });
+    }
+
+    fn enter(&mut self, phase: Phase) {
+        self.phase = phase;
+        self.ticks_in_phase = 0;
+    }
+
+    /// A homing move of `span_rad` from the last reference, and the ticks it
+    /// may take (its duration plus 20 %).
+    fn move_by(&mut self, ctrl: &mut Controller, homing: &HomingConfig, span_rad: f32) {
+        let from_rad = self.last_ref_rad;
+        // A minimum-jerk move peaks at 1.875 times its mean speed.
+        let duration_s = 1.875 * math::abs(span_rad) / homing.speed_rad_s;
+        ctrl.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::PointToPoint {
+                from_rad,
+                to_rad: from_rad + span_rad,
+                duration_s,
+            },
+        });
+        self.limit_ticks = ticks(1.2 * duration_s, ctrl.period_s());
+    }
+
+    /// Before the step. Returns the sample taken as the origin, if homing
+    /// completed on this tick.
+    pub fn before_step(
+        &mut self,
+        ctrl: &mut Controller,
+        raw: &RawSample,
+        origin_edge: bool,
+        origin_level: bool,
+    ) -> Option<RawSample> {
+        let program = self.program?;
+        let h = &program.homing;
+        self.ticks_in_phase = self.ticks_in_phase.saturating_add(1);
+        match self.phase {
+            Phase::Waiting | Phase::Running | Phase::Failed => None,
+            Phase::Check => {
+                if self.ticks_in_phase > ticks(h.check_s, ctrl.period_s()) {
+                    // Counters relative to where the joint rests now.
+                    ctrl.set_origin(raw);
+                    self.last_ref_rad = 0.0;
+                    if origin_level {
+                        self.move_by(ctrl, h, -h.search_rad);
+                        self.enter(Phase::Leaving);
+                    } else {
+                        self.move_by(ctrl, h, h.search_rad);
+                        self.enter(Phase::Homing);
+                    }
+                }
+                None
+            }
+            Phase::Leaving => {
+                if !origin_level {
+                    self.move_by(ctrl, h, h.search_rad);
+                    self.enter(Phase::Homing);
+                } else if self.ticks_in_phase > self.limit_ticks {
+                    self.fail(ctrl);
+                }
+                None
+            }
+            Phase::Homing => {
+                if origin_edge {
+                    ctrl.set_origin(raw);
+                    ctrl.set_command(program.command);
+                    self.enter(Phase::Running);
+                    Some(*raw)
+                } else {
+                    if self.ticks_in_phase > self.limit_ticks {
+                        self.fail(ctrl);
+                    }
+                    None
+                }
+            }
+        }
+    }
+
+    fn fail(&mut self, ctrl: &mut Controller) {
+        ctrl.report_fault(Fault::Homing);
+        ctrl.set_command(Command::default());
+        self.enter(Phase::Failed);
+    }
+
+    /// After the step: start-up checks, and whether an origin edge is
+    /// expected before the next tick.
+    pub fn after_step(&mut self, ctrl: &mut Controller, out: &Output, events: &Events) {
+        self.last_ref_rad = out.est.theta_ref_rad;
+        match self.phase {
+            Phase::Check | Phase::Leaving | Phase::Homing => {
+                if out.fault.is_some() {
+                    self.fail(ctrl);
+                } else if self.phase == Phase::Check {
+                    if let Some(p) = &self.program {
+                        if math::abs(out.est.i_meas_a) > p.homing.max_idle_current_a {
+                            self.fail(ctrl);
+                        }
+                    }
+                }
+            }
+            Phase::Waiting | Phase::Running | Phase::Failed => {}
+        }
+        let expected = match (self.phase, &self.program) {
+            (Phase::Running, Some(p)) => {
+                math::abs(out.est.theta_hat_rad) < p.homing.origin_tolerance_rad
+            }
+            _ => true,
+        };
+        events.set_origin_expected(expected);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::units::{AdcCode, GratingCount};
+    use crate::Config;
+
+    fn rest() -> RawSample {
+        RawSample {
+            current: AdcCode(2048),
+            ..Default::default()
+        }
+    }
+
+    /// Step the controller through the sequencer with a fixed sample.
+    fn run(
+        seq: &mut Sequencer,
+        ctrl: &mut Controller,
+        raw: &RawSample,
+        edge: bool,
+        level: bool,
+        events: &Events,
+    ) -> (Option<RawSample>, Output) {
+        let origin = seq.before_step(ctrl, raw, edge, level);
+        let out = ctrl.step(raw);
+        seq.after_step(ctrl, &out, events);
+        (origin, out)
+    }
+
+    #[test]
+    fn check_then_homing_then_program_on_the_edge() {
+        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        let raw = rest();
+        // Without a program nothing happens.
+        let (_, out) = run(&mut seq, &mut ctrl, &raw, true, false, &events);
+        assert_eq!((seq.phase(), out.mode), (Phase::Waiting, Mode::Idle));
+
+        seq.start(&mut ctrl, Program::default());
+        let check_ticks = (0.05 * 2000.0) as usize;
+        for k in 0..check_ticks {
+            let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+            assert_eq!(seq.phase(), Phase::Check, "tick {k}");
+            assert!(!out.drive_enable, "drive stays off during the check");
+        }
+        let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        assert_eq!(seq.phase(), Phase::Homing);
+        assert_eq!(out.mode, Mode::MotorPosition);
+        assert!(out.drive_enable);
+        // The reference moves toward the search direction (negative).
+        let mut last_ref = out.est.theta_ref_rad;
+        // 0.5 s into the 3 s minimum-jerk search of -0.8 rad: s = 1/6,
+        // -0.8 (10 s^3 - 15 s^4 + 6 s^5) = -0.0283 rad.
+        for _ in 0..1000 {
+            let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+            assert!(out.est.theta_ref_rad <= last_ref);
+            last_ref = out.est.theta_ref_rad;
+        }
+        assert!(
+            (last_ref + 0.0283).abs() < 1e-3,
+            "homing move under way: {last_ref}"
+        );
+
+        let mut at_origin = raw;
+        at_origin.grating2 = GratingCount(12);
+        let (origin, out) = run(&mut seq, &mut ctrl, &at_origin, true, true, &events);
+        assert_eq!(origin, Some(at_origin));
+        assert_eq!(seq.phase(), Phase::Running);
+        assert_eq!(out.mode, Mode::JointClosedLoop);
+        assert_eq!(out.est.x2_m, 0.0, "counters zeroed at the origin sample");
+        assert!(events.origin_expected(), "joint at zero: edges expected");
+    }
+
+    #[test]
+    fn no_edge_within_the_search_is_a_homing_fault() {
+        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        let program = Program::default();
+        seq.start(&mut ctrl, program);
+        let h = program.homing;
+        let limit =
+            (0.05 * 2000.0) as usize + (1.2 * 1.875 * 0.8 / h.speed_rad_s * 2000.0) as usize + 5;
+        let mut failed_at = None;
+        for k in 0..limit + 10 {
+            let (_, out) = run(&mut seq, &mut ctrl, &rest(), false, false, &events);
+            if seq.phase() == Phase::Failed {
+                assert_eq!(out.fault, Some(Fault::Homing));
+                assert!(!out.drive_enable);
+                failed_at = Some(k);
+                break;
+            }
+        }
+        let k = failed_at.expect("homing must time out");
+        assert!(k + 10 >= limit, "not before the search could end: {k}");
+    }
+
+    #[test]
+    fn start_on_the_switch_leaves_it_first() {
+        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        seq.start(&mut ctrl, Program::default());
+        for _ in 0..=100 {
+            run(&mut seq, &mut ctrl, &rest(), false, true, &events);
+        }
+        assert_eq!(seq.phase(), Phase::Leaving);
+        let mut last = 0.0;
+        for _ in 0..100 {
+            let (_, out) = run(&mut seq, &mut ctrl, &rest(), false, true, &events);
+            assert!(out.est.theta_ref_rad >= last, "leaving moves positive");
+            last = out.est.theta_ref_rad;
+        }
+        run(&mut seq, &mut ctrl, &rest(), false, false, &events);
+        assert_eq!(seq.phase(), Phase::Homing);
+    }
+
+    #[test]
+    fn current_with_the_drive_off_fails_the_check() {
+        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        seq.start(&mut ctrl, Program::default());
+        let mut raw = rest();
+        raw.current = AdcCode(2048 + 400); // about 0.49 A with the drive off
+        let (_, _) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        assert_eq!(seq.phase(), Phase::Failed);
+        let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        assert_eq!(out.fault, Some(Fault::Homing));
+    }
+
+    #[test]
+    fn phase_codes_round_trip() {
+        for code in 0..=255u8 {
+            if let Some(p) = Phase::from_code(code) {
+                assert_eq!(p.code(), code);
+            }
+        }
+        assert_eq!(Phase::from_code(6), None);
+    }
+}

@@ -9,6 +9,7 @@
 
 use core::fmt;
 
+use crate::model::AddedTerms;
 use crate::units::Scales;
 
 /// Datasheet constants of the machine (DESIGN.md §1).
@@ -110,6 +111,8 @@ pub struct JaeConfig {
     /// last sign is held (stiction keeps the presliding direction), so the sign
     /// term does not chatter at standstill.
     pub sign_switch_m_s: f32,
+    /// Effect terms added by the residual loop (rad per term unit).
+    pub added: AddedTerms,
 }
 
 impl Default for JaeConfig {
@@ -122,6 +125,7 @@ impl Default for JaeConfig {
             c_pos_rad_m: 264.356,
             offset_rad: 0.0,
             sign_switch_m_s: 2e-4,
+            added: AddedTerms::default(),
         }
     }
 }
@@ -207,6 +211,8 @@ pub struct TensionConfig {
     pub sign_switch_x1_m_s: f32,
     /// Slider-2 speed above which its friction sign switches, m/s (held below).
     pub sign_switch_x2_m_s: f32,
+    /// Effect terms added by the residual loop (N per term unit).
+    pub added: AddedTerms,
 }
 
 impl Default for TensionConfig {
@@ -219,6 +225,7 @@ impl Default for TensionConfig {
             f_0_n: 19.52,
             sign_switch_x1_m_s: 2e-4,
             sign_switch_x2_m_s: 2e-4,
+            added: AddedTerms::default(),
         }
     }
 }
@@ -423,6 +430,12 @@ impl Config {
         positive("jae.c_pos_rad_m", j.c_pos_rad_m)?;
         finite("jae.offset_rad", j.offset_rad)?;
         positive("jae.sign_switch_m_s", j.sign_switch_m_s)?;
+        if let Err(expected) = j.added.validate() {
+            return Err(ConfigError {
+                field: "jae.added",
+                expected,
+            });
+        }
 
         let c = &self.cascade;
         non_negative("cascade.kp_pos_1_s", c.kp_pos_1_s)?;
@@ -456,6 +469,12 @@ impl Config {
         finite("tension.f_0_n", t.f_0_n)?;
         positive("tension.sign_switch_x1_m_s", t.sign_switch_x1_m_s)?;
         positive("tension.sign_switch_x2_m_s", t.sign_switch_x2_m_s)?;
+        if let Err(expected) = t.added.validate() {
+            return Err(ConfigError {
+                field: "tension.added",
+                expected,
+            });
+        }
 
         let l = &self.limits;
         positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
@@ -482,8 +501,10 @@ mod tests {
         let mut c = Config::default();
         c.jae.c_pos_rad_m = f32::NAN;
         assert_eq!(c.validate().unwrap_err().field, "jae.c_pos_rad_m");
-        let mut c = Config::default();
-        c.control_rate_hz = 50_000.0;
+        let c = Config {
+            control_rate_hz: 50_000.0,
+            ..Config::default()
+        };
         assert_eq!(c.validate().unwrap_err().field, "control_rate_hz");
         let mut c = Config::default();
         c.cascade.current_limit_a = 3.0;

@@ -17,6 +17,7 @@ use crate::fault::{Fault, Sensor};
 use crate::filter::{Kinematics, TrackingObserver};
 use crate::jae::{self, JaeState};
 use crate::math;
+use crate::model::{sig, AddedState, Signals};
 use crate::trajectory::{Reference, Trajectory};
 use crate::units::{AdcCode, DacCode, Extender16, GratingCount, MagneticCount, MotorCount};
 
@@ -246,6 +247,8 @@ pub struct State {
     phi: Kinematics,
     jae: JaeState,
     tension: TensionState,
+    jae_terms: AddedState,
+    tension_terms: AddedState,
     dob: DobState,
     cascade: CascadeState,
     last_current_a: f32,
@@ -420,16 +423,37 @@ impl Controller {
         }
         timer.mark(Stage::Sensing);
 
-        // --- JAE -------------------------------------------------------------
-        let theta_hat_rad = jae::estimate(&cfg.jae, &mut st.jae, x2_m, &x2);
         let theta_motor_rad = cfg.machine.joint_rad_from_motor_rad(phi_rad);
+        let mut signals: Signals = [0.0; sig::COUNT];
+        signals[sig::X1_M as usize] = x1_m;
+        signals[sig::X1_VEL_M_S as usize] = x1.vel;
+        signals[sig::X2_M as usize] = x2_m;
+        signals[sig::X2_VEL_M_S as usize] = x2.vel;
+        signals[sig::X2_ACC_M_S2 as usize] = x2.acc;
+        signals[sig::PHI_RAD as usize] = phi_rad;
+        signals[sig::PHI_VEL_RAD_S as usize] = phi.vel;
+        signals[sig::I_REF_A as usize] = st.last_current_a;
+        signals[sig::I_MEAS_A as usize] = i_meas_a;
+        signals[sig::THETA_MOTOR_RAD as usize] = theta_motor_rad;
+
+        // --- JAE -------------------------------------------------------------
+        let mut theta_hat_rad = jae::estimate(&cfg.jae, &mut st.jae, x2_m, &x2);
+        if cfg.jae.added.len > 0 {
+            theta_hat_rad += cfg.jae.added.eval(&mut st.jae_terms, &signals, d.period_s);
+        }
         if math::abs(theta_hat_rad) > cfg.limits.max_joint_angle_rad {
             fault = fault.or(Some(Fault::AngleRange));
         }
         timer.mark(Stage::Jae);
 
         // --- Tension model and DOB ---------------------------------------------
-        let model_n = dob::tension_model(&cfg.tension, &mut st.tension, x1.vel, x2_m, x2.vel);
+        let mut model_n = dob::tension_model(&cfg.tension, &mut st.tension, x1.vel, x2_m, x2.vel);
+        if cfg.tension.added.len > 0 {
+            model_n += cfg
+                .tension
+                .added
+                .eval(&mut st.tension_terms, &signals, d.period_s);
+        }
         if !st.primed {
             d.dob.reset(&mut st.dob, model_n);
             st.last_current_a = 0.0;

@@ -146,7 +146,7 @@ impl TrackingObserver {
         let e = y - pos;
         s.pos = pos + self.l[0] * e;
         s.vel = vel + self.l[1] * e;
-        s.acc = s.acc + self.l[2] * e;
+        s.acc += self.l[2] * e;
         *s
     }
 }

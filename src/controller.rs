@@ -557,6 +557,22 @@ impl Controller {
         }
     }
 
+    /// Run the estimators on a recorded sample: the same step, with the drive
+    /// left disabled and `applied_current_a` (the logged current reference)
+    /// taken as the current applied over the last period. This is how the host
+    /// tools recompute, from a log, exactly the estimates the firmware computes
+    /// online.
+    pub fn replay(&mut self, raw: &RawSample, applied_current_a: f32) -> Output {
+        let command = self.command;
+        self.command.mode = Mode::Idle;
+        if self.state.primed {
+            self.state.last_current_a = applied_current_a;
+        }
+        let out = self.step(raw);
+        self.command = command;
+        out
+    }
+
     /// Time since the command in force started, s.
     pub fn command_elapsed_s(&self) -> f32 {
         self.command_time_s()

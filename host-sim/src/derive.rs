@@ -1,0 +1,139 @@
+//! Recompute, from a log, the signals and estimates the firmware computes
+//! online, by replaying the log through the core's own
+//! [`Controller::replay`] (the same differentiators, JAE, tension model and
+//! DOB; nothing is re-implemented here).
+//!
+//! Positions are converted back to counts with the configuration's scales
+//! (exact for logs that came from counts) and the logged current reference is
+//! the current applied over each period. The control rate is taken from the
+//! log's median time step.
+
+use anyhow::{bail, Context, Result};
+use cable_joint::model::SIGNAL_NAMES;
+use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount};
+use cable_joint::{Config, Controller, RawSample};
+
+use crate::log::Log;
+
+/// Columns [`derive`] adds beyond the run-time signals ([`SIGNAL_NAMES`]).
+pub const EXTRA_COLUMNS: [&str; 8] = [
+    "x1_acc_m_s2",
+    "phi_acc_rad_s2",
+    "theta_hat_rad",
+    "tension1_hat_n",
+    "tension1_model_n",
+    "load_torque_nm",
+    "f_ext_hat_n",
+    "fault_code",
+];
+
+/// Median time step of a log, s.
+pub fn median_period_s(t_s: &[f64]) -> Option<f64> {
+    if t_s.len() < 2 {
+        return None;
+    }
+    let mut d: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(|a, b| a.total_cmp(b));
+    Some(d[d.len() / 2])
+}
+
+/// The configuration with its control rate set to the log's rate.
+pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
+    let t = log.time_s()?;
+    let dt = median_period_s(t).context("log has fewer than two rows")?;
+    if !(dt > 0.0) {
+        bail!("log time step is not positive");
+    }
+    let mut c = *config;
+    c.control_rate_hz = (1.0 / dt) as f32;
+    c.validate().map_err(|e| {
+        anyhow::anyhow!("{e} (control rate taken from the log: {:.1} Hz)", 1.0 / dt)
+    })?;
+    Ok(c)
+}
+
+/// Replay `log` (project schema) through the core; returns a log with `t_s`,
+/// the run-time signals, [`EXTRA_COLUMNS`], and the log's `theta_rad`,
+/// `f_ext_n` and `theta_ref_rad` when present.
+pub fn derive(log: &Log, config: &Config) -> Result<Log> {
+    let cfg = config_for_log(log, config)?;
+    let s = &cfg.scales;
+    let t = log.time_s()?;
+    let x1 = log.col_required("x1_m")?;
+    let x2 = log.col_required("x2_m")?;
+    let phi = log.col_required("phi_rad")?;
+    let i_ref = log.col_required("i_ref_a")?;
+    let i_meas = log.col("i_meas_a");
+    let theta = log.col("theta_rad");
+    let mut ctl = Controller::new(cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
+
+    let mut names: Vec<&str> = vec!["t_s"];
+    names.extend(SIGNAL_NAMES);
+    names.extend(EXTRA_COLUMNS);
+    let mut out = Log::with_columns(&names)?;
+    let two_pi = std::f64::consts::TAU;
+    for k in 0..log.len() {
+        let meas = i_meas
+            .map(|c| c[k])
+            .filter(|v| v.is_finite())
+            .unwrap_or(i_ref[k]);
+        let raw = RawSample {
+            grating1: GratingCount((x1[k] / s.grating_m_per_count as f64).round() as i32),
+            grating2: GratingCount((x2[k] / s.grating_m_per_count as f64).round() as i32),
+            motor: MotorCount(
+                (phi[k] * s.motor_counts_per_rev as f64 / two_pi).round() as i64 as u16,
+            ),
+            magnetic: MagneticCount(
+                theta
+                    .map(|c| c[k])
+                    .filter(|v| v.is_finite())
+                    .map(|v| (v * s.magnetic_counts_per_rev as f64 / two_pi).round() as i64 as u16)
+                    .unwrap_or(0),
+            ),
+            current: AdcCode(
+                (meas as f32 / s.adc_a_per_code + s.adc_zero_code)
+                    .round()
+                    .clamp(0.0, 4095.0) as u16,
+            ),
+        };
+        if k == 0 {
+            ctl.set_origin(&raw);
+        }
+        let o = ctl.replay(&raw, if k > 0 { i_ref[k - 1] as f32 } else { 0.0 });
+        let e = &o.est;
+        let row = [
+            t[k],
+            e.x1_m as f64,
+            e.x1_vel_m_s as f64,
+            e.x2_m as f64,
+            e.x2_vel_m_s as f64,
+            e.x2_acc_m_s2 as f64,
+            e.phi_rad as f64,
+            e.phi_vel_rad_s as f64,
+            if k > 0 { i_ref[k - 1] } else { 0.0 },
+            e.i_meas_a as f64,
+            e.theta_motor_rad as f64,
+            e.x1_acc_m_s2 as f64,
+            e.phi_acc_rad_s2 as f64,
+            e.theta_hat_rad as f64,
+            e.tension1_n as f64,
+            e.tension1_model_n as f64,
+            e.load_torque_nm as f64,
+            e.f_ext_hat_n as f64,
+            cable_joint::Fault::code_of(o.fault) as f64,
+        ];
+        out.push_row(&row)?;
+    }
+    // Positions relative to the first sample: the replay zeroes the counters
+    // there, so add the first sample back to keep the log's own origin.
+    for (name, first) in [("x1_m", x1[0]), ("x2_m", x2[0]), ("phi_rad", phi[0])] {
+        let v: Vec<f64> = out.col_required(name)?.iter().map(|x| x + first).collect();
+        out.set_col(name, v)?;
+    }
+    for name in ["theta_rad", "f_ext_n", "theta_ref_rad"] {
+        if let Some(v) = log.col_opt(name) {
+            out.set_col_opt(name, &v)?;
+        }
+    }
+    Ok(out)
+}

@@ -3,3 +3,7 @@
 pub mod derive;
 pub mod import;
 pub mod log;
+pub mod plant;
+pub mod scenario;
+pub mod sim;
+pub mod simulate;

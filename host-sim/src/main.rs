@@ -26,6 +26,8 @@ enum Command {
     // Each helper adds its variant here: `Name(host_sim::module::Args)`.
     /// Convert a measured run (MRDLab) to the project's CSV log.
     Import(host_sim::import::ImportArgs),
+    /// Run one scenario on the simulated prototype and write the CSV log.
+    Simulate(host_sim::simulate::SimulateArgs),
 }
 
 fn main() -> ExitCode {
@@ -36,6 +38,7 @@ fn main() -> ExitCode {
             Ok(())
         }
         Some(Command::Import(args)) => host_sim::import::run(args),
+        Some(Command::Simulate(a)) => host_sim::simulate::run(a),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),
     };

@@ -1,0 +1,711 @@
+//! The simulated prototype: motor, cables, sliders, joint, spring, sensors.
+//!
+//! # Model (seed 000 Eq. 6-16, DESIGN.md §1)
+//!
+//! Four mechanical degrees of freedom and the drive current:
+//!
+//! ```text
+//! motor     J_m phi''  = K_m i - B_m phi' - f_m sgn(phi') - (r_m / z_i) F_1
+//! slider 1  m_0 x1''   = F_1 - F_w1 - f_sv1 x1' - f_sc1 sgn(x1')
+//! joint     J_e theta''= (F_w1 - F_w2) r - f_efv theta' - f_efc sgn(theta') - F_ext l_e
+//! slider 2  m_1 x2''   = F_w2 - F_s - f_sv2 x2' - f_sc2 sgn(x2')
+//! drive     i'         = 2π f_bw (clamp(i_ref, ±i_max) - i)
+//!
+//! cable 0   F_1  = max(0, K_w0 (r_m phi / z_i - x1) + c_w0 (...)' + F_0)
+//! cable 1   F_w1 = max(0, K_w1 (x1 - r theta)     + c_w1 (...)' + F_0)
+//! cable 2   F_w2 = max(0, K_w2 (r theta - x2)     + c_w2 (...)' + F_0)
+//! spring    F_s  = max(0, F_0 + K_s x2)
+//! ```
+//!
+//! Every cable carries the preload `F_0` at rest (Eq. 6) and can only pull
+//! (a slack cable has no tension). `F_ext > 0` opposes positive rotation
+//! (DESIGN.md), so it raises cable 1's tension. At rest the motor must hold
+//! `F_0 r_m / z_i` ([`Plant::holding_current_a`]): with the drive off, the
+//! preload back-drives the gearhead.
+//!
+//! # Integration
+//!
+//! Fixed-step semi-implicit (symplectic) Euler: forces from the positions
+//! (and, for the cable dampers, the velocities) at the start of the step, new
+//! velocities, then new positions from the new velocities. Viscous friction
+//! is implicit. Each Coulomb element is updated implicitly, which gives true
+//! stick-slip without sign chatter: with `p = m v + dt F_other` the momentum
+//! the element would have without Coulomb friction, the friction impulse can
+//! be anything up to `F_lim dt`, so
+//!
+//! * `|p| <= F_lim dt`: the element stops (or stays stuck), `v = 0` exactly;
+//! * otherwise `v = (p - sgn(p) F_c dt) / (m + b dt)`,
+//!
+//! with `F_lim` the static friction if the element is stuck (`v == 0`) and the
+//! Coulomb level if it is moving. Stiction therefore holds any load below
+//! breakaway with zero drift, and a reversal passes through an exact stop.
+//!
+//! The step must resolve the stiffest mode: [`Plant::new`] bounds the highest
+//! natural frequency `w_max` (Gershgorin on the mass-normalised stiffness
+//! matrix, LuGre bristles included) and refuses `w_max dt` above
+//! `integration.max_omega_dt`.
+//!
+//! # Sensors
+//!
+//! [`Plant::sample`] returns what the board reads: gratings rounded to the
+//! count on 32-bit timers, the motor encoder (4000 counts/rev) and the
+//! magnetic joint encoder (4096 counts/rev) on wrapping 16-bit timers, the
+//! current monitor with noise and offset through the 12-bit ADC. Noise comes
+//! from a ChaCha generator seeded with the plant's `seed`.
+
+mod effects;
+mod params;
+
+pub use effects::{
+    Creep, DriftLocation, Effects, OffsetDrift, Presliding, SpringHardening, Thermal,
+};
+pub use params::{
+    CableParams, DriveParams, IntegrationParams, JointParams, MotorParams, PlantParams,
+    SensorParams, SliderParams, SpringParams, CABLE_DAMPING_RATIO, K_W0_N_M, K_W1_N_M, K_W2_N_M,
+    STATIC_OVER_KINETIC,
+};
+
+pub(crate) use params::merge_toml;
+
+use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount, CODE_MAX_12BIT};
+use cable_joint::RawSample;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// The plant's state, SI units. Positions are zero at the homed rest
+/// position, where every cable carries `F_0`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlantState {
+    /// Plant time, s.
+    pub t_s: f64,
+    /// Motor-shaft angle, rad.
+    pub phi_rad: f64,
+    /// Motor speed, rad/s.
+    pub phi_vel_rad_s: f64,
+    /// Slider 1 position, m.
+    pub x1_m: f64,
+    /// Slider 1 speed, m/s.
+    pub x1_vel_m_s: f64,
+    /// Joint angle, rad.
+    pub theta_rad: f64,
+    /// Joint speed, rad/s.
+    pub theta_vel_rad_s: f64,
+    /// Slider 2 position, m.
+    pub x2_m: f64,
+    /// Slider 2 speed, m/s.
+    pub x2_vel_m_s: f64,
+    /// Winding current, A.
+    pub current_a: f64,
+    /// Creep lengthening of cables 0, 1, 2 relative to their settled rest
+    /// lengths, m ([`Creep`]).
+    pub creep_m: [f64; 3],
+    /// LuGre bristle deflections: slider 1 (m), joint (rad), slider 2 (m)
+    /// ([`Presliding`]).
+    pub bristle: [f64; 3],
+    /// Winding temperature, °C ([`Thermal`]).
+    pub winding_c: f64,
+    /// Housing temperature, °C ([`Thermal`]).
+    pub housing_c: f64,
+    /// Current-sensor offset drift, A ([`OffsetDrift`]).
+    pub drift_a: f64,
+}
+
+/// Tensions in the loop, N.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Tensions {
+    /// Cable 0 at the rope wheel: the motor's load `F_1` (what the DOB's
+    /// `tension1` estimates).
+    pub rope_n: f64,
+    /// Cable 1 (`F_w1`).
+    pub cable1_n: f64,
+    /// Cable 2 (`F_w2`).
+    pub cable2_n: f64,
+    /// Return spring (`F_s`).
+    pub spring_n: f64,
+}
+
+/// A friction element's constants.
+#[derive(Clone, Copy, Debug)]
+struct Element {
+    /// Viscous coefficient (implicit).
+    b: f64,
+    /// Kinetic friction.
+    fc: f64,
+    /// Static friction.
+    fs: f64,
+}
+
+/// LuGre constants of one element.
+#[derive(Clone, Copy, Debug)]
+struct Bristle {
+    sigma0: f64,
+    sigma1: f64,
+    stribeck: f64,
+}
+
+/// Constants derived once from the parameters and the step.
+#[derive(Clone, Copy, Debug)]
+struct Derived {
+    dt: f64,
+    /// Cable metres per motor radian, `r_m / z_i`.
+    rw: f64,
+    drive_alpha: f64,
+    motor: Element,
+    slider1: Element,
+    joint: Element,
+    slider2: Element,
+    bristles: Option<[Bristle; 3]>,
+    creep_alpha: f64,
+    cubic: f64,
+    omega_max: f64,
+    damping_max: f64,
+}
+
+/// The simulated prototype (configuration, derived constants, state, noise).
+#[derive(Clone, Debug)]
+pub struct Plant {
+    p: PlantParams,
+    d: Derived,
+    s: PlantState,
+    rng: ChaCha8Rng,
+    current_cmd_a: f64,
+    f_ext_n: f64,
+    tip_mass_kg: f64,
+}
+
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// Implicit Coulomb + viscous update of one element (see the module docs).
+#[inline]
+fn coulomb_step(v: f64, m: f64, f_other: f64, e: &Element, dt: f64) -> f64 {
+    let p = m * v + dt * f_other;
+    let limit = if v == 0.0 { e.fs } else { e.fc };
+    if p.abs() <= limit * dt {
+        0.0
+    } else {
+        (p - sign(p) * e.fc * dt) / (m + e.b * dt)
+    }
+}
+
+/// LuGre update of one element: bristle state exactly for the step's
+/// velocity, then the velocity with the bristle force (viscous implicit).
+#[inline]
+fn lugre_step(
+    v: f64,
+    m: f64,
+    f_other: f64,
+    e: &Element,
+    br: &Bristle,
+    z: &mut f64,
+    dt: f64,
+) -> f64 {
+    let z_old = *z;
+    if v != 0.0 {
+        let g = e.fc + (e.fs - e.fc) * (-(v / br.stribeck).powi(2)).exp();
+        if g > 0.0 {
+            let z_ss = sign(v) * g / br.sigma0;
+            let rate = br.sigma0 * v.abs() / g;
+            *z = z_ss + (z_old - z_ss) * (-rate * dt).exp();
+        } else {
+            *z = 0.0;
+        }
+    }
+    let f_fric = br.sigma0 * *z + br.sigma1 * (*z - z_old) / dt;
+    (m * v + dt * (f_other - f_fric)) / (m + e.b * dt)
+}
+
+impl Plant {
+    /// Build a plant at rest at the origin, holding the preload (drive
+    /// current at [`Plant::holding_current_a`]). Fails on an impossible
+    /// parameter or a step too coarse for the stiffest mode.
+    pub fn new(params: PlantParams, seed: u64) -> anyhow::Result<Self> {
+        params.validate()?;
+        let d = Self::derive(&params)?;
+        let mut plant = Self {
+            p: params,
+            d,
+            s: PlantState::default(),
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            current_cmd_a: 0.0,
+            f_ext_n: 0.0,
+            tip_mass_kg: 0.0,
+        };
+        let ambient = params.effects.thermal.map_or(25.0, |t| t.ambient_c);
+        plant.s.winding_c = ambient;
+        plant.s.housing_c = ambient;
+        if let Some(c) = &params.effects.creep {
+            if c.fresh {
+                // Rest lengths relative to the settled state: a fresh cable
+                // has not yet crept by ratio F_0 / K.
+                let f0 = params.spring.preload_n;
+                let ks = [
+                    params.cable0.stiffness_n_m,
+                    params.cable1.stiffness_n_m,
+                    params.cable2.stiffness_n_m,
+                ];
+                for (c_m, k) in plant.s.creep_m.iter_mut().zip(ks) {
+                    *c_m = -c.ratio * f0 / k;
+                }
+            }
+        }
+        let hold = if params.motor_decoupled {
+            0.0
+        } else {
+            plant.holding_current_a()
+        };
+        plant.s.current_a = hold;
+        plant.current_cmd_a = hold;
+        Ok(plant)
+    }
+
+    fn derive(p: &PlantParams) -> anyhow::Result<Derived> {
+        let dt = 1.0 / p.integration.step_hz;
+        let rw = p.motor.rope_wheel_radius_m / p.motor.gear_ratio;
+        let r = p.joint.pulley_radius_m;
+        let elem = |s: &SliderParams| Element {
+            b: s.viscous_n_s_m,
+            fc: s.coulomb_n,
+            fs: s.static_n,
+        };
+        let bristles = p.effects.presliding.map(|pre| {
+            let slider = |s: &SliderParams| {
+                let sigma0 = s.coulomb_n.max(1e-9) / pre.slider_presliding_m;
+                Bristle {
+                    sigma0,
+                    sigma1: 2.0 * pre.damping_ratio * (sigma0 * s.mass_kg).sqrt(),
+                    stribeck: pre.slider_stribeck_m_s,
+                }
+            };
+            let j0 = p.joint.coulomb_nm.max(1e-12) / pre.joint_presliding_rad;
+            [
+                slider(&p.slider1),
+                Bristle {
+                    sigma0: j0,
+                    sigma1: 2.0 * pre.damping_ratio * (j0 * p.joint.inertia_kg_m2).sqrt(),
+                    stribeck: pre.joint_stribeck_rad_s,
+                },
+                slider(&p.slider2),
+            ]
+        });
+
+        // Mass-normalised stiffness and damping matrices in cable coordinates
+        // u = [rw phi, x1, r theta, x2]; Gershgorin bounds their largest
+        // eigenvalues.
+        let m = [
+            p.motor.rotor_inertia_kg_m2 / (rw * rw),
+            p.slider1.mass_kg,
+            p.joint.inertia_kg_m2 / (r * r),
+            p.slider2.mass_kg,
+        ];
+        let (k0, c0) = if p.motor_decoupled {
+            (0.0, 0.0)
+        } else {
+            (p.cable0.stiffness_n_m, p.cable0.damping_n_s_m)
+        };
+        let cubic = p.effects.spring_hardening.map_or(0.0, |h| h.cubic_n_m3);
+        // Tangent stiffness of the spring up to 10 mm of travel.
+        let ks = p.spring.stiffness_n_m + 3.0 * cubic.abs() * 1e-4;
+        let links = [
+            (0, 1, k0, c0),
+            (1, 2, p.cable1.stiffness_n_m, p.cable1.damping_n_s_m),
+            (2, 3, p.cable2.stiffness_n_m, p.cable2.damping_n_s_m),
+        ];
+        let mut kk = [[0.0f64; 4]; 4];
+        let mut cc = [[0.0f64; 4]; 4];
+        for (i, j, k, c) in links {
+            kk[i][i] += k;
+            kk[j][j] += k;
+            kk[i][j] -= k;
+            kk[j][i] -= k;
+            cc[i][i] += c;
+            cc[j][j] += c;
+            cc[i][j] -= c;
+            cc[j][i] -= c;
+        }
+        kk[3][3] += ks;
+        if let Some(b) = &bristles {
+            kk[1][1] += b[0].sigma0;
+            kk[2][2] += b[1].sigma0 / (r * r);
+            kk[3][3] += b[2].sigma0;
+            cc[1][1] += b[0].sigma1;
+            cc[2][2] += b[1].sigma1 / (r * r);
+            cc[3][3] += b[2].sigma1;
+        }
+        let bound = |a: &[[f64; 4]; 4]| {
+            (0..4)
+                .map(|i| {
+                    (0..4)
+                        .map(|j| a[i][j].abs() / (m[i] * m[j]).sqrt())
+                        .sum::<f64>()
+                })
+                .fold(0.0, f64::max)
+        };
+        let omega_max = bound(&kk).sqrt();
+        let damping_max = bound(&cc);
+        let lim = p.integration.max_omega_dt;
+        anyhow::ensure!(
+            omega_max * dt <= lim && damping_max * dt <= lim,
+            "plant step {dt:e} s too coarse: w_max = {omega_max:.0} rad/s gives w dt = {:.3}, \
+             damping rate {damping_max:.0} 1/s gives {:.3} (limit {lim}); raise integration.step_hz",
+            omega_max * dt,
+            damping_max * dt
+        );
+        Ok(Derived {
+            dt,
+            rw,
+            drive_alpha: 1.0 - (-2.0 * std::f64::consts::PI * p.drive.bandwidth_hz * dt).exp(),
+            motor: Element {
+                b: p.motor.viscous_nm_s_rad,
+                fc: p.motor.coulomb_nm,
+                fs: p.motor.coulomb_nm,
+            },
+            slider1: elem(&p.slider1),
+            joint: Element {
+                b: p.joint.viscous_nm_s_rad,
+                fc: p.joint.coulomb_nm,
+                fs: p.joint.static_nm,
+            },
+            slider2: elem(&p.slider2),
+            bristles,
+            creep_alpha: p.effects.creep.map_or(0.0, |c| 1.0 - (-dt / c.tau_s).exp()),
+            cubic,
+            omega_max,
+            damping_max,
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &PlantParams {
+        &self.p
+    }
+
+    /// The state.
+    pub fn state(&self) -> &PlantState {
+        &self.s
+    }
+
+    /// The state, to set up a test or a scenario (positions, velocities, ...).
+    pub fn state_mut(&mut self) -> &mut PlantState {
+        &mut self.s
+    }
+
+    /// Integration step, s.
+    pub fn dt_s(&self) -> f64 {
+        self.d.dt
+    }
+
+    /// Gershgorin bound on the highest natural frequency, rad/s.
+    pub fn omega_max_rad_s(&self) -> f64 {
+        self.d.omega_max
+    }
+
+    /// Bound on the fastest explicit damping rate, 1/s.
+    pub fn damping_rate_max_1_s(&self) -> f64 {
+        self.d.damping_max
+    }
+
+    /// Current that holds the preload at rest: `F_0 r_m / (z_i K_m)`, A.
+    pub fn holding_current_a(&self) -> f64 {
+        self.p.spring.preload_n * self.d.rw / self.p.motor.torque_constant_nm_a
+    }
+
+    /// Current reference the drive regulates to (clamped to its limit), A.
+    pub fn set_current_command(&mut self, current_a: f64) {
+        let lim = self.p.drive.current_limit_a;
+        self.current_cmd_a = if current_a.is_finite() {
+            current_a.clamp(-lim, lim)
+        } else {
+            0.0
+        };
+    }
+
+    /// The drive's current reference in force, A.
+    pub fn current_command_a(&self) -> f64 {
+        self.current_cmd_a
+    }
+
+    /// External tip force, N (> 0 opposes positive rotation).
+    pub fn set_external_force(&mut self, f_ext_n: f64) {
+        self.f_ext_n = f_ext_n;
+    }
+
+    /// External tip force in force, N.
+    pub fn external_force_n(&self) -> f64 {
+        self.f_ext_n
+    }
+
+    /// Mass hanging from the tip, kg: adds `m l_e²` to the joint inertia (a
+    /// weight on a thread moves with the tip).
+    pub fn set_tip_mass(&mut self, mass_kg: f64) {
+        self.tip_mass_kg = mass_kg.max(0.0);
+    }
+
+    /// Torque constant now (lower when the winding is hot), N·m/A.
+    pub fn torque_constant_nm_a(&self) -> f64 {
+        let k = self.p.motor.torque_constant_nm_a;
+        match &self.p.effects.thermal {
+            Some(t) => k * (1.0 - t.km_tc_1_k * (self.s.winding_c - t.ambient_c)),
+            None => k,
+        }
+    }
+
+    /// Tensions from the state, N.
+    pub fn tensions(&self) -> Tensions {
+        let p = &self.p;
+        let s = &self.s;
+        let r = p.joint.pulley_radius_m;
+        let f0 = p.spring.preload_n;
+        let rope_n = if p.motor_decoupled {
+            0.0
+        } else {
+            (p.cable0.stiffness_n_m * (self.d.rw * s.phi_rad - s.x1_m - s.creep_m[0])
+                + p.cable0.damping_n_s_m * (self.d.rw * s.phi_vel_rad_s - s.x1_vel_m_s)
+                + f0)
+                .max(0.0)
+        };
+        let cable1_n = (p.cable1.stiffness_n_m * (s.x1_m - r * s.theta_rad - s.creep_m[1])
+            + p.cable1.damping_n_s_m * (s.x1_vel_m_s - r * s.theta_vel_rad_s)
+            + f0)
+            .max(0.0);
+        let cable2_n = (p.cable2.stiffness_n_m * (r * s.theta_rad - s.x2_m - s.creep_m[2])
+            + p.cable2.damping_n_s_m * (r * s.theta_vel_rad_s - s.x2_vel_m_s)
+            + f0)
+            .max(0.0);
+        let spring_n =
+            (f0 + p.spring.stiffness_n_m * s.x2_m + self.d.cubic * s.x2_m * s.x2_m * s.x2_m)
+                .max(0.0);
+        Tensions {
+            rope_n,
+            cable1_n,
+            cable2_n,
+            spring_n,
+        }
+    }
+
+    /// Advance by one integration step.
+    pub fn step(&mut self) {
+        let dt = self.d.dt;
+        let p = &self.p;
+        let d = &self.d;
+
+        // Offset drift (ramp + random walk).
+        if let Some(od) = &p.effects.offset_drift {
+            let n: f64 = StandardNormal.sample(&mut self.rng);
+            self.s.drift_a += od.rate_a_s * dt + od.random_walk_a_sqrt_s * dt.sqrt() * n;
+        }
+        let drive_offset = match p.effects.offset_drift {
+            Some(OffsetDrift {
+                location: DriftLocation::DriveSensor,
+                ..
+            }) => self.s.drift_a,
+            _ => 0.0,
+        };
+
+        // Drive: first-order current loop, exact for a constant reference.
+        let target = self.current_cmd_a - drive_offset;
+        self.s.current_a += (target - self.s.current_a) * d.drive_alpha;
+        let i = self.s.current_a;
+
+        // Winding temperature.
+        if let Some(th) = &p.effects.thermal {
+            let c_w = th.tau_winding_s / th.winding_housing_k_w;
+            let c_h = th.tau_housing_s / th.housing_ambient_k_w;
+            let r_ohm = th.resistance_ohm
+                * (1.0 + th.resistance_tc_1_k * (self.s.winding_c - th.ambient_c));
+            let q_wh = (self.s.winding_c - self.s.housing_c) / th.winding_housing_k_w;
+            let q_ha = (self.s.housing_c - th.ambient_c) / th.housing_ambient_k_w;
+            self.s.winding_c += dt * (i * i * r_ohm - q_wh) / c_w;
+            self.s.housing_c += dt * (q_wh - q_ha) / c_h;
+        }
+        let k_m = self.torque_constant_nm_a();
+
+        let t = self.tensions();
+        let s = &mut self.s;
+
+        // Motor.
+        let j_m = p.motor.rotor_inertia_kg_m2;
+        let tau = k_m * i - d.rw * t.rope_n;
+        s.phi_vel_rad_s = coulomb_step(s.phi_vel_rad_s, j_m, tau, &d.motor, dt);
+        s.phi_rad += dt * s.phi_vel_rad_s;
+
+        if !p.motor_decoupled {
+            let r = p.joint.pulley_radius_m;
+            let le = p.joint.gripper_length_m;
+            let j_e = p.joint.inertia_kg_m2 + self.tip_mass_kg * le * le;
+            let f1 = t.rope_n - t.cable1_n;
+            let tj = (t.cable1_n - t.cable2_n) * r - self.f_ext_n * le;
+            let f2 = t.cable2_n - t.spring_n;
+            match &d.bristles {
+                None => {
+                    s.x1_vel_m_s =
+                        coulomb_step(s.x1_vel_m_s, p.slider1.mass_kg, f1, &d.slider1, dt);
+                    s.theta_vel_rad_s = coulomb_step(s.theta_vel_rad_s, j_e, tj, &d.joint, dt);
+                    s.x2_vel_m_s =
+                        coulomb_step(s.x2_vel_m_s, p.slider2.mass_kg, f2, &d.slider2, dt);
+                }
+                Some(b) => {
+                    let [z1, zj, z2] = &mut s.bristle;
+                    s.x1_vel_m_s = lugre_step(
+                        s.x1_vel_m_s,
+                        p.slider1.mass_kg,
+                        f1,
+                        &d.slider1,
+                        &b[0],
+                        z1,
+                        dt,
+                    );
+                    s.theta_vel_rad_s =
+                        lugre_step(s.theta_vel_rad_s, j_e, tj, &d.joint, &b[1], zj, dt);
+                    s.x2_vel_m_s = lugre_step(
+                        s.x2_vel_m_s,
+                        p.slider2.mass_kg,
+                        f2,
+                        &d.slider2,
+                        &b[2],
+                        z2,
+                        dt,
+                    );
+                }
+            }
+            s.x1_m += dt * s.x1_vel_m_s;
+            s.theta_rad += dt * s.theta_vel_rad_s;
+            s.x2_m += dt * s.x2_vel_m_s;
+
+            if let Some(c) = &p.effects.creep {
+                let f0 = p.spring.preload_n;
+                let forces = [t.rope_n, t.cable1_n, t.cable2_n];
+                let ks = [
+                    p.cable0.stiffness_n_m,
+                    p.cable1.stiffness_n_m,
+                    p.cable2.stiffness_n_m,
+                ];
+                for k in 0..3 {
+                    let target = c.ratio * (forces[k] - f0) / ks[k];
+                    s.creep_m[k] += (target - s.creep_m[k]) * d.creep_alpha;
+                }
+            }
+        }
+        s.t_s += dt;
+    }
+
+    /// Advance by `n` integration steps.
+    pub fn advance_steps(&mut self, n: usize) {
+        for _ in 0..n {
+            self.step();
+        }
+    }
+
+    /// Advance by (the nearest whole number of steps to) `duration_s`.
+    pub fn advance(&mut self, duration_s: f64) {
+        let n = (duration_s / self.d.dt).round().max(0.0) as usize;
+        self.advance_steps(n);
+    }
+
+    /// What the current monitor reports now (before the ADC), A: the sensed
+    /// current plus the monitor's offset, drift (if in the monitor path) and
+    /// noise. With the drift in the drive's sensor, the sensed current is the
+    /// winding current plus that offset.
+    fn monitor_a(&mut self) -> f64 {
+        let dr = &self.p.drive;
+        let drift = if self.p.effects.offset_drift.is_some() {
+            self.s.drift_a
+        } else {
+            0.0
+        };
+        let noise: f64 = StandardNormal.sample(&mut self.rng);
+        self.s.current_a + dr.monitor_offset_a + drift + dr.monitor_noise_a * noise
+    }
+
+    /// Read every sensor as the board does (quantized counters, noisy ADC).
+    pub fn sample(&mut self) -> RawSample {
+        let sc = self.p.sensors;
+        let scales = &sc.scales;
+        let s = self.s;
+        let grating = |x_m: f64, init: i32| {
+            let counts = (x_m / scales.grating_m_per_count as f64).round() as i64;
+            GratingCount((init as i64).wrapping_add(counts) as i32)
+        };
+        let wrap16 = |angle_rad: f64, per_rev: u32, init: u16| {
+            let counts = (angle_rad * per_rev as f64 / std::f64::consts::TAU).round() as i64;
+            (init as i64 + counts).rem_euclid(1 << 16) as u16
+        };
+        let magnetic = if sc.magnetic_fitted {
+            wrap16(
+                s.theta_rad,
+                scales.magnetic_counts_per_rev,
+                sc.magnetic_initial_count,
+            )
+        } else {
+            sc.magnetic_initial_count
+        };
+        let i_mon = self.monitor_a();
+        let code = (i_mon / scales.adc_a_per_code as f64 + scales.adc_zero_code as f64).round();
+        let code = if code.is_finite() {
+            code.clamp(0.0, CODE_MAX_12BIT as f64) as u16
+        } else {
+            0
+        };
+        RawSample {
+            grating1: grating(s.x1_m, sc.grating_initial_counts[0]),
+            grating2: grating(s.x2_m, sc.grating_initial_counts[1]),
+            motor: MotorCount(wrap16(
+                s.phi_rad,
+                scales.motor_counts_per_rev,
+                sc.motor_initial_count,
+            )),
+            magnetic: MagneticCount(magnetic),
+            current: AdcCode(code),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_stable_at_40khz() {
+        let p = PlantParams::default();
+        let plant = Plant::new(p, 1).unwrap();
+        assert!(
+            plant.omega_max_rad_s() * plant.dt_s() < 0.2,
+            "w_max dt = {}",
+            plant.omega_max_rad_s() * plant.dt_s()
+        );
+    }
+
+    #[test]
+    fn too_coarse_step_is_refused() {
+        let mut p = PlantParams::default();
+        p.joint.inertia_kg_m2 = 1e-11;
+        let err = Plant::new(p, 1).unwrap_err().to_string();
+        assert!(err.contains("too coarse"), "{err}");
+    }
+
+    #[test]
+    fn toml_round_trip_and_partial_table_keeps_role_defaults() {
+        let p = PlantParams::default();
+        let text = p.to_toml_string().unwrap();
+        assert_eq!(PlantParams::from_toml_str(&text).unwrap(), p);
+        let q =
+            PlantParams::from_toml_str("[slider1]\nmass_kg = 0.05\n[effects.creep]\ntau_s = 5.0\n")
+                .unwrap();
+        assert_eq!(q.slider1.mass_kg, 0.05);
+        assert_eq!(
+            q.slider1.coulomb_n, p.slider1.coulomb_n,
+            "slider-1 default kept"
+        );
+        assert_eq!(q.effects.creep.unwrap().tau_s, 5.0);
+        assert_eq!(q.effects.creep.unwrap().ratio, Creep::default().ratio);
+        assert!(PlantParams::from_toml_str("[slider1]\nmass = 1.0\n").is_err());
+    }
+}

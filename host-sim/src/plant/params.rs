@@ -1,0 +1,519 @@
+//! Parameters of the simulated prototype, with the derivation of every default.
+//!
+//! # Where the defaults come from
+//!
+//! Three kinds of numbers:
+//!
+//! 1. **Datasheet constants** (DESIGN.md §1): `K_m`, `J_m`, `z_i`, `r_m`, `r`,
+//!    `l_e`, `K_s`, `F_0`, the sensor resolutions and the ±2 A limit.
+//! 2. **Values the seed identified**, inverted through the seed's own
+//!    parameterisation (`r = 4 mm`):
+//!    * JAE, Eq. 16/26: `c4 = (K_s + K_w2) / (K_w2 r) = 264.356` gives
+//!      `K_w2 = K_s / (c4 r - 1) = 656.6 / 0.057424 = 11 434 N/m`;
+//!      `c3 = f_sc2 / (K_w2 r) = 0.0025` gives slider 2's Coulomb friction
+//!      `f_sc2 = 0.0025 · 45.74 N = 0.114 N`; `c2 = f_sv2 / (K_w2 r) =
+//!      0.5225` gives its viscous friction `f_sv2 = 23.9 N·s/m`.
+//!      `c1 = m_1 / (K_w2 r) = 0.0805` would mean a 3.7 kg slider, which a
+//!      MISUMI SSEBZ8 miniature guide is not: `c1` is ill-conditioned in the
+//!      seed's fit (its regressor, `x2''`, is tiny) and is **not** used; the
+//!      slider mass is estimated instead (below).
+//!    * Simplified model C, Eq. 29: `f_sc1 = 3.879 N` is slider 1's Coulomb
+//!      friction; `f_cp2 = 5.027 N` is the Coulomb friction beyond cable 1
+//!      seen as cable tension, `f_sc2 + f_efc / r`, so the joint's Coulomb
+//!      torque is `f_efc = (5.027 - 0.114) N · 4 mm = 19.65 mN·m` (a pin of
+//!      about 1.5 mm radius under the 2 × 19.5 N cable load with a friction
+//!      coefficient near 0.3 gives the same order).
+//!    * `B_m = 1.6934e-5 N·m·s/rad` (seed Sect. 4.2), used as the true motor
+//!      damping (it lumps the gearhead's losses at the motor shaft).
+//! 3. **Estimates** where the seed gives nothing, each argued at its field:
+//!    slider masses, joint inertia, viscous joint friction, the static/kinetic
+//!    friction ratio, cable damping, the drive's bandwidth and noise, and the
+//!    drive-side cable stiffnesses `K_w0`, `K_w1`.
+//!
+//! ## `K_w0` and `K_w1` from the seed's Fig. 10
+//!
+//! With the motor in closed loop on its encoder (Fig. 8/10), the joint lags
+//! the motor-implied angle by the stretch of cables 0 and 1:
+//! `e = (ΔF_0 / K_w0 + ΔF_w1 / K_w1) / r`. At the end of a positive stroke of
+//! ±30° (`θ = 0.524 rad`) the tensions above the preload are
+//! `ΔF_w1 = K_s' r θ + f_cp2 ≈ 1.3 + 5.0 = 6.3 N` (`K_s'`: spring in series
+//! with cable 2, 620 N/m) and `ΔF_0 = ΔF_w1 + f_sc1 (+ viscous) ≈ 10.3 N`.
+//! Cable 0 is a short cable (≈ 60 mm from the rope wheel to slider 1 on the
+//! drive base; a 0.45 mm 7×7 steel rope has `EA ≈ 1.2e4 N`), so
+//! `K_w0 ≈ 2e5 N/m` and it stretches 0.05 mm (0.7° of joint). The seed's worst
+//! error, 4.1°, is 0.29 mm of stretch at `r`; the remaining 0.24 mm on
+//! 6.3 N gives `K_w1 ≈ 27 N/mm`. Cable 1 is thus about 2.4 times stiffer than
+//! the `K_w2` that `c4` implies. The two cables run the same path, so the
+//! difference is larger than a symmetric design would have; `K_w2` from `c4` is
+//! very sensitive (`c4 r - 1 = 0.057`, a 1 % error in `c4 r` moves `K_w2` by
+//! 18 %) and the prototype is explicitly asymmetric (the drive cable is the
+//! motor side). The report states this. `host-sim simulate --scenario
+//! track-motor` measures the result.
+
+use cable_joint::units::Scales;
+use serde::{Deserialize, Serialize};
+
+use super::effects::Effects;
+
+/// Drive motor, gearhead and rope wheel (seed Eq. 7).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MotorParams {
+    /// Torque constant `K_m` at the reference temperature, N·m/A (RE25: 23.4 mN·m/A).
+    pub torque_constant_nm_a: f64,
+    /// Rotor inertia `J_m`, kg·m² (RE25: 1.08e-6; the gearhead adds ~5 %, not modelled).
+    pub rotor_inertia_kg_m2: f64,
+    /// Viscous damping at the motor shaft `B_m`, N·m·s/rad (seed: 1.6934e-5).
+    pub viscous_nm_s_rad: f64,
+    /// Coulomb friction torque at the motor shaft, N·m. Default 0: brush and
+    /// gearhead Coulomb friction have the sign of `phi'`, which is the sign of
+    /// `x1'`, so model C's `f_sc1` absorbs them; the seed's identified
+    /// `f_sc1` is attributed to slider 1 in full.
+    pub coulomb_nm: f64,
+    /// Gear ratio `z_i` (35).
+    pub gear_ratio: f64,
+    /// Rope-wheel radius `r_m`, m (6 mm).
+    pub rope_wheel_radius_m: f64,
+}
+
+impl Default for MotorParams {
+    fn default() -> Self {
+        Self {
+            torque_constant_nm_a: 23.4e-3,
+            rotor_inertia_kg_m2: 1.08e-6,
+            viscous_nm_s_rad: 1.6934e-5,
+            coulomb_nm: 0.0,
+            gear_ratio: 35.0,
+            rope_wheel_radius_m: 6e-3,
+        }
+    }
+}
+
+/// Current-controlled drive (Copley ACI-055-18) and its current monitor.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DriveParams {
+    /// Closed-loop current bandwidth, Hz (first order). Analogue PWM drives of
+    /// this class close the current loop at 1-2 kHz.
+    pub bandwidth_hz: f64,
+    /// Current limit, A (±2 A set-up).
+    pub current_limit_a: f64,
+    /// Standard deviation of the current monitor's noise, A (analogue noise of
+    /// the ±10 V monitor through the board's divider; about 4 ADC codes).
+    pub monitor_noise_a: f64,
+    /// Constant offset of the current monitor, A (a few ADC codes).
+    pub monitor_offset_a: f64,
+}
+
+impl Default for DriveParams {
+    fn default() -> Self {
+        Self {
+            bandwidth_hz: 1500.0,
+            current_limit_a: 2.0,
+            monitor_noise_a: 5e-3,
+            monitor_offset_a: 3e-3,
+        }
+    }
+}
+
+/// A cable segment: a spring (and damper) that can only pull.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CableParams {
+    /// Axial stiffness, N/m.
+    pub stiffness_n_m: f64,
+    /// Axial damping in parallel with the spring, N·s/m (0 = none).
+    pub damping_n_s_m: f64,
+}
+
+impl Default for CableParams {
+    fn default() -> Self {
+        Self {
+            stiffness_n_m: K_W2_N_M,
+            damping_n_s_m: 0.0,
+        }
+    }
+}
+
+/// A guide slider with its idler (seed Eq. 8 and 11).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SliderParams {
+    /// Moving mass, kg.
+    pub mass_kg: f64,
+    /// Viscous friction, N·s/m.
+    pub viscous_n_s_m: f64,
+    /// Kinetic (Coulomb) friction, N.
+    pub coulomb_n: f64,
+    /// Static (breakaway) friction, N (>= Coulomb).
+    pub static_n: f64,
+}
+
+impl Default for SliderParams {
+    fn default() -> Self {
+        SLIDER2
+    }
+}
+
+/// The gripper joint (seed Eq. 13).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct JointParams {
+    /// Inertia about the joint axis `J_e`, kg·m².
+    pub inertia_kg_m2: f64,
+    /// Viscous friction `f_efv`, N·m·s/rad.
+    pub viscous_nm_s_rad: f64,
+    /// Coulomb friction `f_efc`, N·m.
+    pub coulomb_nm: f64,
+    /// Static (breakaway) friction, N·m (>= Coulomb).
+    pub static_nm: f64,
+    /// Pulley radius `r`, m (4 mm).
+    pub pulley_radius_m: f64,
+    /// Gripper length `l_e` (lever of the tip force), m (20 mm).
+    pub gripper_length_m: f64,
+}
+
+impl Default for JointParams {
+    fn default() -> Self {
+        JOINT
+    }
+}
+
+/// Return spring on slider 2 (seed Eq. 10) and the loop preload.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SpringParams {
+    /// Spring rate `K_s`, N/m (KSSC2189: 0.6566 N/mm).
+    pub stiffness_n_m: f64,
+    /// Preload `F_0`, N: every cable and the spring carry it at rest (Eq. 6).
+    pub preload_n: f64,
+}
+
+impl Default for SpringParams {
+    fn default() -> Self {
+        Self {
+            stiffness_n_m: 656.6,
+            preload_n: 19.5,
+        }
+    }
+}
+
+/// Sensors: resolutions (the same [`Scales`] type the controller is
+/// configured with, here as the *true* scales) and power-on counter values.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorParams {
+    /// True scales of the gratings, encoders, ADC and DAC.
+    pub scales: Scales,
+    /// Grating timer counts at the rest position (power-on value), `[x1, x2]`.
+    pub grating_initial_counts: [i32; 2],
+    /// Motor-encoder timer count at the rest position. The default sits near
+    /// the 16-bit wrap so that every run crosses it.
+    pub motor_initial_count: u16,
+    /// Magnetic-encoder timer count at the rest position.
+    pub magnetic_initial_count: u16,
+    /// Is the magnetic joint encoder fitted? (Calibration runs; when not
+    /// fitted the timer stays at its initial count.)
+    pub magnetic_fitted: bool,
+}
+
+impl Default for SensorParams {
+    fn default() -> Self {
+        Self {
+            scales: Scales::default(),
+            grating_initial_counts: [0, 0],
+            motor_initial_count: 65_000,
+            magnetic_initial_count: 100,
+            magnetic_fitted: true,
+        }
+    }
+}
+
+/// Integration settings.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IntegrationParams {
+    /// Plant step rate, Hz (at least 20 kHz). The closed-loop runner rounds it
+    /// up to a whole number of steps per control period.
+    pub step_hz: f64,
+    /// Largest accepted `w_max · dt`, where `w_max` bounds the highest natural
+    /// frequency (Gershgorin bound on the mass-normalised stiffness matrix).
+    /// Symplectic Euler is stable below 2; 0.5 keeps the phase error of the
+    /// fastest mode small.
+    pub max_omega_dt: f64,
+}
+
+impl Default for IntegrationParams {
+    fn default() -> Self {
+        Self {
+            step_hz: 40_000.0,
+            max_omega_dt: 0.5,
+        }
+    }
+}
+
+/// Everything the plant needs.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlantParams {
+    /// Motor, gearhead, rope wheel.
+    pub motor: MotorParams,
+    /// Current drive and monitor.
+    pub drive: DriveParams,
+    /// Cable 0: rope wheel to slider 1.
+    pub cable0: CableParams,
+    /// Slider 1 (grating 1, `x1`).
+    pub slider1: SliderParams,
+    /// Cable 1: slider 1 to the joint pulley (`K_w1`).
+    pub cable1: CableParams,
+    /// Gripper joint.
+    pub joint: JointParams,
+    /// Cable 2: joint pulley to slider 2 (`K_w2`).
+    pub cable2: CableParams,
+    /// Slider 2 (grating 2, `x2`).
+    pub slider2: SliderParams,
+    /// Return spring and preload.
+    pub spring: SpringParams,
+    /// Sensors.
+    pub sensors: SensorParams,
+    /// Integration.
+    pub integration: IntegrationParams,
+    /// Switchable effects the estimators do not model (all off by default).
+    pub effects: Effects,
+    /// Motor decoupled from the cable (rope wheel unhooked, slider 1
+    /// clamped): the no-load run that identifies `B_m` (seed Sect. 4.2). The
+    /// cable side then stays at rest.
+    pub motor_decoupled: bool,
+}
+
+/// `K_w2` from the seed's `c4` (see the module documentation), N/m.
+pub const K_W2_N_M: f64 = 656.6 / (264.356 * 4e-3 - 1.0);
+
+/// Damping ratio assumed for every cable against the slider it drives:
+/// steel wire rope has a loss factor of a few percent (inter-strand friction),
+/// `c = 2 ζ sqrt(K m)` with `ζ = 0.05`.
+pub const CABLE_DAMPING_RATIO: f64 = 0.05;
+
+/// Static over kinetic friction of the guides and the joint pin: 1.2 (dry
+/// steel-on-steel and greased guides sit between 1.1 and 1.5).
+pub const STATIC_OVER_KINETIC: f64 = 1.2;
+
+/// Slider 2: friction from the seed's JAE (`c2`, `c3`), mass estimated: a
+/// SSEBZ8 carriage (~10 g), the idler bracket and the grating scale clamp
+/// (~15 g) and a third of the spring (~2 g): 30 g.
+const SLIDER2: SliderParams = SliderParams {
+    mass_kg: 0.030,
+    viscous_n_s_m: 0.5225 * K_W2_N_M * 4e-3,
+    coulomb_n: 0.0025 * K_W2_N_M * 4e-3,
+    static_n: STATIC_OVER_KINETIC * 0.0025 * K_W2_N_M * 4e-3,
+};
+
+/// Slider 1: Coulomb friction from model C (`f_sc1 = 3.879 N`); the same guide
+/// type as slider 2, so the same viscous friction; mass as slider 2 plus the
+/// cable-0 termination (~10 g): 40 g.
+const SLIDER1: SliderParams = SliderParams {
+    mass_kg: 0.040,
+    viscous_n_s_m: 0.5225 * K_W2_N_M * 4e-3,
+    coulomb_n: 3.879,
+    static_n: STATIC_OVER_KINETIC * 3.879,
+};
+
+/// Joint: Coulomb torque from model C's `f_cp2` less slider 2's share
+/// (19.65 mN·m). Inertia: a 20 mm stainless jaw of about 1 g about its end
+/// (`m l² / 3 ≈ 1.3e-7`), the 4 mm pulley and the magnet ring of the encoder:
+/// 2e-7 kg·m². Viscous: a greased pin, 2e-5 N·m·s/rad (0.1 mN·m at the fastest
+/// 5 rad/s; unidentifiable in the seed, whose model-C `f_efv/r` had a 27 %
+/// standard deviation).
+const JOINT: JointParams = JointParams {
+    inertia_kg_m2: 2e-7,
+    viscous_nm_s_rad: 2e-5,
+    coulomb_nm: (5.027 - 0.0025 * K_W2_N_M * 4e-3) * 4e-3,
+    static_nm: STATIC_OVER_KINETIC * (5.027 - 0.0025 * K_W2_N_M * 4e-3) * 4e-3,
+    pulley_radius_m: 4e-3,
+    gripper_length_m: 20e-3,
+};
+
+/// Cable 0 stiffness, N/m (see the module documentation).
+pub const K_W0_N_M: f64 = 2.0e5;
+
+/// Cable 1 stiffness, N/m (see the module documentation: from Fig. 10).
+pub const K_W1_N_M: f64 = 2.7e4;
+
+/// Deep-merge `over` onto `base` (tables key by key, everything else replaced).
+pub(crate) fn merge_toml(base: &mut toml::Value, over: toml::Value) {
+    match (base, over) {
+        (toml::Value::Table(b), toml::Value::Table(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge_toml(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
+}
+
+fn cable_damping(k_n_m: f64, mass_kg: f64) -> f64 {
+    2.0 * CABLE_DAMPING_RATIO * (k_n_m * mass_kg).sqrt()
+}
+
+impl Default for PlantParams {
+    fn default() -> Self {
+        Self {
+            motor: MotorParams::default(),
+            drive: DriveParams::default(),
+            cable0: CableParams {
+                stiffness_n_m: K_W0_N_M,
+                damping_n_s_m: cable_damping(K_W0_N_M, SLIDER1.mass_kg),
+            },
+            slider1: SLIDER1,
+            cable1: CableParams {
+                stiffness_n_m: K_W1_N_M,
+                damping_n_s_m: cable_damping(K_W1_N_M, SLIDER1.mass_kg),
+            },
+            joint: JOINT,
+            cable2: CableParams {
+                stiffness_n_m: K_W2_N_M,
+                damping_n_s_m: cable_damping(K_W2_N_M, SLIDER2.mass_kg),
+            },
+            slider2: SLIDER2,
+            spring: SpringParams::default(),
+            sensors: SensorParams::default(),
+            integration: IntegrationParams::default(),
+            effects: Effects::default(),
+            motor_decoupled: false,
+        }
+    }
+}
+
+impl PlantParams {
+    /// Parse a TOML file's text. The text is merged key by key onto the
+    /// defaults, so a partial table (e.g. `[slider1]` with only `mass_kg`)
+    /// keeps the *slider-1* defaults for its other fields; an unknown key is
+    /// an error.
+    pub fn from_toml_str(text: &str) -> anyhow::Result<Self> {
+        let user: toml::Value = toml::from_str(text)?;
+        let mut merged = toml::Value::try_from(Self::default())?;
+        merge_toml(&mut merged, user);
+        Ok(merged.try_into()?)
+    }
+
+    /// The parameters as TOML.
+    pub fn to_toml_string(&self) -> anyhow::Result<String> {
+        Ok(toml::to_string_pretty(self)?)
+    }
+
+    /// What the seed's JAE coefficients (Eq. 26) are for these parameters:
+    /// `[m_1, f_sv2, f_sc2, K_s + K_w2] / (K_w2 r)`.
+    pub fn jae_coefficients(&self) -> [f64; 4] {
+        let kr = self.cable2.stiffness_n_m * self.joint.pulley_radius_m;
+        [
+            self.slider2.mass_kg / kr,
+            self.slider2.viscous_n_s_m / kr,
+            self.slider2.coulomb_n / kr,
+            (self.spring.stiffness_n_m + self.cable2.stiffness_n_m) / kr,
+        ]
+    }
+
+    /// What simplified model C (Eq. 29) is for these parameters:
+    /// `[f_sc1, f_sc2 + f_efc / r, K_s, F_0]`.
+    pub fn model_c_coefficients(&self) -> [f64; 4] {
+        [
+            self.slider1.coulomb_n,
+            self.slider2.coulomb_n + self.joint.coulomb_nm / self.joint.pulley_radius_m,
+            self.spring.stiffness_n_m,
+            self.spring.preload_n,
+        ]
+    }
+
+    /// Check that every value is physically possible; the error names the field.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        fn pos(name: &str, v: f64) -> anyhow::Result<()> {
+            anyhow::ensure!(
+                v.is_finite() && v > 0.0,
+                "plant.{name} must be finite and > 0, got {v}"
+            );
+            Ok(())
+        }
+        fn nonneg(name: &str, v: f64) -> anyhow::Result<()> {
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "plant.{name} must be finite and >= 0, got {v}"
+            );
+            Ok(())
+        }
+        let m = &self.motor;
+        pos("motor.torque_constant_nm_a", m.torque_constant_nm_a)?;
+        pos("motor.rotor_inertia_kg_m2", m.rotor_inertia_kg_m2)?;
+        nonneg("motor.viscous_nm_s_rad", m.viscous_nm_s_rad)?;
+        nonneg("motor.coulomb_nm", m.coulomb_nm)?;
+        pos("motor.gear_ratio", m.gear_ratio)?;
+        pos("motor.rope_wheel_radius_m", m.rope_wheel_radius_m)?;
+        let d = &self.drive;
+        pos("drive.bandwidth_hz", d.bandwidth_hz)?;
+        pos("drive.current_limit_a", d.current_limit_a)?;
+        nonneg("drive.monitor_noise_a", d.monitor_noise_a)?;
+        anyhow::ensure!(
+            d.monitor_offset_a.is_finite(),
+            "plant.drive.monitor_offset_a must be finite"
+        );
+        for (name, c) in [
+            ("cable0", &self.cable0),
+            ("cable1", &self.cable1),
+            ("cable2", &self.cable2),
+        ] {
+            pos(&format!("{name}.stiffness_n_m"), c.stiffness_n_m)?;
+            nonneg(&format!("{name}.damping_n_s_m"), c.damping_n_s_m)?;
+        }
+        for (name, s) in [("slider1", &self.slider1), ("slider2", &self.slider2)] {
+            pos(&format!("{name}.mass_kg"), s.mass_kg)?;
+            nonneg(&format!("{name}.viscous_n_s_m"), s.viscous_n_s_m)?;
+            nonneg(&format!("{name}.coulomb_n"), s.coulomb_n)?;
+            nonneg(&format!("{name}.static_n"), s.static_n)?;
+            anyhow::ensure!(
+                s.static_n >= s.coulomb_n,
+                "plant.{name}.static_n ({}) must be >= coulomb_n ({})",
+                s.static_n,
+                s.coulomb_n
+            );
+        }
+        let j = &self.joint;
+        pos("joint.inertia_kg_m2", j.inertia_kg_m2)?;
+        nonneg("joint.viscous_nm_s_rad", j.viscous_nm_s_rad)?;
+        nonneg("joint.coulomb_nm", j.coulomb_nm)?;
+        nonneg("joint.static_nm", j.static_nm)?;
+        anyhow::ensure!(
+            j.static_nm >= j.coulomb_nm,
+            "plant.joint.static_nm must be >= coulomb_nm"
+        );
+        pos("joint.pulley_radius_m", j.pulley_radius_m)?;
+        pos("joint.gripper_length_m", j.gripper_length_m)?;
+        pos("spring.stiffness_n_m", self.spring.stiffness_n_m)?;
+        nonneg("spring.preload_n", self.spring.preload_n)?;
+        let s = &self.sensors.scales;
+        pos(
+            "sensors.scales.grating_m_per_count",
+            s.grating_m_per_count as f64,
+        )?;
+        anyhow::ensure!(
+            s.motor_counts_per_rev > 0,
+            "plant.sensors.scales.motor_counts_per_rev must be > 0"
+        );
+        anyhow::ensure!(
+            s.magnetic_counts_per_rev > 0,
+            "plant.sensors.scales.magnetic_counts_per_rev must be > 0"
+        );
+        pos("sensors.scales.adc_a_per_code", s.adc_a_per_code as f64)?;
+        pos("sensors.scales.dac_a_per_code", s.dac_a_per_code as f64)?;
+        anyhow::ensure!(
+            self.integration.step_hz.is_finite() && self.integration.step_hz >= 20_000.0,
+            "plant.integration.step_hz must be >= 20000 Hz, got {}",
+            self.integration.step_hz
+        );
+        pos("integration.max_omega_dt", self.integration.max_omega_dt)?;
+        self.effects.validate()
+    }
+}

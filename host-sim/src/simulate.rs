@@ -1,0 +1,217 @@
+//! `host-sim simulate`: run one scenario on the simulated prototype and write
+//! the CSV log (and optionally the raw trace for firmware replay).
+//!
+//! ```text
+//! host-sim simulate --scenario track-motor --out run.csv
+//! host-sim simulate --scenario loading --angle-deg 30 --mass-g 100 --direction pos --out l.csv
+//! host-sim simulate --scenario track-jae --effect creep,thermal --seed 7 --duration 5 --out r.csv
+//! host-sim simulate --list
+//! host-sim simulate --print-plant > plant.toml
+//! ```
+//!
+//! `--config` is the controller's TOML (default: the core's defaults),
+//! `--plant` the plant's TOML (merged onto the default plant). `--oracle`
+//! replaces the identified parts of the configuration with the plant's true
+//! values; `--tuned-gains` uses cascade gains that work on the default plant
+//! ([`crate::scenario::tuned_gains`]).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use cable_joint::Config;
+
+use crate::plant::{merge_toml, PlantParams};
+use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
+use crate::sim::{LogRecorder, RawTrace, Stats};
+
+/// Arguments of `host-sim simulate`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SimulateArgs {
+    /// Scenario name (see `--list`).
+    #[arg(long)]
+    pub scenario: Option<String>,
+    /// Output CSV log (DESIGN.md columns + estimates + ground truth).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Also write the raw per-tick trace (counts, ADC/DAC codes, outputs).
+    #[arg(long)]
+    pub raw_out: Option<PathBuf>,
+    /// Seed of the noise generator (default: the scenario's).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Controller configuration (TOML).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Plant parameters (TOML, merged onto the defaults).
+    #[arg(long)]
+    pub plant: Option<PathBuf>,
+    /// Effects to switch on, comma separated: presliding, creep, thermal,
+    /// spring, drift.
+    #[arg(long, value_delimiter = ',')]
+    pub effect: Vec<String>,
+    /// Total simulated duration, s (scales every segment).
+    #[arg(long, conflicts_with = "duration_scale")]
+    pub duration: Option<f64>,
+    /// Scale of every segment's duration.
+    #[arg(long)]
+    pub duration_scale: Option<f64>,
+    /// `loading`: run only this held angle, degrees.
+    #[arg(long, allow_negative_numbers = true)]
+    pub angle_deg: Option<f64>,
+    /// `loading`: run only this weight, grams.
+    #[arg(long)]
+    pub mass_g: Option<f64>,
+    /// `loading`: run only this direction.
+    #[arg(long, value_enum)]
+    pub direction: Option<Direction>,
+    /// Weights do not add inertia to the joint.
+    #[arg(long)]
+    pub no_tip_inertia: bool,
+    /// Use the plant's true values for the identified parameters.
+    #[arg(long)]
+    pub oracle: bool,
+    /// Use cascade gains that work on the default plant.
+    #[arg(long)]
+    pub tuned_gains: bool,
+    /// List the scenarios and exit.
+    #[arg(long)]
+    pub list: bool,
+    /// Print the plant parameters (after `--plant` and `--effect`) as TOML and exit.
+    #[arg(long)]
+    pub print_plant: bool,
+}
+
+fn read(path: &PathBuf) -> anyhow::Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
+}
+
+/// Load a controller configuration from TOML, merged onto the defaults.
+pub fn load_config(path: &PathBuf) -> anyhow::Result<Config> {
+    let text = read(path)?;
+    let user: toml::Value =
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let mut merged = toml::Value::try_from(Config::default())?;
+    merge_toml(&mut merged, user);
+    let config: Config = merged
+        .try_into()
+        .with_context(|| format!("in {}", path.display()))?;
+    config
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(config)
+}
+
+fn fmt_stats(s: &Option<Stats>) -> String {
+    match s {
+        Some(s) => format!(
+            "mean {:+.3}°, mean|e| {:.3}°, max {:+.3}°, min {:+.3}°",
+            s.mean_deg, s.mean_abs_deg, s.max_deg, s.min_deg
+        ),
+        None => "n/a".to_owned(),
+    }
+}
+
+/// Run the subcommand.
+pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
+    if args.list {
+        for s in SCENARIOS {
+            println!("{:<14} seed {:<4} {}", s.name, s.seed, s.description);
+        }
+        return Ok(());
+    }
+    let mut plant = match &args.plant {
+        Some(p) => {
+            PlantParams::from_toml_str(&read(p)?).with_context(|| format!("in {}", p.display()))?
+        }
+        None => PlantParams::default(),
+    };
+    for e in &args.effect {
+        if !e.trim().is_empty() {
+            plant.effects.enable(e)?;
+        }
+    }
+    plant.validate()?;
+    if args.print_plant {
+        print!("{}", plant.to_toml_string()?);
+        return Ok(());
+    }
+    let name = args
+        .scenario
+        .as_deref()
+        .context("--scenario NAME is required (see --list)")?;
+    let out = args.out.as_ref().context("--out PATH is required")?;
+    let mut config = match &args.config {
+        Some(p) => load_config(p)?,
+        None => Config::default(),
+    };
+    if args.oracle {
+        config = scenario::oracle_config(&plant, &config);
+    }
+    if args.tuned_gains {
+        config = scenario::tuned_gains(&config);
+    }
+    let mut opts = ScenarioOptions {
+        angle_deg: args.angle_deg,
+        mass_g: args.mass_g,
+        direction: args.direction,
+        tip_inertia: !args.no_tip_inertia,
+        ..ScenarioOptions::default()
+    };
+    if let Some(s) = args.duration_scale {
+        opts.duration_scale = s;
+    }
+    if let Some(d) = args.duration {
+        anyhow::ensure!(d > 0.0, "--duration must be > 0");
+        let full = scenario::plan(name, &opts)?.duration_s();
+        opts.duration_scale = d / full;
+    }
+    let mut log = LogRecorder::new(true);
+    let mut raw = RawTrace::new();
+    let summary = if args.raw_out.is_some() {
+        scenario::run(
+            name,
+            plant,
+            config,
+            args.seed,
+            &opts,
+            &mut (&mut log, &mut raw),
+        )?
+    } else {
+        scenario::run(name, plant, config, args.seed, &opts, &mut log)?
+    };
+    log.write(out)?;
+    if let Some(p) = &args.raw_out {
+        raw.write(p)?;
+    }
+    let effects = plant.effects.enabled();
+    println!(
+        "{}: seed {}, {} rows, {:.2} s simulated{} -> {}",
+        summary.name,
+        summary.seed,
+        summary.ticks,
+        summary.duration_s,
+        if effects.is_empty() {
+            String::new()
+        } else {
+            format!(", effects: {}", effects.join(","))
+        },
+        out.display()
+    );
+    println!(
+        "  tracking (desired - magnetic): {}",
+        fmt_stats(&summary.tracking)
+    );
+    println!(
+        "  JAE (estimate - magnetic):     {}",
+        fmt_stats(&summary.jae)
+    );
+    if let Some((mean, max)) = summary.force_error_n {
+        println!(
+            "  force estimate in stable regions: mean error {mean:+.3} N, max |error| {max:.3} N"
+        );
+    }
+    if let Some(f) = summary.fault {
+        println!("  FAULT latched: {f} (code {})", f.code());
+    }
+    Ok(())
+}

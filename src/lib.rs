@@ -18,6 +18,7 @@ pub mod jae;
 pub mod lsq;
 pub mod math;
 pub mod model;
+pub mod payload;
 pub mod telemetry;
 pub mod trajectory;
 pub mod units;

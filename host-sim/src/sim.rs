@@ -121,6 +121,8 @@ pub struct TickRecord {
     pub f_ext_n: f64,
     /// Phase tag set by the scenario ([`Sim::set_phase`]).
     pub phase: u32,
+    /// The sample the controller was homed on ([`Sim::origin_sample`]).
+    pub origin: RawSample,
 }
 
 /// Receives every tick of a run.
@@ -184,6 +186,7 @@ pub struct Sim {
     substeps: usize,
     output: Output,
     raw: RawSample,
+    origin: RawSample,
     phase: u32,
 }
 
@@ -214,6 +217,7 @@ impl Sim {
             substeps,
             output: Output::default(),
             raw,
+            origin: raw,
             phase: 0,
         })
     }
@@ -274,6 +278,12 @@ impl Sim {
         &self.raw
     }
 
+    /// The sample the controller was homed on at construction
+    /// ([`Controller::set_origin`]); a replay starts by homing on it.
+    pub fn origin_sample(&self) -> &RawSample {
+        &self.origin
+    }
+
     /// The plant.
     pub fn plant(&self) -> &Plant {
         &self.plant
@@ -317,6 +327,7 @@ impl Sim {
             torque_constant_nm_a: self.plant.torque_constant_nm_a(),
             f_ext_n: self.force.at(t_s - self.force_start_s),
             phase: self.phase,
+            origin: self.origin,
         };
         rec.record(&record);
         self.plant.set_current_command(drive_ref_a);
@@ -544,9 +555,13 @@ pub struct RawRecord {
     pub output: Output,
 }
 
-/// Columns of [`RawTrace::to_table`].
-pub const RAW_COLUMNS: [&str; 14] = [
+/// Columns of [`RawTrace::to_table`]. The first row is the homing sample
+/// (`homing` = 1, at `t_s` one period before the first tick, no outputs); a
+/// replay homes the controller on it ([`Controller::set_origin`]) and then
+/// steps through the other rows.
+pub const RAW_COLUMNS: [&str; 15] = [
     "t_s",
+    "homing",
     "grating1_count",
     "grating2_count",
     "motor_count",
@@ -566,6 +581,8 @@ pub const RAW_COLUMNS: [&str; 14] = [
 /// the firmware (e.g. under QEMU) and comparing its outputs bit for bit.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RawTrace {
+    /// The sample the controller was homed on.
+    pub origin: Option<RawSample>,
     /// The ticks, in order.
     pub records: Vec<RawRecord>,
 }
@@ -581,31 +598,50 @@ impl RawTrace {
         self.records.iter().map(|r| r.raw).collect()
     }
 
-    /// As a table of [`RAW_COLUMNS`] (counts and codes as exact integers).
+    /// As a table of [`RAW_COLUMNS`] (counts and codes as exact integers;
+    /// the homing row first).
     pub fn to_table(&self) -> Table {
-        let rows = self
-            .records
-            .iter()
-            .map(|r| {
-                let o = &r.output;
-                vec![
-                    r.t_s,
-                    r.raw.grating1.0 as f64,
-                    r.raw.grating2.0 as f64,
-                    r.raw.motor.0 as f64,
-                    r.raw.magnetic.0 as f64,
-                    r.raw.current.0 as f64,
-                    o.dac.0 as f64,
-                    o.drive_enable as u8 as f64,
-                    o.current_ref_a as f64,
-                    o.mode.code() as f64,
-                    Fault::code_of(o.fault) as f64,
-                    o.est.theta_hat_rad as f64,
-                    o.est.f_ext_hat_n as f64,
-                    o.est.tension1_n as f64,
-                ]
-            })
-            .collect();
+        let counts = |r: &RawSample| {
+            [
+                r.grating1.0 as f64,
+                r.grating2.0 as f64,
+                r.motor.0 as f64,
+                r.magnetic.0 as f64,
+                r.current.0 as f64,
+            ]
+        };
+        let mut rows = Vec::with_capacity(self.records.len() + 1);
+        if let Some(o) = &self.origin {
+            let period = match self.records.as_slice() {
+                [a, b, ..] => b.t_s - a.t_s,
+                _ => 0.0,
+            };
+            let t0 = self.records.first().map_or(0.0, |r| r.t_s) - period;
+            let mut row = vec![t0, 1.0];
+            row.extend(counts(o));
+            row.extend([f64::NAN; 8]);
+            rows.push(row);
+        }
+        rows.extend(self.records.iter().map(|r| {
+            let o = &r.output;
+            vec![
+                r.t_s,
+                0.0,
+                r.raw.grating1.0 as f64,
+                r.raw.grating2.0 as f64,
+                r.raw.motor.0 as f64,
+                r.raw.magnetic.0 as f64,
+                r.raw.current.0 as f64,
+                o.dac.0 as f64,
+                o.drive_enable as u8 as f64,
+                o.current_ref_a as f64,
+                o.mode.code() as f64,
+                Fault::code_of(o.fault) as f64,
+                o.est.theta_hat_rad as f64,
+                o.est.f_ext_hat_n as f64,
+                o.est.tension1_n as f64,
+            ]
+        }));
         Table {
             names: RAW_COLUMNS.to_vec(),
             rows,
@@ -620,6 +656,7 @@ impl RawTrace {
 
 impl Recorder for RawTrace {
     fn record(&mut self, rec: &TickRecord) {
+        self.origin.get_or_insert(rec.origin);
         self.records.push(RawRecord {
             t_s: rec.t_s,
             raw: rec.raw,
@@ -705,6 +742,9 @@ pub struct ErrorStats {
     pub start_s: f64,
     /// Only these phases (empty = all).
     pub phases: Vec<u32>,
+    /// Track against the motor-implied angle instead of the magnetic encoder
+    /// (motor decoupled from the joint); no JAE statistics then.
+    pub against_motor: bool,
     tracking: Acc,
     jae: Acc,
 }
@@ -739,9 +779,14 @@ impl Recorder for ErrorStats {
             return;
         }
         let e = &rec.output.est;
-        self.tracking
-            .push((e.theta_ref_rad - e.theta_mag_rad) as f64);
-        self.jae.push((e.theta_hat_rad - e.theta_mag_rad) as f64);
+        if self.against_motor {
+            self.tracking
+                .push((e.theta_ref_rad - e.theta_motor_rad) as f64);
+        } else {
+            self.tracking
+                .push((e.theta_ref_rad - e.theta_mag_rad) as f64);
+            self.jae.push((e.theta_hat_rad - e.theta_mag_rad) as f64);
+        }
     }
 }
 

@@ -64,9 +64,10 @@ pub struct SimulateArgs {
     /// `loading`: run only this direction.
     #[arg(long, value_enum)]
     pub direction: Option<Direction>,
-    /// Weights do not add inertia to the joint.
+    /// Weights add their inertia rigidly to the joint (stress case; default:
+    /// pure force, as through a compliant thread).
     #[arg(long)]
-    pub no_tip_inertia: bool,
+    pub tip_inertia: bool,
     /// Use the plant's true values for the identified parameters.
     #[arg(long)]
     pub oracle: bool,
@@ -154,7 +155,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         angle_deg: args.angle_deg,
         mass_g: args.mass_g,
         direction: args.direction,
-        tip_inertia: !args.no_tip_inertia,
+        tip_inertia: args.tip_inertia,
         ..ScenarioOptions::default()
     };
     if let Some(s) = args.duration_scale {

@@ -23,6 +23,10 @@
 //! `F_0 r_m / z_i` ([`Plant::holding_current_a`]): with the drive off, the
 //! preload back-drives the gearhead.
 //!
+//! The sliders and the joint have end stops (inelastic: the motion into the
+//! stop is removed), so an unpowered loop that the preload collapses comes
+//! to rest on them.
+//!
 //! # Integration
 //!
 //! Fixed-step semi-implicit (symplectic) Euler: forces from the positions
@@ -181,6 +185,20 @@ fn sign(x: f64) -> f64 {
         -1.0
     } else {
         0.0
+    }
+}
+
+/// Inelastic end stop: a position beyond `limit` is put back on it and the
+/// velocity into the stop is removed (a plastic impact; unconditionally
+/// stable, unlike a stiff contact spring).
+#[inline]
+fn end_stop(x: &mut f64, v: &mut f64, limit: f64) {
+    if *x > limit {
+        *x = limit;
+        *v = v.min(0.0);
+    } else if *x < -limit {
+        *x = -limit;
+        *v = v.max(0.0);
     }
 }
 
@@ -579,6 +597,9 @@ impl Plant {
             s.x1_m += dt * s.x1_vel_m_s;
             s.theta_rad += dt * s.theta_vel_rad_s;
             s.x2_m += dt * s.x2_vel_m_s;
+            end_stop(&mut s.x1_m, &mut s.x1_vel_m_s, p.slider1.travel_m);
+            end_stop(&mut s.theta_rad, &mut s.theta_vel_rad_s, p.joint.range_rad);
+            end_stop(&mut s.x2_m, &mut s.x2_vel_m_s, p.slider2.travel_m);
 
             if let Some(c) = &p.effects.creep {
                 let f0 = p.spring.preload_n;

@@ -17,38 +17,53 @@
 //!      MISUMI SSEBZ8 miniature guide is not: `c1` is ill-conditioned in the
 //!      seed's fit (its regressor, `x2''`, is tiny) and is **not** used; the
 //!      slider mass is estimated instead (below).
-//!    * Simplified model C, Eq. 29: `f_sc1 = 3.879 N` is slider 1's Coulomb
-//!      friction; `f_cp2 = 5.027 N` is the Coulomb friction beyond cable 1
-//!      seen as cable tension, `f_sc2 + f_efc / r`, so the joint's Coulomb
-//!      torque is `f_efc = (5.027 - 0.114) N · 4 mm = 19.65 mN·m` (a pin of
-//!      about 1.5 mm radius under the 2 × 19.5 N cable load with a friction
-//!      coefficient near 0.3 gives the same order).
+//!    * Simplified model C, Eq. 29: the Coulomb terms `f_sc1 sgn(x1') +
+//!      f_cp2 sgn(x2')` total 3.879 + 5.027 = 8.906 N of cable-1 tension.
+//!      `x1'`, `x2'` (and `phi'`) have the same sign except for short
+//!      transients, so the *sum* is what the data pins down; the split is
+//!      placed by physics and by the seed's other observations (below).
 //!    * `B_m = 1.6934e-5 N·m·s/rad` (seed Sect. 4.2), used as the true motor
 //!      damping (it lumps the gearhead's losses at the motor shaft).
 //! 3. **Estimates** where the seed gives nothing, each argued at its field:
 //!    slider masses, joint inertia, viscous joint friction, the static/kinetic
 //!    friction ratio, cable damping, the drive's bandwidth and noise, and the
-//!    drive-side cable stiffnesses `K_w0`, `K_w1`.
+//!    drive-side cable stiffness `K_w0`.
 //!
-//! ## `K_w0` and `K_w1` from the seed's Fig. 10
+//! ## Where the 8.9 N of Coulomb friction sits
 //!
-//! With the motor in closed loop on its encoder (Fig. 8/10), the joint lags
-//! the motor-implied angle by the stretch of cables 0 and 1:
-//! `e = (ΔF_0 / K_w0 + ΔF_w1 / K_w1) / r`. At the end of a positive stroke of
-//! ±30° (`θ = 0.524 rad`) the tensions above the preload are
-//! `ΔF_w1 = K_s' r θ + f_cp2 ≈ 1.3 + 5.0 = 6.3 N` (`K_s'`: spring in series
-//! with cable 2, 620 N/m) and `ΔF_0 = ΔF_w1 + f_sc1 (+ viscous) ≈ 10.3 N`.
-//! Cable 0 is a short cable (≈ 60 mm from the rope wheel to slider 1 on the
-//! drive base; a 0.45 mm 7×7 steel rope has `EA ≈ 1.2e4 N`), so
-//! `K_w0 ≈ 2e5 N/m` and it stretches 0.05 mm (0.7° of joint). The seed's worst
-//! error, 4.1°, is 0.29 mm of stretch at `r`; the remaining 0.24 mm on
-//! 6.3 N gives `K_w1 ≈ 27 N/mm`. Cable 1 is thus about 2.4 times stiffer than
-//! the `K_w2` that `c4` implies. The two cables run the same path, so the
-//! difference is larger than a symmetric design would have; `K_w2` from `c4` is
-//! very sensitive (`c4 r - 1 = 0.057`, a 1 % error in `c4 r` moves `K_w2` by
-//! 18 %) and the prototype is explicitly asymmetric (the drive cable is the
-//! motor side). The report states this. `host-sim simulate --scenario
-//! track-motor` measures the result.
+//! * **Slider 2**: only `f_sc2 = 0.114 N` (the JAE's `c3`; more would show
+//!   as θ-x2 hysteresis that the seed's JAE fit, 0.28° mean error, excludes).
+//! * **Joint pin**: `f_efc = 4 mN·m` (μ ≈ 0.1 on a ≈ 1 mm pin radius under the
+//!   two cables' 2 F_0 ≈ 39 N), i.e. 1.0 N of cable tension and 0.2 N at the
+//!   tip. Putting all of `f_cp2` here (20 mN·m, 1 N at the tip) would let
+//!   joint stiction swallow the seed's 0.3 N test loads (82 % accuracy) and
+//!   its ±0.1 N static no-load error: the tip-equivalent pin friction must be
+//!   of that order.
+//! * **Slider 1** (guide, idlers): the seed's `f_sc1 = 3.879 N` as identified.
+//! * **Motor and gearhead**: the rest of `f_cp2`, `5.027 - 0.114 - 1.0 =
+//!   3.91 N` of rope tension, i.e. 0.67 mN·m at the motor shaft (RE25 brush
+//!   and bearing friction, about 0.5 mN·m from its no-load current, plus the
+//!   planetary gearhead). It has the sign of `phi'`, which the seed's fit
+//!   cannot tell from `sgn(x2')` during motion. Friction here, rather than on
+//!   slider 1, is what lets cable 1 drag slider 1 back when a 250 g load
+//!   assists the joint (cable 1 then carries only ≈ 7 N).
+//!
+//! An identification of model C on this plant returns roughly
+//! `f_sc1 + f_cp2 = 8.9 N`, split by the reversal transients.
+//!
+//! ## Cable stiffness and the seed's Fig. 10
+//!
+//! Cables 1 and 2 run the same path from the drive unit through the shaft to
+//! the joint, so `K_w1 = K_w2 = 11 434 N/m`. Cable 0 is short (≈ 60 mm from
+//! the rope wheel to slider 1 on the drive base; a 0.45 mm 7×7 steel rope has
+//! `EA ≈ 1.2e4 N`): `K_w0 = 2e5 N/m`. With the motor in closed loop on its
+//! encoder (Fig. 8/10) the joint lags the motor-implied angle by the stretch
+//! of cables 0 and 1, `e = (ΔF_1 / K_w0 + ΔF_w1 / K_w1) / r`. At the end of a
+//! positive ±30° stroke `ΔF_w1 ≈ K_s' r θ + f_efc / r + f_sc2 ≈ 1.3 + 1.0 +
+//! 0.1 = 2.4 N` (`K_s'` = spring in series with cable 2, 620 N/m) and
+//! `ΔF_1 ≈ 2.4 + 3.9 (+ viscous) ≈ 6.4 N`: `e ≈ (0.032 + 0.21) mm / 4 mm
+//! = 0.061 rad = 3.5°`, against the seed's 4.1° worst error. `host-sim
+//! simulate --scenario track-motor` measures it.
 
 use cable_joint::units::Scales;
 use serde::{Deserialize, Serialize};
@@ -65,10 +80,9 @@ pub struct MotorParams {
     pub rotor_inertia_kg_m2: f64,
     /// Viscous damping at the motor shaft `B_m`, N·m·s/rad (seed: 1.6934e-5).
     pub viscous_nm_s_rad: f64,
-    /// Coulomb friction torque at the motor shaft, N·m. Default 0: brush and
-    /// gearhead Coulomb friction have the sign of `phi'`, which is the sign of
-    /// `x1'`, so model C's `f_sc1` absorbs them; the seed's identified
-    /// `f_sc1` is attributed to slider 1 in full.
+    /// Coulomb friction torque at the motor shaft (brushes, bearings,
+    /// gearhead), N·m; static equals kinetic. It has the sign of `phi'`,
+    /// hence of `x1'`, so model C's `f_sc1` absorbs it.
     pub coulomb_nm: f64,
     /// Gear ratio `z_i` (35).
     pub gear_ratio: f64,
@@ -82,7 +96,7 @@ impl Default for MotorParams {
             torque_constant_nm_a: 23.4e-3,
             rotor_inertia_kg_m2: 1.08e-6,
             viscous_nm_s_rad: 1.6934e-5,
-            coulomb_nm: 0.0,
+            coulomb_nm: MOTOR_COULOMB_NM,
             gear_ratio: 35.0,
             rope_wheel_radius_m: 6e-3,
         }
@@ -147,6 +161,9 @@ pub struct SliderParams {
     pub coulomb_n: f64,
     /// Static (breakaway) friction, N (>= Coulomb).
     pub static_n: f64,
+    /// Travel either side of the rest position, m (end stops; the SSEBZ8L-85
+    /// rail leaves about ±30 mm).
+    pub travel_m: f64,
 }
 
 impl Default for SliderParams {
@@ -171,6 +188,8 @@ pub struct JointParams {
     pub pulley_radius_m: f64,
     /// Gripper length `l_e` (lever of the tip force), m (20 mm).
     pub gripper_length_m: f64,
+    /// Mechanical range either side of 0, rad (end stops, 100°).
+    pub range_rad: f64,
 }
 
 impl Default for JointParams {
@@ -306,20 +325,34 @@ const SLIDER2: SliderParams = SliderParams {
     viscous_n_s_m: 0.5225 * K_W2_N_M * 4e-3,
     coulomb_n: 0.0025 * K_W2_N_M * 4e-3,
     static_n: STATIC_OVER_KINETIC * 0.0025 * K_W2_N_M * 4e-3,
+    travel_m: 0.03,
 };
 
-/// Slider 1: Coulomb friction from model C (`f_sc1 = 3.879 N`); the same guide
-/// type as slider 2, so the same viscous friction; mass as slider 2 plus the
-/// cable-0 termination (~10 g): 40 g.
+/// Joint pin Coulomb torque, N·m.
+pub const JOINT_COULOMB_NM: f64 = 4e-3;
+
+/// Motor and gearhead Coulomb torque at the motor shaft, N·m: the part of
+/// the seed's `f_cp2` that is neither slider 2 nor the joint pin, through
+/// `r_m / z_i`.
+pub const MOTOR_COULOMB_NM: f64 =
+    (5.027 - 0.0025 * K_W2_N_M * 4e-3 - JOINT_COULOMB_NM / 4e-3) * 6e-3 / 35.0;
+
+/// Slider 1 Coulomb friction: the seed's `f_sc1`, N.
+pub const SLIDER1_COULOMB_N: f64 = 3.879;
+
+/// Slider 1: Coulomb friction as identified; the same guide type as slider 2, so
+/// the same viscous friction; mass as slider 2 plus the cable-0 termination
+/// (~10 g): 40 g.
 const SLIDER1: SliderParams = SliderParams {
     mass_kg: 0.040,
     viscous_n_s_m: 0.5225 * K_W2_N_M * 4e-3,
-    coulomb_n: 3.879,
-    static_n: STATIC_OVER_KINETIC * 3.879,
+    coulomb_n: SLIDER1_COULOMB_N,
+    static_n: STATIC_OVER_KINETIC * SLIDER1_COULOMB_N,
+    travel_m: 0.03,
 };
 
-/// Joint: Coulomb torque from model C's `f_cp2` less slider 2's share
-/// (19.65 mN·m). Inertia: a 20 mm stainless jaw of about 1 g about its end
+/// Joint: Coulomb torque of the pin (see the module documentation),
+/// 4 mN·m. Inertia: a 20 mm stainless jaw of about 1 g about its end
 /// (`m l² / 3 ≈ 1.3e-7`), the 4 mm pulley and the magnet ring of the encoder:
 /// 2e-7 kg·m². Viscous: a greased pin, 2e-5 N·m·s/rad (0.1 mN·m at the fastest
 /// 5 rad/s; unidentifiable in the seed, whose model-C `f_efv/r` had a 27 %
@@ -327,17 +360,18 @@ const SLIDER1: SliderParams = SliderParams {
 const JOINT: JointParams = JointParams {
     inertia_kg_m2: 2e-7,
     viscous_nm_s_rad: 2e-5,
-    coulomb_nm: (5.027 - 0.0025 * K_W2_N_M * 4e-3) * 4e-3,
-    static_nm: STATIC_OVER_KINETIC * (5.027 - 0.0025 * K_W2_N_M * 4e-3) * 4e-3,
+    coulomb_nm: JOINT_COULOMB_NM,
+    static_nm: STATIC_OVER_KINETIC * JOINT_COULOMB_NM,
     pulley_radius_m: 4e-3,
     gripper_length_m: 20e-3,
+    range_rad: 100.0 * std::f64::consts::PI / 180.0,
 };
 
 /// Cable 0 stiffness, N/m (see the module documentation).
 pub const K_W0_N_M: f64 = 2.0e5;
 
-/// Cable 1 stiffness, N/m (see the module documentation: from Fig. 10).
-pub const K_W1_N_M: f64 = 2.7e4;
+/// Cable 1 stiffness, N/m: the same cable and path as cable 2.
+pub const K_W1_N_M: f64 = K_W2_N_M;
 
 /// Deep-merge `over` onto `base` (tables key by key, everything else replaced).
 pub(crate) fn merge_toml(base: &mut toml::Value, over: toml::Value) {
@@ -418,11 +452,14 @@ impl PlantParams {
         ]
     }
 
-    /// What simplified model C (Eq. 29) is for these parameters:
-    /// `[f_sc1, f_sc2 + f_efc / r, K_s, F_0]`.
+    /// What simplified model C (Eq. 29) is for these parameters, as the DOB
+    /// sees the load: `[f_sc1 + f_m z_i / r_m, f_sc2 + f_efc / r, K_s, F_0]`
+    /// (the motor's Coulomb torque appears as rope tension with the sign of
+    /// `x1'`).
     pub fn model_c_coefficients(&self) -> [f64; 4] {
+        let m = &self.motor;
         [
-            self.slider1.coulomb_n,
+            self.slider1.coulomb_n + m.coulomb_nm * m.gear_ratio / m.rope_wheel_radius_m,
             self.slider2.coulomb_n + self.joint.coulomb_nm / self.joint.pulley_radius_m,
             self.spring.stiffness_n_m,
             self.spring.preload_n,
@@ -473,6 +510,7 @@ impl PlantParams {
             nonneg(&format!("{name}.viscous_n_s_m"), s.viscous_n_s_m)?;
             nonneg(&format!("{name}.coulomb_n"), s.coulomb_n)?;
             nonneg(&format!("{name}.static_n"), s.static_n)?;
+            pos(&format!("{name}.travel_m"), s.travel_m)?;
             anyhow::ensure!(
                 s.static_n >= s.coulomb_n,
                 "plant.{name}.static_n ({}) must be >= coulomb_n ({})",
@@ -491,6 +529,7 @@ impl PlantParams {
         );
         pos("joint.pulley_radius_m", j.pulley_radius_m)?;
         pos("joint.gripper_length_m", j.gripper_length_m)?;
+        pos("joint.range_rad", j.range_rad)?;
         pos("spring.stiffness_n_m", self.spring.stiffness_n_m)?;
         nonneg("spring.preload_n", self.spring.preload_n)?;
         let s = &self.sensors.scales;

@@ -80,9 +80,10 @@ impl Default for Presliding {
 ///
 /// so a cable held at constant length loses tension (the preload relaxes),
 /// and one held at constant tension keeps lengthening towards `ratio` times its
-/// elastic stretch. `F_ref` is the preload for cables that have settled
-/// under it ([`Creep::fresh`] false: creep follows the load history from
-/// rest) and 0 for freshly tensioned cables (the preload itself relaxes).
+/// elastic stretch. `δ = 0` at the start (tension `F_0` at rest). `F_ref` is
+/// the preload for cables that have settled under it ([`Creep::fresh`]
+/// false: creep follows the load history from rest, nothing moves at rest)
+/// and 0 for freshly tensioned cables (the preload itself relaxes).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Creep {

@@ -101,8 +101,7 @@ pub struct PlantState {
     pub x2_vel_m_s: f64,
     /// Winding current, A.
     pub current_a: f64,
-    /// Creep lengthening of cables 0, 1, 2 relative to their settled rest
-    /// lengths, m ([`Creep`]).
+    /// Creep lengthening of cables 0, 1, 2 since the start, m ([`Creep`]).
     pub creep_m: [f64; 3],
     /// LuGre bristle deflections: slider 1 (m), joint (rad), slider 2 (m)
     /// ([`Presliding`]).
@@ -260,21 +259,6 @@ impl Plant {
         let ambient = params.effects.thermal.map_or(25.0, |t| t.ambient_c);
         plant.s.winding_c = ambient;
         plant.s.housing_c = ambient;
-        if let Some(c) = &params.effects.creep {
-            if c.fresh {
-                // Rest lengths relative to the settled state: a fresh cable
-                // has not yet crept by ratio F_0 / K.
-                let f0 = params.spring.preload_n;
-                let ks = [
-                    params.cable0.stiffness_n_m,
-                    params.cable1.stiffness_n_m,
-                    params.cable2.stiffness_n_m,
-                ];
-                for (c_m, k) in plant.s.creep_m.iter_mut().zip(ks) {
-                    *c_m = -c.ratio * f0 / k;
-                }
-            }
-        }
         let hold = if params.motor_decoupled {
             0.0
         } else {
@@ -609,8 +593,11 @@ impl Plant {
                     p.cable1.stiffness_n_m,
                     p.cable2.stiffness_n_m,
                 ];
+                // Settled cables creep with the load above the preload they
+                // have settled under; fresh ones with their whole tension.
+                let f_ref = if c.fresh { 0.0 } else { f0 };
                 for k in 0..3 {
-                    let target = c.ratio * (forces[k] - f0) / ks[k];
+                    let target = c.ratio * (forces[k] - f_ref) / ks[k];
                     s.creep_m[k] += (target - s.creep_m[k]) * d.creep_alpha;
                 }
             }

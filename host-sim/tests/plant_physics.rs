@@ -1,0 +1,195 @@
+//! Mechanics of the simulated prototype: rest with preload, static equilibrium
+//! under a tip force against the analytic stiffness chain, stick-slip.
+
+use host_sim::plant::{Plant, PlantParams};
+
+fn frictionless() -> PlantParams {
+    let mut p = PlantParams::default();
+    p.motor.coulomb_nm = 0.0;
+    for s in [&mut p.slider1, &mut p.slider2] {
+        s.coulomb_n = 0.0;
+        s.static_n = 0.0;
+    }
+    p.joint.coulomb_nm = 0.0;
+    p.joint.static_nm = 0.0;
+    p
+}
+
+/// At rest with the holding current, every tension is `F_0` and nothing
+/// moves, with and without friction.
+#[test]
+fn rest_with_preload_is_an_equilibrium() {
+    for params in [PlantParams::default(), frictionless()] {
+        let mut plant = Plant::new(params, 1).unwrap();
+        let f0 = params.spring.preload_n;
+        let i0 = f0 * params.motor.rope_wheel_radius_m
+            / (params.motor.gear_ratio * params.motor.torque_constant_nm_a);
+        assert!((plant.holding_current_a() - i0).abs() < 1e-15);
+        assert_eq!(plant.state().current_a, plant.holding_current_a());
+        plant.advance(2.0);
+        let s = plant.state();
+        for (name, v) in [
+            ("phi", s.phi_rad),
+            ("x1", s.x1_m),
+            ("theta", s.theta_rad),
+            ("x2", s.x2_m),
+        ] {
+            assert!(v.abs() < 1e-12, "{name} moved to {v:e} at rest");
+        }
+        let t = plant.tensions();
+        for (name, f) in [
+            ("rope", t.rope_n),
+            ("cable 1", t.cable1_n),
+            ("cable 2", t.cable2_n),
+            ("spring", t.spring_n),
+        ] {
+            assert!((f - f0).abs() < 1e-9, "{name} tension {f} != F_0 {f0}");
+        }
+    }
+}
+
+/// Without friction, constant motor torque and a tip force: every tension
+/// and position follows from the stiffness chain (DESIGN.md §1 equations at
+/// rest).
+#[test]
+fn static_equilibrium_under_tip_force_matches_stiffness_chain() {
+    let p = frictionless();
+    let mut plant = Plant::new(p, 1).unwrap();
+    let f_ext = 0.3;
+    plant.set_external_force(f_ext);
+    plant.advance(15.0);
+
+    let f0 = p.spring.preload_n;
+    let (r, le) = (p.joint.pulley_radius_m, p.joint.gripper_length_m);
+    let rw = p.motor.rope_wheel_radius_m / p.motor.gear_ratio;
+    // Motor torque K_m i0 balances the rope: F_1 = F_0. Slider 1 without
+    // friction: F_w1 = F_1. Joint: (F_w1 - F_w2) r = F_ext l_e. Slider 2:
+    // F_w2 = F_0 + K_s x2.
+    let f1 = f0;
+    let fw1 = f1;
+    let fw2 = fw1 - f_ext * le / r;
+    let x2 = (fw2 - f0) / p.spring.stiffness_n_m;
+    let theta = (x2 + (fw2 - f0) / p.cable2.stiffness_n_m) / r;
+    let x1 = r * theta + (fw1 - f0) / p.cable1.stiffness_n_m;
+    let phi = (x1 + (f1 - f0) / p.cable0.stiffness_n_m) / rw;
+
+    let s = plant.state();
+    let t = plant.tensions();
+    let close = |name: &str, got: f64, want: f64| {
+        assert!(
+            (got - want).abs() <= 1e-4 * want.abs().max(1e-3),
+            "{name}: simulated {got:.6e}, analytic {want:.6e}"
+        );
+    };
+    close("x2", s.x2_m, x2);
+    close("theta", s.theta_rad, theta);
+    close("x1", s.x1_m, x1);
+    close("phi", s.phi_rad, phi);
+    close("F_w2", t.cable2_n, fw2);
+    close("F_w1", t.cable1_n, fw1);
+    close("F_1", t.rope_n, f1);
+    close("spring", t.spring_n, fw2);
+    assert!(s.theta_vel_rad_s.abs() < 1e-6, "settled");
+    // The tip force opposes positive rotation: the joint turned negative.
+    assert!(theta < -0.5, "0.3 N turns the joint by {theta} rad");
+}
+
+/// The joint's static friction holds a tip force below breakaway with zero
+/// drift, and lets go above it; after slipping it sticks again.
+#[test]
+fn joint_stiction_holds_below_breakaway_and_slips_above() {
+    let p = PlantParams::default();
+    let le = p.joint.gripper_length_m;
+    let breakaway_n = p.joint.static_nm / le;
+
+    let mut plant = Plant::new(p, 1).unwrap();
+    plant.set_external_force(0.9 * breakaway_n);
+    plant.advance(1.0);
+    let s = *plant.state();
+    assert_eq!(s.theta_rad, 0.0, "stuck joint must not creep");
+    assert_eq!(s.theta_vel_rad_s, 0.0);
+    assert_eq!(s.x2_m, 0.0);
+    assert_eq!(s.x1_m, 0.0);
+
+    let mut plant = Plant::new(p, 1).unwrap();
+    plant.set_external_force(1.3 * breakaway_n);
+    plant.advance(1.0);
+    let s = *plant.state();
+    // Slipping stops where cable stretch takes the excess over the kinetic
+    // level: of the order (F l_e - f_c) / ((K_w1 + K_w2) r^2), i.e. a few
+    // hundredths of a radian, never beyond the static band.
+    let k_theta =
+        (p.cable1.stiffness_n_m + p.cable2.stiffness_n_m) * p.joint.pulley_radius_m.powi(2);
+    let excess = 1.3 * breakaway_n * le - p.joint.coulomb_nm;
+    assert!(
+        s.theta_rad < -0.2 * excess / k_theta,
+        "joint slipped only to {} rad",
+        s.theta_rad
+    );
+    assert!(
+        s.theta_rad > -(1.3 * breakaway_n * le + p.joint.static_nm) / (0.5 * k_theta),
+        "joint ran away to {} rad",
+        s.theta_rad
+    );
+    assert_eq!(s.theta_vel_rad_s, 0.0, "stuck again after slipping");
+    let held = s.theta_rad;
+    plant.advance(0.5);
+    assert_eq!(plant.state().theta_rad, held, "holds after slipping");
+}
+
+/// The same for slider 2 through cable 2: slider 2's breakaway is tiny
+/// (0.14 N), so a small extra spring preload moves it, a force within the
+/// static band does not.
+#[test]
+fn slider_stiction_band() {
+    let p = PlantParams::default();
+    let band = p.slider2.static_n;
+    for (extra, moves) in [(0.8 * band, false), (1.5 * band, true)] {
+        let mut plant = Plant::new(p, 1).unwrap();
+        // Displace slider 2 so the spring pulls `extra` more than cable 2.
+        let dx = extra / (p.spring.stiffness_n_m + p.cable2.stiffness_n_m);
+        plant.state_mut().x2_m = dx;
+        plant.advance(0.5);
+        let s = plant.state();
+        assert_eq!(
+            s.x2_m != dx,
+            moves,
+            "imbalance {extra:.3} N vs static {band:.3} N: x2 {} -> {}",
+            dx,
+            s.x2_m
+        );
+        assert_eq!(s.x2_vel_m_s, 0.0, "at rest at the end");
+    }
+}
+
+/// A cable that would be compressed carries no tension (cables only pull).
+#[test]
+fn slack_cable_has_no_tension() {
+    let p = PlantParams::default();
+    let mut plant = Plant::new(p, 1).unwrap();
+    // Wind cable 0 out by more than its preload stretch.
+    let rw = p.motor.rope_wheel_radius_m / p.motor.gear_ratio;
+    plant.state_mut().phi_rad = -2.0 * p.spring.preload_n / p.cable0.stiffness_n_m / rw;
+    assert_eq!(plant.tensions().rope_n, 0.0);
+    assert!(plant.tensions().cable1_n > 0.0);
+}
+
+/// The step-size guard: the default 40 kHz resolves the stiffest mode with
+/// margin, and the bound is a true upper bound of the chain's frequencies.
+#[test]
+fn stiffest_mode_is_resolved() {
+    let p = PlantParams::default();
+    let plant = Plant::new(p, 1).unwrap();
+    let w_dt = plant.omega_max_rad_s() * plant.dt_s();
+    assert!(w_dt < 0.2, "w_max dt = {w_dt}");
+    // Slider 1 between cables 0 and 1 alone: sqrt((K_w0 + K_w1) / m_0) must
+    // lie below the bound.
+    let w_slider1 = ((p.cable0.stiffness_n_m + p.cable1.stiffness_n_m) / p.slider1.mass_kg).sqrt();
+    assert!(w_slider1 <= plant.omega_max_rad_s());
+    // 20 kHz is still accepted; a much lighter joint is refused at 20 kHz.
+    let mut q = p;
+    q.integration.step_hz = 20_000.0;
+    assert!(Plant::new(q, 1).is_ok());
+    q.joint.inertia_kg_m2 = 1e-10;
+    assert!(Plant::new(q, 1).is_err());
+}

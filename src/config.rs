@@ -151,6 +151,13 @@ pub struct CascadeConfig {
     /// Feed-forward the current that holds the modelled cable tension
     /// (`F_1' r_m / (z_i K_m)`), so the integrator only trims.
     pub tension_feedforward: bool,
+    /// In [`crate::Mode::JointClosedLoop`], blend the feedback: the
+    /// motor-implied angle (collocated, stiff loop) corrected by the
+    /// low-passed cable stretch `theta_hat - theta_motor` with this cut-off,
+    /// Hz. 0 feeds back `theta_hat` itself (the seed's Fig. 11). The blend
+    /// keeps the non-collocated cable resonance out of the position loop
+    /// while the JAE still sets the steady angle.
+    pub jae_blend_hz: f32,
     /// Output current limit, A (at most the drive's limit).
     pub current_limit_a: f32,
 }
@@ -165,6 +172,7 @@ impl Default for CascadeConfig {
             vel_limit_rad_s: 500.0,
             vel_feedforward: 1.0,
             tension_feedforward: true,
+            jae_blend_hz: 0.0,
             current_limit_a: 2.0,
         }
     }
@@ -445,6 +453,7 @@ impl Config {
         positive("cascade.vel_limit_rad_s", c.vel_limit_rad_s)?;
         non_negative("cascade.vel_feedforward", c.vel_feedforward)?;
         positive("cascade.current_limit_a", c.current_limit_a)?;
+        non_negative("cascade.jae_blend_hz", c.jae_blend_hz)?;
         if c.current_limit_a > m.current_limit_a {
             return Err(ConfigError {
                 field: "cascade.current_limit_a",

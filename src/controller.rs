@@ -14,7 +14,7 @@ use crate::cascade::{self, CascadeIn, CascadeState};
 use crate::config::{Config, ConfigError};
 use crate::dob::{self, Dob, DobOut, DobState, TensionState};
 use crate::fault::{Fault, Sensor};
-use crate::filter::{Kinematics, TrackingObserver};
+use crate::filter::{Kinematics, LowPass1, TrackingObserver};
 use crate::jae::{self, JaeState};
 use crate::math;
 use crate::model::{sig, AddedState, Signals};
@@ -202,6 +202,7 @@ struct Derived {
     grating_obs: TrackingObserver,
     motor_obs: TrackingObserver,
     dob: Dob,
+    blend: Option<LowPass1>,
     motor_per_joint: f32,
     max_grating_step: i32,
     max_motor_step: i32,
@@ -227,6 +228,8 @@ impl Derived {
             grating_obs: TrackingObserver::new(d.grating_bandwidth_hz, period_s),
             motor_obs: TrackingObserver::new(d.motor_bandwidth_hz, period_s),
             dob: Dob::new(&c.dob, m, period_s),
+            blend: (c.cascade.jae_blend_hz > 0.0)
+                .then(|| LowPass1::new(2.0 * math::PI * c.cascade.jae_blend_hz, period_s)),
             motor_per_joint: m.gear_ratio * m.pulley_radius_m / m.rope_wheel_radius_m,
             max_grating_step: grating as i32 + 2,
             max_motor_step: motor as i32 + 2,
@@ -251,6 +254,8 @@ pub struct State {
     tension_terms: AddedState,
     dob: DobState,
     cascade: CascadeState,
+    /// Low-passed cable stretch `theta_hat - theta_motor` (feedback blend), rad.
+    stretch_rad: f32,
     last_current_a: f32,
     tick: u32,
     command_tick: u32,
@@ -475,8 +480,15 @@ impl Controller {
             },
             _ => self.command.trajectory.at(t_cmd),
         };
+        if !st.primed {
+            st.stretch_rad = theta_hat_rad - theta_motor_rad;
+        }
+        let stretch_rad = match &d.blend {
+            Some(lp) => lp.update(&mut st.stretch_rad, theta_hat_rad - theta_motor_rad),
+            None => theta_hat_rad - theta_motor_rad,
+        };
         let feedback = match self.command.mode {
-            Mode::JointClosedLoop => theta_hat_rad,
+            Mode::JointClosedLoop => theta_motor_rad + stretch_rad,
             _ => theta_motor_rad,
         };
         let m = &cfg.machine;

@@ -165,14 +165,14 @@ pub struct CascadeConfig {
 impl Default for CascadeConfig {
     fn default() -> Self {
         Self {
-            kp_pos_1_s: 2500.0,
+            kp_pos_1_s: 1000.0,
             kd_pos: 0.0,
             kp_vel_a_s_rad: 0.02,
             ki_vel_a_rad: 1.0,
             vel_limit_rad_s: 500.0,
             vel_feedforward: 1.0,
             tension_feedforward: true,
-            jae_blend_hz: 0.0,
+            jae_blend_hz: 10.0,
             current_limit_a: 2.0,
         }
     }

@@ -166,7 +166,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         let full = scenario::plan(name, &opts)?.duration_s();
         opts.duration_scale = d / full;
     }
-    let mut log = LogRecorder::new(true);
+    let mut log = LogRecorder::new(plant.sensors.magnetic_fitted);
     let mut raw = RawTrace::new();
     let summary = if args.raw_out.is_some() {
         scenario::run(

@@ -164,15 +164,19 @@ pub struct CascadeConfig {
 
 impl Default for CascadeConfig {
     fn default() -> Self {
+        // Tuned on the simulated prototype (`host-sim simulate --scenario
+        // track-jae --oracle`, sweep in the README): the position loop's
+        // crossover must stay well below the slider-2 mode (~100 Hz) that sits
+        // between the motor and the JAE's grating; kp 400 already rings.
         Self {
-            kp_pos_1_s: 1000.0,
-            kd_pos: 0.0,
-            kp_vel_a_s_rad: 0.02,
-            ki_vel_a_rad: 1.0,
+            kp_pos_1_s: 200.0,
+            kd_pos: 0.5,
+            kp_vel_a_s_rad: 0.04,
+            ki_vel_a_rad: 2.0,
             vel_limit_rad_s: 500.0,
             vel_feedforward: 1.0,
             tension_feedforward: true,
-            jae_blend_hz: 10.0,
+            jae_blend_hz: 0.0,
             current_limit_a: 2.0,
         }
     }

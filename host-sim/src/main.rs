@@ -28,6 +28,8 @@ enum Command {
     Import(host_sim::import::ImportArgs),
     /// Run one scenario on the simulated prototype and write the CSV log.
     Simulate(host_sim::simulate::SimulateArgs),
+    /// Identify B_m, the JAE and the tension models from logs; write the configuration.
+    Identify(host_sim::ident::IdentifyArgs),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +41,7 @@ fn main() -> ExitCode {
         }
         Some(Command::Import(args)) => host_sim::import::run(args),
         Some(Command::Simulate(a)) => host_sim::simulate::run(a),
+        Some(Command::Identify(a)) => host_sim::ident::run(a),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),
     };

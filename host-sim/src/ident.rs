@@ -1,0 +1,1718 @@
+//! Identification of the seed's models from logs (seed 000 Sect. 3.3 and 4):
+//! motor damping `B_m`, the joint-angle estimator `chi_s` (Eq. 25-26) and the
+//! no-load tension models A, B, C (Eq. 22-24, 27) with the seed's pruning by
+//! `%sigma` to the simplified model C (Eq. 28-29). Results go into the
+//! project's TOML configuration.
+//!
+//! ```text
+//! host-sim identify --procedure bm      --log bm.csv      --config-out c.toml
+//! host-sim identify --procedure jae     --log jae.csv     --validate jae2.csv --config-out c.toml
+//! host-sim identify --procedure tension --log ten.csv     --config c.toml --config-out c.toml
+//! host-sim identify --procedure all --log bm.csv jae.csv ten.csv \
+//!     --validate bm2.csv jae2.csv ten2.csv --config-out c.toml --json ident.json
+//! ```
+//!
+//! # Data
+//!
+//! Every log is first replayed through the core ([`crate::derive::derive`]):
+//! the regressors are the firmware's own signals (the tracking-observer
+//! velocities and accelerations, the held friction signs of
+//! [`SignMemory`] with the configuration's switching speeds, the DOB's
+//! outputs), not a second implementation of them.
+//!
+//! * **Filtering.** The DOB's outputs (`load_torque_nm`, `tension1_hat_n`) are
+//!   `Q = g/(s+g)` of the torque balance (Eq. 18). The models are linear in
+//!   their parameters, so `Q[W chi] = Q[W] chi`: by default every regressor
+//!   column is passed through the same discrete `Q` (the core's
+//!   [`LowPass1`], same cut-off and rate) before the fit, which removes the
+//!   observer's lag from the residual. This is also exactly what the firmware
+//!   compares the model with (`tension1_model_n = Q[F_1']`).
+//!   [`IdentOptions::filter_regressors`] `= false` gives the seed's plain fit.
+//! * **Samples used.** The first [`IdentOptions::skip_start_s`] (0.2 s: the
+//!   observers start at rest and the DOB's `Q` has a 16 ms time constant) and
+//!   ticks the replay flags as faulted are dropped. For the tension models the
+//!   seed notes larger errors at zero joint velocity (hysteresis: the cable is
+//!   not rigid) and trusts the identification where the joint moves; ticks
+//!   with `|theta'| <` [`IdentOptions::min_joint_vel_rad_s`] (default
+//!   0.05 rad/s, about 3 °/s, `theta'` from the magnetic encoder through the
+//!   core's tracking observer) are left out of the tension fits. A hold-off
+//!   after each still tick ([`IdentOptions::holdoff_s`]) is available but off:
+//!   on the simulator it removes the reversals, the only data that tells
+//!   `sgn(x1')` from `sgn(x2')`, and the model it leaves fits the moving
+//!   ticks but is 2.4 times worse over a whole validation run.
+//! * **Offsets.** Every model carries a constant (seed 001's zero drift: no
+//!   sensor is assumed to read zero at rest): `tau_0` for `B_m`, the JAE's
+//!   `offset_rad`, `F_0` in the tension models. The `B_m` fit also carries
+//!   the motor's Coulomb torque `tau_c sgn(phi')` (dropped by the `%sigma`
+//!   rule when it is not there): leaving it out biases `B_m`.
+//!
+//! # Pruning (seed Sect. 4.2)
+//!
+//! Model C's parameters whose `%sigma = 100 std / |value|` exceeds
+//! [`IdentOptions::max_pct_sigma`] (5 %) are dropped. The seed dropped all of
+//! them at once ([`IdentOptions::prune_all_at_once`]); by default they are
+//! dropped one at a time, the worst first, with a refit after each: when the
+//! joint moves, `sgn(theta')`, `sgn(x1')` and `sgn(x2')` are nearly the same
+//! column, each of them alone is poorly determined, and dropping all three
+//! at once loses the friction altogether. The seed's data ended at
+//! `[sgn x1', sgn x2', x2, 1] = [f_sc1, f_cp2, K_s, F_0]` (Eq. 29), which is
+//! the structure the core evaluates; the configuration receives a refit on
+//! those of the four that survived (a dropped one is written as 0), and kept
+//! terms outside them are reported, not written.
+//!
+//! `%sigma` assumes independent residuals. At 2 kHz they are not (the DOB's
+//! `Q`, the velocity loop's oscillation, unmodelled friction transients):
+//! each fit reports the residual's correlation time ([`correlation_time`])
+//! and `%sigma eff`, the `%sigma` scaled by its square root. The pruning
+//! keeps the seed's rule on the plain `%sigma`.
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, bail, Context, Result};
+use cable_joint::filter::{Kinematics, LowPass1, SignMemory, TrackingObserver};
+use cable_joint::lsq::{BatchLsq, Fit, LsqConfig};
+use cable_joint::Config;
+use serde::Serialize;
+
+use crate::derive::{config_for_log, derive};
+use crate::log::Log;
+
+/// Most regressors one model has (model B, Eq. 23).
+pub const MAX_REGRESSORS: usize = 12;
+
+/// One regressor column, computed from the replayed log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Regressor {
+    /// Joint velocity `theta'`, rad/s.
+    ThetaVel,
+    /// Joint acceleration `theta''`, rad/s².
+    ThetaAcc,
+    /// Held sign of `theta'`.
+    SgnThetaVel,
+    /// Joint angle `theta`, rad.
+    Theta,
+    /// Slider 1 acceleration `x1''`, m/s².
+    X1Acc,
+    /// Slider 1 velocity `x1'`, m/s.
+    X1Vel,
+    /// Held sign of `x1'`.
+    SgnX1Vel,
+    /// Slider 1 position `x1`, m.
+    X1,
+    /// Slider 2 acceleration `x2''`, m/s².
+    X2Acc,
+    /// Slider 2 velocity `x2'`, m/s.
+    X2Vel,
+    /// Held sign of `x2'`.
+    SgnX2Vel,
+    /// Slider 2 position `x2`, m.
+    X2,
+    /// Motor velocity `phi'`, rad/s.
+    PhiVel,
+    /// Held sign of `phi'`.
+    SgnPhiVel,
+    /// The constant 1.
+    One,
+}
+
+impl Regressor {
+    /// Symbol as the seed writes it.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Regressor::ThetaVel => "theta'",
+            Regressor::ThetaAcc => "theta''",
+            Regressor::SgnThetaVel => "sgn(theta')",
+            Regressor::Theta => "theta",
+            Regressor::X1Acc => "x1''",
+            Regressor::X1Vel => "x1'",
+            Regressor::SgnX1Vel => "sgn(x1')",
+            Regressor::X1 => "x1",
+            Regressor::X2Acc => "x2''",
+            Regressor::X2Vel => "x2'",
+            Regressor::SgnX2Vel => "sgn(x2')",
+            Regressor::X2 => "x2",
+            Regressor::PhiVel => "phi'",
+            Regressor::SgnPhiVel => "sgn(phi')",
+            Regressor::One => "1",
+        }
+    }
+}
+
+/// A regressor with the name and unit of its parameter in one model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct ModelTerm {
+    /// The column.
+    pub regressor: Regressor,
+    /// The parameter's name (seed notation).
+    pub param: &'static str,
+    /// The parameter's unit.
+    pub unit: &'static str,
+}
+
+const fn term(regressor: Regressor, param: &'static str, unit: &'static str) -> ModelTerm {
+    ModelTerm {
+        regressor,
+        param,
+        unit,
+    }
+}
+
+/// Motor damping (seed Sect. 3.3/4.2) with an offset, optionally Coulomb.
+pub const BM_TERMS: [ModelTerm; 3] = [
+    term(Regressor::PhiVel, "B_m", "N·m·s/rad"),
+    term(Regressor::One, "tau_0", "N·m"),
+    term(Regressor::SgnPhiVel, "tau_c", "N·m"),
+];
+
+/// Joint-angle estimator (Eq. 25-26) with an offset.
+pub const JAE_TERMS: [ModelTerm; 5] = [
+    term(Regressor::X2Acc, "c1", "rad·s²/m"),
+    term(Regressor::X2Vel, "c2", "rad·s/m"),
+    term(Regressor::SgnX2Vel, "c3", "rad"),
+    term(Regressor::X2, "c4", "rad/m"),
+    term(Regressor::One, "offset", "rad"),
+];
+
+/// Tension model A (Eq. 22).
+pub const MODEL_A: [ModelTerm; 6] = [
+    term(Regressor::X1Acc, "m_0", "kg"),
+    term(Regressor::X1Vel, "f_sv1", "N·s/m"),
+    term(Regressor::SgnX1Vel, "f_sc1", "N"),
+    term(Regressor::X1, "K_w1", "N/m"),
+    term(Regressor::Theta, "-K_w1 r", "N/rad"),
+    term(Regressor::One, "F_0", "N"),
+];
+
+/// Tension model B (Eq. 23).
+pub const MODEL_B: [ModelTerm; 12] = [
+    term(Regressor::ThetaAcc, "J_e/r", "N·s²/rad"),
+    term(Regressor::ThetaVel, "f_efv/r", "N·s/rad"),
+    term(Regressor::SgnThetaVel, "f_efc/r", "N"),
+    term(Regressor::Theta, "K_w2 r", "N/rad"),
+    term(Regressor::X1Acc, "m_0", "kg"),
+    term(Regressor::X1Vel, "f_sv1", "N·s/m"),
+    term(Regressor::SgnX1Vel, "f_sc1", "N"),
+    term(Regressor::X2Acc, "m_1", "kg"),
+    term(Regressor::X2Vel, "f_sv2", "N·s/m"),
+    term(Regressor::SgnX2Vel, "f_sc2", "N"),
+    term(Regressor::X2, "-K_w2", "N/m"),
+    term(Regressor::One, "F_0", "N"),
+];
+
+/// Tension model C (Eq. 24), regressors in the order of Eq. 27.
+pub const MODEL_C: [ModelTerm; 11] = [
+    term(Regressor::ThetaVel, "f_efv/r", "N·s/rad"),
+    term(Regressor::ThetaAcc, "J_e/r", "N·s²/rad"),
+    term(Regressor::SgnThetaVel, "f_efc/r", "N"),
+    term(Regressor::X1Acc, "m_0", "kg"),
+    term(Regressor::X1Vel, "f_sv1", "N·s/m"),
+    term(Regressor::SgnX1Vel, "f_sc1", "N"),
+    term(Regressor::X2Acc, "m_1", "kg"),
+    term(Regressor::X2Vel, "f_vp2", "N·s/m"),
+    term(Regressor::SgnX2Vel, "f_cp2", "N"),
+    term(Regressor::X2, "K_s", "N/m"),
+    term(Regressor::One, "F_0", "N"),
+];
+
+/// The simplified model C the core evaluates (Eq. 28-29), in the order of
+/// [`cable_joint::config::TensionConfig`]'s fields.
+pub const SIMPLIFIED_C: [Regressor; 4] = [
+    Regressor::SgnX1Vel,
+    Regressor::SgnX2Vel,
+    Regressor::X2,
+    Regressor::One,
+];
+
+/// Settings of the identification.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct IdentOptions {
+    /// Leading time of every log left out (observer start-up), s.
+    pub skip_start_s: f64,
+    /// Tension fits: leave out ticks with `|theta'|` below this, rad/s
+    /// (0 keeps every tick).
+    pub min_joint_vel_rad_s: f64,
+    /// Tension fits: also leave out this long after a tick below
+    /// [`Self::min_joint_vel_rad_s`], s.
+    pub holdoff_s: f64,
+    /// Pass the regressors of the DOB-based fits (`B_m`, tension) through the
+    /// DOB's own low-pass `Q` (see the module documentation).
+    pub filter_regressors: bool,
+    /// Pruning limit on `%sigma`, % (seed: 5).
+    pub max_pct_sigma: f64,
+    /// Pruning as the seed did: drop every parameter above the limit at
+    /// once. Default (`false`): one at a time, the worst first, refitting
+    /// after each drop, so that of a collinear group (the three friction
+    /// signs agree whenever the joint moves) one member is kept.
+    pub prune_all_at_once: bool,
+    /// DOB-based fits: an extra first-order low-pass at this frequency, Hz,
+    /// on both sides of the regression (0 = none).
+    pub post_filter_hz: f64,
+    /// Fit a Coulomb term `sgn(phi')` next to `B_m` (brushes and gearhead);
+    /// it is dropped again if its `%sigma` exceeds [`Self::max_pct_sigma`].
+    pub bm_coulomb: bool,
+    /// Largest accepted condition number of the equilibrated regressor matrix.
+    pub max_condition: f64,
+}
+
+impl Default for IdentOptions {
+    fn default() -> Self {
+        Self {
+            skip_start_s: 0.2,
+            min_joint_vel_rad_s: 0.05,
+            holdoff_s: 0.0,
+            filter_regressors: true,
+            max_pct_sigma: 5.0,
+            prune_all_at_once: false,
+            post_filter_hz: 0.0,
+            bm_coulomb: true,
+            max_condition: 1e10,
+        }
+    }
+}
+
+impl IdentOptions {
+    fn check(&self) -> Result<()> {
+        if !(self.skip_start_s.is_finite() && self.skip_start_s >= 0.0) {
+            bail!("skip_start_s must be finite and >= 0");
+        }
+        if !(self.min_joint_vel_rad_s.is_finite() && self.min_joint_vel_rad_s >= 0.0) {
+            bail!("min_joint_vel_rad_s must be finite and >= 0");
+        }
+        if !(self.holdoff_s.is_finite() && self.holdoff_s >= 0.0) {
+            bail!("holdoff_s must be finite and >= 0");
+        }
+        if !(self.post_filter_hz.is_finite() && self.post_filter_hz >= 0.0) {
+            bail!("post_filter_hz must be finite and >= 0");
+        }
+        if !(self.max_pct_sigma.is_finite() && self.max_pct_sigma > 0.0) {
+            bail!("max_pct_sigma must be finite and > 0");
+        }
+        if self.max_condition.is_nan() || self.max_condition <= 1.0 {
+            bail!("max_condition must be > 1");
+        }
+        Ok(())
+    }
+}
+
+/// Error statistics of a model's output against the measured one
+/// (`model - measured`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ErrorStats {
+    /// Samples.
+    pub n: usize,
+    /// Mean error.
+    pub mean: f64,
+    /// Mean absolute error.
+    pub mean_abs: f64,
+    /// Largest error.
+    pub max: f64,
+    /// Smallest (most negative) error.
+    pub min: f64,
+    /// Root-mean-square error.
+    pub rmse: f64,
+    /// Unit of the numbers.
+    pub unit: &'static str,
+}
+
+impl ErrorStats {
+    /// Statistics of `errors`, each multiplied by `scale`.
+    pub fn of(errors: impl IntoIterator<Item = f64>, scale: f64, unit: &'static str) -> Self {
+        let (mut n, mut sum, mut sum_abs, mut sum_sq) = (0usize, 0.0, 0.0, 0.0);
+        let (mut max, mut min) = (f64::NEG_INFINITY, f64::INFINITY);
+        for e in errors {
+            let e = e * scale;
+            n += 1;
+            sum += e;
+            sum_abs += e.abs();
+            sum_sq += e * e;
+            max = max.max(e);
+            min = min.min(e);
+        }
+        let d = n.max(1) as f64;
+        Self {
+            n,
+            mean: sum / d,
+            mean_abs: sum_abs / d,
+            max: if n > 0 { max } else { f64::NAN },
+            min: if n > 0 { min } else { f64::NAN },
+            rmse: (sum_sq / d).sqrt(),
+            unit,
+        }
+    }
+
+    /// Largest absolute error.
+    pub fn max_abs(&self) -> f64 {
+        self.max.abs().max(self.min.abs())
+    }
+}
+
+/// One estimated parameter.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ParamEstimate {
+    /// Its regressor.
+    pub regressor: Regressor,
+    /// The regressor's symbol.
+    pub symbol: &'static str,
+    /// Parameter name.
+    pub name: &'static str,
+    /// Parameter unit.
+    pub unit: &'static str,
+    /// Estimate.
+    pub value: f64,
+    /// Standard deviation.
+    pub std: f64,
+    /// `100 std / |value|`, %.
+    pub pct_sigma: f64,
+    /// `%sigma` scaled by `sqrt` of the residual's correlation time
+    /// ([`FitReport::residual_corr_ticks`]): what it is with correlated
+    /// residuals (reported; the pruning uses the seed's `%sigma`).
+    pub pct_sigma_eff: f64,
+}
+
+/// A fitted model: its parameters, the fit's quality and its errors.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FitReport {
+    /// Model name.
+    pub model: String,
+    /// Parameters in regressor order.
+    pub params: Vec<ParamEstimate>,
+    /// Rows used.
+    pub rows: u64,
+    /// Residual standard deviation `sqrt(RSS / (n - p))`, output unit.
+    pub sigma: f64,
+    /// Condition number of the equilibrated regressor matrix.
+    pub condition: f64,
+    /// Integrated autocorrelation time of the residual, ticks
+    /// ([`correlation_time`]). The standard deviations (and `%sigma`)
+    /// assume independent residuals; with correlated ones they are
+    /// optimistic by about `sqrt` of this.
+    pub residual_corr_ticks: f64,
+    /// Errors on the identification data.
+    pub errors: ErrorStats,
+}
+
+impl FitReport {
+    /// The parameter of `regressor`, if the model has it.
+    pub fn param(&self, regressor: Regressor) -> Option<&ParamEstimate> {
+        self.params.iter().find(|p| p.regressor == regressor)
+    }
+
+    /// Value of the parameter of `regressor`, 0 if the model lacks it.
+    pub fn value(&self, regressor: Regressor) -> f64 {
+        self.param(regressor).map_or(0.0, |p| p.value)
+    }
+
+    /// The model's terms.
+    pub fn terms(&self) -> Vec<ModelTerm> {
+        self.params
+            .iter()
+            .map(|p| term(p.regressor, p.name, p.unit))
+            .collect()
+    }
+}
+
+/// Error statistics of a model on a log not used for the fit.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Validation {
+    /// The log (file name or label).
+    pub log: String,
+    /// Model name.
+    pub model: String,
+    /// Errors.
+    pub errors: ErrorStats,
+}
+
+/// Result of [`identify_bm`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BmResult {
+    /// The fit (`B_m`, `tau_0`, optionally `tau_c`).
+    pub fit: FitReport,
+    /// `B_m`, N·m·s/rad.
+    pub b_m_nm_s_rad: f64,
+    /// Coulomb torque at the motor shaft, N·m, when fitted and kept. The
+    /// core's DOB does not subtract it: in the coupled runs it appears in
+    /// the tension (as `tau_c z_i / r_m`, inside model C's `f_sc1`).
+    pub coulomb_nm: Option<f64>,
+    /// `%sigma` of the Coulomb term when the pruning rule dropped it.
+    pub coulomb_dropped_pct_sigma: Option<f64>,
+}
+
+/// Result of [`identify_jae`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct JaeResult {
+    /// The fit (`c1..c4`, offset).
+    pub fit: FitReport,
+    /// `chi_s = [c1, c2, c3, c4]` (Eq. 26).
+    pub chi_s: [f64; 4],
+    /// Constant offset, rad.
+    pub offset_rad: f64,
+    /// Identification error `theta_hat - theta`, degrees.
+    pub error_deg: ErrorStats,
+}
+
+/// Result of [`identify_tension`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TensionResult {
+    /// Where `theta` came from (`theta_rad`: magnetic encoder, or
+    /// `theta_hat_rad`: the JAE).
+    pub theta_source: String,
+    /// `B_m` the DOB used for `tension1_hat_n`, N·m·s/rad.
+    pub b_m_used_nm_s_rad: f64,
+    /// Model A (Eq. 22), or why it could not be fitted.
+    pub model_a: std::result::Result<FitReport, String>,
+    /// Model B (Eq. 23), or why it could not be fitted.
+    pub model_b: std::result::Result<FitReport, String>,
+    /// Model C (Eq. 24/27).
+    pub model_c: FitReport,
+    /// Regressors the pruning dropped, with their `%sigma` when dropped.
+    pub dropped: Vec<(Regressor, f64)>,
+    /// Model C after pruning (the seed's simplified model C).
+    pub simplified: FitReport,
+    /// Refit on the core's structure (the kept ones of [`SIMPLIFIED_C`]):
+    /// what goes into the configuration.
+    pub core: FitReport,
+    /// `chi_p = [f_sc1, f_cp2, K_s, F_0]` written to the configuration
+    /// (0 for a term the pruning dropped).
+    pub chi_p: [f64; 4],
+    /// Kept regressors outside the core's structure (not written).
+    pub not_written: Vec<Regressor>,
+}
+
+fn to_anyhow(e: cable_joint::lsq::LsqError) -> anyhow::Error {
+    anyhow!("{e}")
+}
+
+/// A log replayed through the core, with the columns the models need.
+struct Prepared {
+    label: String,
+    derived: Log,
+    cfg: Config,
+    /// Rows usable at all: after the start-up, not faulted.
+    usable: Vec<bool>,
+    theta: Option<Vec<f64>>,
+    theta_kin: Option<(Vec<f64>, Vec<f64>)>,
+    theta_source: &'static str,
+}
+
+/// Which switching speed the `sgn(x2')` column uses.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum X2Switch {
+    Jae,
+    Tension,
+}
+
+impl Prepared {
+    fn new(label: &str, log: &Log, config: &Config, opts: &IdentOptions) -> Result<Self> {
+        let cfg = config_for_log(log, config).with_context(|| label.to_owned())?;
+        let derived = derive(log, config).with_context(|| format!("replaying {label}"))?;
+        let t = derived.time_s()?.to_vec();
+        let fault = derived.col_required("fault_code")?;
+        let t0 = t.first().copied().unwrap_or(0.0);
+        let usable: Vec<bool> = t
+            .iter()
+            .zip(fault)
+            .map(|(t, f)| *t >= t0 + opts.skip_start_s && *f == 0.0)
+            .collect();
+        // The magnetic encoder when it is measured on every row, else the JAE.
+        let (theta, theta_source) = match derived.col_opt("theta_rad") {
+            Some(v) if v.iter().all(Option::is_some) => {
+                (Some(v.into_iter().flatten().collect()), "theta_rad")
+            }
+            _ => (
+                derived.col("theta_hat_rad").map(<[f64]>::to_vec),
+                "theta_hat_rad",
+            ),
+        };
+        let theta_kin = theta.as_ref().map(|th| {
+            let obs =
+                TrackingObserver::new(cfg.differentiators.grating_bandwidth_hz, cfg.period_s());
+            let mut st = Kinematics::default();
+            obs.reset(&mut st, th.first().copied().unwrap_or(0.0) as f32);
+            let (mut v, mut a) = (Vec::with_capacity(th.len()), Vec::with_capacity(th.len()));
+            for x in th {
+                let k = obs.update(&mut st, *x as f32);
+                v.push(k.vel as f64);
+                a.push(k.acc as f64);
+            }
+            (v, a)
+        });
+        Ok(Self {
+            label: label.to_owned(),
+            derived,
+            cfg,
+            usable,
+            theta,
+            theta_kin,
+            theta_source,
+        })
+    }
+
+    fn len(&self) -> usize {
+        self.derived.len()
+    }
+
+    fn col(&self, name: &str) -> Result<Vec<f64>> {
+        Ok(self
+            .derived
+            .col(name)
+            .ok_or_else(|| anyhow!("{}: replay has no column `{name}`", self.label))?
+            .to_vec())
+    }
+
+    fn theta(&self) -> Result<&Vec<f64>> {
+        self.theta.as_ref().ok_or_else(|| {
+            anyhow!(
+                "{}: no joint angle (theta_rad or theta_hat_rad)",
+                self.label
+            )
+        })
+    }
+
+    fn theta_kin(&self) -> Result<&(Vec<f64>, Vec<f64>)> {
+        self.theta_kin.as_ref().ok_or_else(|| {
+            anyhow!(
+                "{}: no joint angle (theta_rad or theta_hat_rad)",
+                self.label
+            )
+        })
+    }
+
+    fn signs(vel: &[f64], switch_speed: f32) -> Vec<f64> {
+        let sm = SignMemory { switch_speed };
+        let mut s = 0.0f32;
+        vel.iter()
+            .map(|v| f64::from(sm.update(&mut s, *v as f32)))
+            .collect()
+    }
+
+    /// The unfiltered column of `r`.
+    fn column(&self, r: Regressor, x2_switch: X2Switch) -> Result<Vec<f64>> {
+        let c = &self.cfg;
+        Ok(match r {
+            Regressor::ThetaVel => self.theta_kin()?.0.clone(),
+            Regressor::ThetaAcc => self.theta_kin()?.1.clone(),
+            Regressor::SgnThetaVel => {
+                // Slider 2 moves about r theta: the same switching speed.
+                let sw = c.tension.sign_switch_x2_m_s / c.machine.pulley_radius_m;
+                Self::signs(&self.theta_kin()?.0, sw)
+            }
+            Regressor::Theta => self.theta()?.clone(),
+            Regressor::X1Acc => self.col("x1_acc_m_s2")?,
+            Regressor::X1Vel => self.col("x1_vel_m_s")?,
+            Regressor::SgnX1Vel => {
+                Self::signs(&self.col("x1_vel_m_s")?, c.tension.sign_switch_x1_m_s)
+            }
+            Regressor::X1 => self.col("x1_m")?,
+            Regressor::X2Acc => self.col("x2_acc_m_s2")?,
+            Regressor::X2Vel => self.col("x2_vel_m_s")?,
+            Regressor::SgnX2Vel => {
+                let sw = match x2_switch {
+                    X2Switch::Jae => c.jae.sign_switch_m_s,
+                    X2Switch::Tension => c.tension.sign_switch_x2_m_s,
+                };
+                Self::signs(&self.col("x2_vel_m_s")?, sw)
+            }
+            Regressor::X2 => self.col("x2_m")?,
+            Regressor::PhiVel => self.col("phi_vel_rad_s")?,
+            Regressor::SgnPhiVel => {
+                // Slider 1's switching speed at the motor shaft.
+                let sw = c.tension.sign_switch_x1_m_s * c.machine.motor_rad_per_cable_m();
+                Self::signs(&self.col("phi_vel_rad_s")?, sw)
+            }
+            Regressor::One => vec![1.0; self.len()],
+        })
+    }
+
+    /// A first-order low-pass at `cutoff_hz` over a whole column.
+    fn low_pass(&self, col: &[f64], cutoff_hz: f64) -> Vec<f64> {
+        let lp = LowPass1::new(
+            (2.0 * std::f64::consts::PI * cutoff_hz) as f32,
+            self.cfg.period_s(),
+        );
+        let mut y = col.first().copied().unwrap_or(0.0) as f32;
+        col.iter()
+            .map(|u| f64::from(lp.update(&mut y, *u as f32)))
+            .collect()
+    }
+
+    /// The DOB's low-pass `Q` over a whole column (state starts at the first
+    /// value: the log starts at rest).
+    fn dob_filter(&self, col: &[f64]) -> Vec<f64> {
+        let lp = LowPass1::new(self.cfg.dob.cutoff_rad_s, self.cfg.period_s());
+        let mut y = col.first().copied().unwrap_or(0.0) as f32;
+        col.iter()
+            .map(|u| f64::from(lp.update(&mut y, *u as f32)))
+            .collect()
+    }
+}
+
+/// What a model explains.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Target {
+    /// `K_m i - J_m phi''` through `Q` (no-load motor).
+    MotorTorque,
+    /// Magnetic encoder, rad.
+    Theta,
+    /// DOB cable-1 tension `tension1_hat_n` (Eq. 21).
+    Tension,
+}
+
+/// Selected rows of one or more logs: regressor columns and the target.
+struct Design {
+    cols: Vec<Vec<f64>>,
+    y: Vec<f64>,
+}
+
+fn design(
+    preps: &[Prepared],
+    regs: &[Regressor],
+    target: Target,
+    opts: &IdentOptions,
+) -> Result<Design> {
+    let mut d = Design {
+        cols: vec![Vec::new(); regs.len()],
+        y: Vec::new(),
+    };
+    let filtered = opts.filter_regressors && target != Target::Theta;
+    let x2_switch = if target == Target::Theta {
+        X2Switch::Jae
+    } else {
+        X2Switch::Tension
+    };
+    for p in preps {
+        let mut cols = Vec::with_capacity(regs.len());
+        for r in regs {
+            let c = p.column(*r, x2_switch)?;
+            cols.push(if filtered { p.dob_filter(&c) } else { c });
+        }
+        let y = match target {
+            Target::Theta => p
+                .derived
+                .col_opt("theta_rad")
+                .ok_or_else(|| {
+                    anyhow!(
+                        "{}: the JAE needs the magnetic encoder (column `theta_rad`)",
+                        p.label
+                    )
+                })?
+                .into_iter()
+                .map(|v| v.unwrap_or(f64::NAN))
+                .collect(),
+            Target::Tension => p.col("tension1_hat_n")?,
+            Target::MotorTorque => {
+                // load_torque = Q[K_m i - B phi'] - J_m Q[phi''] (DOB), so
+                // adding back B Q[phi'] leaves Q[K_m i - J_m phi''].
+                let b = f64::from(p.cfg.dob.viscous_nm_s_rad);
+                let vel = p.col("phi_vel_rad_s")?;
+                let vel = if opts.filter_regressors {
+                    p.dob_filter(&vel)
+                } else {
+                    vel
+                };
+                p.col("load_torque_nm")?
+                    .iter()
+                    .zip(&vel)
+                    .map(|(tau, w)| tau + b * w)
+                    .collect()
+            }
+        };
+        let (cols, y) = if opts.post_filter_hz > 0.0 && target != Target::Theta {
+            let lp = |c: &[f64]| p.low_pass(c, opts.post_filter_hz);
+            (cols.iter().map(|c| lp(c)).collect::<Vec<_>>(), lp(&y))
+        } else {
+            (cols, y)
+        };
+        // Ticks with the joint (nearly) at rest, and the hold-off after them
+        // (the DOB's Q remembers them for a few time constants).
+        let holdoff = (opts.holdoff_s / p.cfg.period_s() as f64).round() as usize;
+        let mut still = vec![false; p.len()];
+        if target == Target::Tension && opts.min_joint_vel_rad_s > 0.0 {
+            let w = &p.theta_kin()?.0;
+            let mut since = usize::MAX;
+            for (k, s) in still.iter_mut().enumerate() {
+                since = if w[k].abs() < opts.min_joint_vel_rad_s {
+                    0
+                } else {
+                    since.saturating_add(1)
+                };
+                *s = since <= holdoff;
+            }
+        }
+        for k in 0..p.len() {
+            if !p.usable[k]
+                || still[k]
+                || !y[k].is_finite()
+                || cols.iter().any(|c| !c[k].is_finite())
+            {
+                continue;
+            }
+            for (dc, c) in d.cols.iter_mut().zip(&cols) {
+                dc.push(c[k]);
+            }
+            d.y.push(y[k]);
+        }
+    }
+    if d.y.is_empty() {
+        bail!("no usable rows (after the start-up, faults and the velocity limit)");
+    }
+    Ok(d)
+}
+
+/// Least squares on the columns `active` of `d`.
+fn solve(d: &Design, active: &[usize], opts: &IdentOptions) -> Result<Fit<MAX_REGRESSORS>> {
+    let mut ls = BatchLsq::<MAX_REGRESSORS>::new(
+        active.len(),
+        LsqConfig {
+            max_condition: opts.max_condition,
+        },
+    )
+    .map_err(to_anyhow)?;
+    let mut row = [0.0f64; MAX_REGRESSORS];
+    for k in 0..d.y.len() {
+        for (slot, j) in row.iter_mut().zip(active) {
+            *slot = d.cols[*j][k];
+        }
+        ls.push(&row, d.y[k]).map_err(to_anyhow)?;
+    }
+    ls.solve().map_err(to_anyhow)
+}
+
+fn report(
+    model: &str,
+    d: &Design,
+    terms: &[ModelTerm],
+    active: &[usize],
+    fit: &Fit<MAX_REGRESSORS>,
+    err_scale: f64,
+    err_unit: &'static str,
+) -> FitReport {
+    let params = active
+        .iter()
+        .enumerate()
+        .map(|(k, j)| {
+            let t = terms[*j];
+            ParamEstimate {
+                regressor: t.regressor,
+                symbol: t.regressor.symbol(),
+                name: t.param,
+                unit: t.unit,
+                value: fit.params[k],
+                std: fit.std_dev[k],
+                pct_sigma: fit.pct_sigma(k),
+                pct_sigma_eff: f64::NAN,
+            }
+        })
+        .collect::<Vec<_>>();
+    let residual: Vec<f64> = (0..d.y.len())
+        .map(|i| {
+            let pred: f64 = active
+                .iter()
+                .enumerate()
+                .map(|(k, j)| fit.params[k] * d.cols[*j][i])
+                .sum();
+            pred - d.y[i]
+        })
+        .collect();
+    let errors = ErrorStats::of(residual.iter().copied(), err_scale, err_unit);
+    let tau = correlation_time(&residual);
+    let params = params
+        .into_iter()
+        .map(|p| ParamEstimate {
+            pct_sigma_eff: p.pct_sigma * tau.sqrt(),
+            ..p
+        })
+        .collect();
+    FitReport {
+        model: model.to_owned(),
+        params,
+        rows: fit.rows,
+        sigma: fit.sigma,
+        condition: fit.condition,
+        residual_corr_ticks: tau,
+        errors,
+    }
+}
+
+/// Integrated autocorrelation time of a series, in samples, by batch
+/// means: for blocks of `L = 1, 2, 4, ...` samples (at least 20 blocks),
+/// `tau_L = L var(block means) / var(samples)`; the largest is returned. It
+/// is 1 for white noise and about the correlation length for a correlated
+/// series, and unlike a truncated sum of autocorrelations it is not fooled
+/// by an oscillating component (the velocity loop's) on top of a slow one.
+pub fn correlation_time(x: &[f64]) -> f64 {
+    let n = x.len();
+    if n < 40 {
+        return 1.0;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let var = x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n as f64;
+    if var.is_nan() || var <= 0.0 {
+        return 1.0;
+    }
+    let mut tau = 1.0f64;
+    let mut len = 2;
+    while n / len >= 20 {
+        let blocks = n / len;
+        let var_means = x
+            .chunks_exact(len)
+            .map(|b| {
+                let m = b.iter().sum::<f64>() / len as f64 - mean;
+                m * m
+            })
+            .sum::<f64>()
+            / blocks as f64;
+        tau = tau.max(len as f64 * var_means / var);
+        len *= 2;
+    }
+    tau
+}
+
+fn fit_terms(
+    model: &str,
+    preps: &[Prepared],
+    terms: &[ModelTerm],
+    target: Target,
+    opts: &IdentOptions,
+    err_scale: f64,
+    err_unit: &'static str,
+) -> Result<FitReport> {
+    let regs: Vec<Regressor> = terms.iter().map(|t| t.regressor).collect();
+    let d = design(preps, &regs, target, opts)?;
+    let active: Vec<usize> = (0..terms.len()).collect();
+    let fit = solve(&d, &active, opts).with_context(|| format!("fitting {model}"))?;
+    Ok(report(model, &d, terms, &active, &fit, err_scale, err_unit))
+}
+
+/// Errors of an identified model on other logs (`model - measured`).
+fn evaluate(
+    report: &FitReport,
+    preps: &[Prepared],
+    target: Target,
+    opts: &IdentOptions,
+    err_scale: f64,
+    err_unit: &'static str,
+) -> Result<ErrorStats> {
+    let regs: Vec<Regressor> = report.params.iter().map(|p| p.regressor).collect();
+    let d = design(preps, &regs, target, opts)?;
+    Ok(ErrorStats::of(
+        (0..d.y.len()).map(|i| {
+            let pred: f64 = report
+                .params
+                .iter()
+                .zip(&d.cols)
+                .map(|(p, c)| p.value * c[i])
+                .sum();
+            pred - d.y[i]
+        }),
+        err_scale,
+        err_unit,
+    ))
+}
+
+fn prepare_all(
+    logs: &[(&str, &Log)],
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<Vec<Prepared>> {
+    opts.check()?;
+    if logs.is_empty() {
+        bail!("no log given");
+    }
+    logs.iter()
+        .map(|(label, log)| Prepared::new(label, log, config, opts))
+        .collect()
+}
+
+fn bm_terms(opts: &IdentOptions) -> &'static [ModelTerm] {
+    if opts.bm_coulomb {
+        &BM_TERMS
+    } else {
+        &BM_TERMS[..2]
+    }
+}
+
+/// `B_m` from a no-load motor run with the default options.
+pub fn identify_bm(log: &Log, config: &Config) -> Result<BmResult> {
+    identify_bm_with(&[("log", log)], config, &IdentOptions::default())
+}
+
+/// `B_m` (seed Sect. 3.3/4.2) from no-load motor runs `(label, log)`:
+/// `Q[K_m i - J_m phi''] = B_m Q[phi'] + tau_0 (+ tau_c Q[sgn phi'])`.
+pub fn identify_bm_with(
+    logs: &[(&str, &Log)],
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<BmResult> {
+    let preps = prepare_all(logs, config, opts)?;
+    let fit_with = |terms: &[ModelTerm]| {
+        fit_terms(
+            "B_m (no-load motor)",
+            &preps,
+            terms,
+            Target::MotorTorque,
+            opts,
+            1.0,
+            "N·m",
+        )
+    };
+    let mut fit = fit_with(bm_terms(opts))?;
+    let mut coulomb_dropped = None;
+    if let Some(p) = fit.param(Regressor::SgnPhiVel) {
+        if p.pct_sigma.is_nan() || p.pct_sigma > opts.max_pct_sigma {
+            coulomb_dropped = Some(p.pct_sigma);
+            fit = fit_with(&BM_TERMS[..2])?;
+        }
+    }
+    let b = fit.value(Regressor::PhiVel);
+    if !(b.is_finite() && b >= 0.0) {
+        bail!("identified B_m = {b:e} N·m·s/rad is not physical (negative): is the motor really unloaded and moving?");
+    }
+    Ok(BmResult {
+        b_m_nm_s_rad: b,
+        coulomb_nm: fit.param(Regressor::SgnPhiVel).map(|p| p.value),
+        coulomb_dropped_pct_sigma: coulomb_dropped,
+        fit,
+    })
+}
+
+/// Errors of an identified `B_m` model on another no-load log (N·m).
+pub fn validate_bm(
+    result: &BmResult,
+    log: &Log,
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<ErrorStats> {
+    let preps = prepare_all(&[("validation", log)], config, opts)?;
+    evaluate(&result.fit, &preps, Target::MotorTorque, opts, 1.0, "N·m")
+}
+
+impl BmResult {
+    /// Write `B_m` into the configuration.
+    pub fn apply(&self, config: &mut Config) {
+        config.dob.viscous_nm_s_rad = self.b_m_nm_s_rad as f32;
+    }
+}
+
+/// The JAE with the default options.
+pub fn identify_jae(log: &Log, config: &Config) -> Result<JaeResult> {
+    identify_jae_with(&[("log", log)], config, &IdentOptions::default())
+}
+
+/// The joint-angle estimator (Eq. 25-26) from runs with the magnetic encoder:
+/// `theta = c1 x2'' + c2 x2' + c3 sgn(x2') + c4 x2 + offset`.
+pub fn identify_jae_with(
+    logs: &[(&str, &Log)],
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<JaeResult> {
+    let preps = prepare_all(logs, config, opts)?;
+    let fit = fit_terms(
+        "JAE (Eq. 25-26)",
+        &preps,
+        &JAE_TERMS,
+        Target::Theta,
+        opts,
+        1.0,
+        "rad",
+    )?;
+    let error_deg = ErrorStats {
+        unit: "deg",
+        ..scale_stats(&fit.errors, 180.0 / std::f64::consts::PI)
+    };
+    Ok(JaeResult {
+        chi_s: [
+            fit.value(Regressor::X2Acc),
+            fit.value(Regressor::X2Vel),
+            fit.value(Regressor::SgnX2Vel),
+            fit.value(Regressor::X2),
+        ],
+        offset_rad: fit.value(Regressor::One),
+        error_deg,
+        fit,
+    })
+}
+
+fn scale_stats(s: &ErrorStats, k: f64) -> ErrorStats {
+    ErrorStats {
+        mean: s.mean * k,
+        mean_abs: s.mean_abs * k,
+        max: s.max * k,
+        min: s.min * k,
+        rmse: s.rmse * k,
+        ..*s
+    }
+}
+
+/// Errors of an identified JAE on another log with the magnetic encoder (deg).
+pub fn validate_jae(
+    result: &JaeResult,
+    log: &Log,
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<ErrorStats> {
+    let preps = prepare_all(&[("validation", log)], config, opts)?;
+    evaluate(
+        &result.fit,
+        &preps,
+        Target::Theta,
+        opts,
+        180.0 / std::f64::consts::PI,
+        "deg",
+    )
+}
+
+impl JaeResult {
+    /// Write `chi_s` and the offset into the configuration.
+    pub fn apply(&self, config: &mut Config) {
+        let j = &mut config.jae;
+        j.c_acc_rad_s2_m = self.chi_s[0] as f32;
+        j.c_vel_rad_s_m = self.chi_s[1] as f32;
+        j.c_sign_rad = self.chi_s[2] as f32;
+        j.c_pos_rad_m = self.chi_s[3] as f32;
+        j.offset_rad = self.offset_rad as f32;
+    }
+}
+
+/// What the pruning kept and dropped.
+struct Pruned {
+    /// Kept columns of the design.
+    active: Vec<usize>,
+    /// The fit on them.
+    fit: Fit<MAX_REGRESSORS>,
+    /// Dropped regressors with their `%sigma` when dropped, in order.
+    dropped: Vec<(Regressor, f64)>,
+}
+
+/// The seed's pruning of a fit on all columns of `d` (see the module
+/// documentation and [`IdentOptions::prune_all_at_once`]).
+fn prune(
+    d: &Design,
+    terms: &[ModelTerm],
+    first: Fit<MAX_REGRESSORS>,
+    opts: &IdentOptions,
+) -> Result<Pruned> {
+    let mut dropped: Vec<(Regressor, f64)> = Vec::new();
+    let mut active: Vec<usize> = (0..terms.len()).collect();
+    let mut fit = first;
+    let pct = |fit: &Fit<MAX_REGRESSORS>, k: usize| {
+        let p = fit.pct_sigma(k);
+        if p.is_nan() {
+            f64::INFINITY
+        } else {
+            p
+        }
+    };
+    if opts.prune_all_at_once {
+        // The seed: every parameter above the limit at once, then refit.
+        let mut next = Vec::new();
+        for (k, j) in active.iter().enumerate() {
+            let p = pct(&fit, k);
+            if p > opts.max_pct_sigma {
+                dropped.push((terms[*j].regressor, p));
+            } else {
+                next.push(*j);
+            }
+        }
+        if next.is_empty() {
+            bail!(
+                "pruning at {} % dropped every regressor",
+                opts.max_pct_sigma
+            );
+        }
+        if next.len() < active.len() {
+            active = next;
+            fit = solve(d, &active, opts).context("refitting the pruned model")?;
+        }
+    }
+    // Backward elimination: drop the worst while one is above the limit.
+    loop {
+        let worst = (0..active.len())
+            .map(|k| (k, pct(&fit, k)))
+            .filter(|(_, p)| *p > opts.max_pct_sigma)
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((k, p)) = worst else { break };
+        dropped.push((terms[active[k]].regressor, p));
+        active.remove(k);
+        if active.is_empty() {
+            bail!(
+                "pruning at {} % dropped every regressor",
+                opts.max_pct_sigma
+            );
+        }
+        fit = solve(d, &active, opts).context("refitting the pruned model")?;
+    }
+    Ok(Pruned {
+        active,
+        fit,
+        dropped,
+    })
+}
+
+/// The tension models with the default options.
+pub fn identify_tension(log: &Log, config: &Config) -> Result<TensionResult> {
+    identify_tension_with(&[("log", log)], config, &IdentOptions::default())
+}
+
+/// No-load tension models A, B, C (Eq. 22-24) against the DOB's cable-1
+/// tension (Eq. 21, recomputed by the replay with `config.dob.viscous_nm_s_rad`,
+/// so pass the configuration with the identified `B_m`), the pruning to the
+/// simplified model C, and the refit on the core's structure.
+pub fn identify_tension_with(
+    logs: &[(&str, &Log)],
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<TensionResult> {
+    let preps = prepare_all(logs, config, opts)?;
+    let fit = |name: &str, terms: &[ModelTerm]| {
+        fit_terms(name, &preps, terms, Target::Tension, opts, 1.0, "N")
+    };
+    let model_a = fit("model A (Eq. 22)", &MODEL_A).map_err(|e| format!("{e:#}"));
+    let model_b = fit("model B (Eq. 23)", &MODEL_B).map_err(|e| format!("{e:#}"));
+
+    // Model C and the pruning, on one design matrix.
+    let regs: Vec<Regressor> = MODEL_C.iter().map(|t| t.regressor).collect();
+    let d = design(&preps, &regs, Target::Tension, opts)?;
+    let all: Vec<usize> = (0..MODEL_C.len()).collect();
+    let fit_c = solve(&d, &all, opts).context("fitting model C (Eq. 24/27)")?;
+    let model_c = report("model C (Eq. 24/27)", &d, &MODEL_C, &all, &fit_c, 1.0, "N");
+
+    let Pruned {
+        active,
+        fit,
+        dropped,
+    } = prune(&d, &MODEL_C, fit_c, opts)?;
+    let simplified = report(
+        "simplified model C (Eq. 28-29)",
+        &d,
+        &MODEL_C,
+        &active,
+        &fit,
+        1.0,
+        "N",
+    );
+
+    // The core's structure: the kept ones of [sgn x1', sgn x2', x2, 1].
+    let core_idx: Vec<usize> = active
+        .iter()
+        .copied()
+        .filter(|j| SIMPLIFIED_C.contains(&MODEL_C[*j].regressor))
+        .collect();
+    let not_written: Vec<Regressor> = active
+        .iter()
+        .map(|j| MODEL_C[*j].regressor)
+        .filter(|r| !SIMPLIFIED_C.contains(r))
+        .collect();
+    if core_idx.is_empty() {
+        bail!("the pruning kept none of the core's tension terms (sgn x1', sgn x2', x2, 1)");
+    }
+    let core = if not_written.is_empty() {
+        FitReport {
+            model: "tension model written (core structure)".to_owned(),
+            ..simplified.clone()
+        }
+    } else {
+        let f = solve(&d, &core_idx, opts).context("refitting the core's tension model")?;
+        report(
+            "tension model written (core structure)",
+            &d,
+            &MODEL_C,
+            &core_idx,
+            &f,
+            1.0,
+            "N",
+        )
+    };
+    let chi_p = SIMPLIFIED_C.map(|r| core.value(r));
+    Ok(TensionResult {
+        theta_source: preps[0].theta_source.to_owned(),
+        b_m_used_nm_s_rad: f64::from(preps[0].cfg.dob.viscous_nm_s_rad),
+        model_a,
+        model_b,
+        model_c,
+        dropped,
+        simplified,
+        core,
+        chi_p,
+        not_written,
+    })
+}
+
+/// Errors of every tension model on another no-load log (N): models A, B, C
+/// (those that were fitted), the simplified one and the written one.
+pub fn validate_tension(
+    result: &TensionResult,
+    log: &Log,
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<Vec<(String, ErrorStats)>> {
+    let preps = prepare_all(&[("validation", log)], config, opts)?;
+    let mut out = Vec::new();
+    let models = [
+        result.model_a.as_ref().ok(),
+        result.model_b.as_ref().ok(),
+        Some(&result.model_c),
+        Some(&result.simplified),
+        Some(&result.core),
+    ];
+    for m in models.into_iter().flatten() {
+        out.push((
+            m.model.clone(),
+            evaluate(m, &preps, Target::Tension, opts, 1.0, "N")?,
+        ));
+    }
+    Ok(out)
+}
+
+impl TensionResult {
+    /// Write `chi_p` into the configuration.
+    pub fn apply(&self, config: &mut Config) {
+        let t = &mut config.tension;
+        t.f_sc1_n = self.chi_p[0] as f32;
+        t.f_cp2_n = self.chi_p[1] as f32;
+        t.k_s_n_m = self.chi_p[2] as f32;
+        t.f_0_n = self.chi_p[3] as f32;
+    }
+}
+
+// --- Configuration files -------------------------------------------------
+
+/// Read and check a configuration file (TOML). Missing tables and keys take
+/// the datasheet defaults; an unknown key, a type error or a value that
+/// [`Config::validate`] rejects is an error naming the file and the field.
+pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
+    let path = path.as_ref();
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading configuration {}", path.display()))?;
+    let config: Config = toml::from_str(&text)
+        .map_err(|e| anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+    config
+        .validate()
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    Ok(config)
+}
+
+/// Write `config` as TOML, atomically (temporary file in the target's
+/// directory, then rename). An invalid configuration is refused before the
+/// file system is touched.
+pub fn write_config(path: impl AsRef<Path>, config: &Config) -> Result<()> {
+    let path = path.as_ref();
+    config
+        .validate()
+        .map_err(|e| anyhow!("refusing to write {}: {e}", path.display()))?;
+    let text = toml::to_string_pretty(config).context("serializing the configuration")?;
+    let header = "# cable-joint configuration (SI units), written by `host-sim identify`.\n\n";
+    write_atomic(path, &format!("{header}{text}"))
+}
+
+fn write_atomic(path: &Path, text: &str) -> Result<()> {
+    // Renaming over a device or a directory would replace it: only a new
+    // path or an existing regular file is a valid target.
+    if let Ok(meta) = std::fs::metadata(path) {
+        if !meta.is_file() {
+            bail!(
+                "{} exists and is not a regular file: not replacing it",
+                path.display()
+            );
+        }
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".ident-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .with_context(|| format!("creating a temporary file next to {}", path.display()))?;
+    tmp.write_all(text.as_bytes())
+        .and_then(|()| tmp.as_file().sync_all())
+        .with_context(|| format!("writing {}", path.display()))?;
+    tmp.persist(path)
+        .map_err(|e| anyhow!("renaming onto {}: {}", path.display(), e.error))?;
+    Ok(())
+}
+
+// --- Command line --------------------------------------------------------
+
+/// What `host-sim identify` identifies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Procedure {
+    /// Motor damping `B_m` from a no-load motor run.
+    Bm,
+    /// Joint-angle estimator from a run with the magnetic encoder.
+    Jae,
+    /// Tension models A, B, C and the simplified model C.
+    Tension,
+    /// All three, in that order (each uses the previous results).
+    All,
+}
+
+/// Arguments of `host-sim identify`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct IdentifyArgs {
+    /// Which model(s) to identify.
+    #[arg(long, value_enum)]
+    pub procedure: Procedure,
+    /// Logs to fit (CSV). With `all`: three logs in the order bm, jae,
+    /// tension, or any number as `bm=FILE`, `jae=FILE`, `tension=FILE`.
+    #[arg(long, num_args = 1.., required = true)]
+    pub log: Vec<String>,
+    /// Logs to validate on (not used for the fit); same form as `--log`.
+    #[arg(long, num_args = 1..)]
+    pub validate: Vec<String>,
+    /// Configuration to start from (TOML; default: the datasheet values).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Where to write the configuration with the identified parameters.
+    #[arg(long)]
+    pub config_out: PathBuf,
+    /// Also write every result as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Leading seconds of each log left out (observer start-up).
+    #[arg(long, default_value_t = IdentOptions::default().skip_start_s)]
+    pub skip_start_s: f64,
+    /// Tension fits: leave out ticks with |theta'| below this, rad/s (0: keep all).
+    #[arg(long, default_value_t = IdentOptions::default().min_joint_vel_rad_s)]
+    pub min_joint_vel_rad_s: f64,
+    /// Tension fits: also leave out this long after the joint was still, s.
+    #[arg(long, default_value_t = IdentOptions::default().holdoff_s)]
+    pub holdoff_s: f64,
+    /// Do not pass the regressors through the DOB's low-pass (the seed's plain fit).
+    #[arg(long)]
+    pub no_filter: bool,
+    /// Pruning limit on %sigma, %.
+    #[arg(long, default_value_t = IdentOptions::default().max_pct_sigma)]
+    pub max_pct_sigma: f64,
+    /// Prune as the seed did: every parameter above the limit at once.
+    #[arg(long)]
+    pub prune_all_at_once: bool,
+    /// DOB-based fits: extra low-pass on both sides, Hz (0: none).
+    #[arg(long, default_value_t = IdentOptions::default().post_filter_hz)]
+    pub post_filter_hz: f64,
+    /// Fit B_m without the Coulomb term sgn(phi') (the seed's model).
+    #[arg(long)]
+    pub bm_no_coulomb: bool,
+}
+
+/// Split `--log`/`--validate` arguments by procedure.
+fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, PathBuf)>> {
+    let order = [Procedure::Bm, Procedure::Jae, Procedure::Tension];
+    let tagged = |s: &str| -> Option<(Procedure, PathBuf)> {
+        let (tag, file) = s.split_once('=')?;
+        let p = match tag {
+            "bm" => Procedure::Bm,
+            "jae" => Procedure::Jae,
+            "tension" => Procedure::Tension,
+            _ => return None,
+        };
+        Some((p, PathBuf::from(file)))
+    };
+    let mut out = Vec::new();
+    let untagged: Vec<&String> = files.iter().filter(|s| tagged(s).is_none()).collect();
+    if procedure == Procedure::All && !untagged.is_empty() {
+        if untagged.len() != files.len() || files.len() != 3 {
+            bail!(
+                "with --procedure all give three logs in the order bm, jae, tension, \
+                 or tag each one: bm=FILE jae=FILE tension=FILE"
+            );
+        }
+        for (p, f) in order.iter().zip(files) {
+            out.push((*p, PathBuf::from(f)));
+        }
+        return Ok(out);
+    }
+    for f in files {
+        match tagged(f) {
+            Some((p, path)) => {
+                if procedure != Procedure::All && p != procedure {
+                    bail!("`{f}` is tagged for another procedure than {procedure:?}");
+                }
+                out.push((p, path));
+            }
+            None => out.push((procedure, PathBuf::from(f))),
+        }
+    }
+    Ok(out)
+}
+
+fn read_logs(files: &[(Procedure, PathBuf)], p: Procedure) -> Result<Vec<(String, Log)>> {
+    files
+        .iter()
+        .filter(|(q, _)| *q == p)
+        .map(|(_, f)| Ok((f.display().to_string(), Log::read(f)?)))
+        .collect()
+}
+
+fn refs(logs: &[(String, Log)]) -> Vec<(&str, &Log)> {
+    logs.iter().map(|(l, g)| (l.as_str(), g)).collect()
+}
+
+/// Everything `host-sim identify` found (the `--json` output).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct IdentifyReport {
+    /// `B_m`.
+    pub bm: Option<BmResult>,
+    /// JAE.
+    pub jae: Option<JaeResult>,
+    /// Tension models.
+    pub tension: Option<TensionResult>,
+    /// Errors on the validation logs.
+    pub validation: Vec<Validation>,
+    /// Options used.
+    pub options: Option<IdentOptions>,
+}
+
+/// Run the identification(s) the arguments ask for; returns the report and
+/// the configuration with the results applied.
+pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
+    let opts = IdentOptions {
+        skip_start_s: args.skip_start_s,
+        min_joint_vel_rad_s: args.min_joint_vel_rad_s,
+        holdoff_s: args.holdoff_s,
+        filter_regressors: !args.no_filter,
+        max_pct_sigma: args.max_pct_sigma,
+        prune_all_at_once: args.prune_all_at_once,
+        post_filter_hz: args.post_filter_hz,
+        bm_coulomb: !args.bm_no_coulomb,
+        ..IdentOptions::default()
+    };
+    opts.check()?;
+    let mut config = match &args.config {
+        Some(p) => load_config(p)?,
+        None => Config::default(),
+    };
+    let fits = assign(&args.log, args.procedure)?;
+    let vals = assign(&args.validate, args.procedure)?;
+    let wants = |p: Procedure| args.procedure == p || args.procedure == Procedure::All;
+    let mut rep = IdentifyReport {
+        options: Some(opts),
+        ..IdentifyReport::default()
+    };
+    for p in [Procedure::Bm, Procedure::Jae, Procedure::Tension] {
+        if !wants(p) {
+            continue;
+        }
+        let logs = read_logs(&fits, p)?;
+        if logs.is_empty() {
+            bail!("no log for the {p:?} procedure");
+        }
+        let vlogs = read_logs(&vals, p)?;
+        let logs = refs(&logs);
+        match p {
+            Procedure::Bm => {
+                let r = identify_bm_with(&logs, &config, &opts)?;
+                r.apply(&mut config);
+                for (name, log) in &vlogs {
+                    let e = validate_bm(&r, log, &config, &opts)
+                        .with_context(|| format!("validating B_m on {name}"))?;
+                    rep.validation.push(Validation {
+                        log: name.clone(),
+                        model: r.fit.model.clone(),
+                        errors: e,
+                    });
+                }
+                rep.bm = Some(r);
+            }
+            Procedure::Jae => {
+                let r = identify_jae_with(&logs, &config, &opts)?;
+                r.apply(&mut config);
+                for (name, log) in &vlogs {
+                    let e = validate_jae(&r, log, &config, &opts)
+                        .with_context(|| format!("validating the JAE on {name}"))?;
+                    rep.validation.push(Validation {
+                        log: name.clone(),
+                        model: r.fit.model.clone(),
+                        errors: e,
+                    });
+                }
+                rep.jae = Some(r);
+            }
+            Procedure::Tension => {
+                let r = identify_tension_with(&logs, &config, &opts)?;
+                r.apply(&mut config);
+                for (name, log) in &vlogs {
+                    let v = validate_tension(&r, log, &config, &opts)
+                        .with_context(|| format!("validating the tension models on {name}"))?;
+                    for (model, e) in v {
+                        rep.validation.push(Validation {
+                            log: name.clone(),
+                            model,
+                            errors: e,
+                        });
+                    }
+                }
+                rep.tension = Some(r);
+            }
+            Procedure::All => unreachable!("expanded above"),
+        }
+    }
+    Ok((rep, config))
+}
+
+fn fmt_num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else if (1e-3..1e5).contains(&v.abs()) {
+        format!("{v:.5}")
+    } else {
+        format!("{v:.4e}")
+    }
+}
+
+fn fmt_pct(p: f64) -> String {
+    if p.is_finite() {
+        format!("{p:.3} %")
+    } else {
+        "inf".to_owned()
+    }
+}
+
+/// A fit as a readable table.
+pub fn format_fit(f: &FitReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{}: {} rows, residual std {}, condition {:.3e}, residual correlation {:.0} ticks",
+        f.model,
+        f.rows,
+        fmt_num(f.sigma),
+        f.condition,
+        f.residual_corr_ticks
+    );
+    let _ = writeln!(
+        s,
+        "  {:<12} {:<9} {:>13} {:>12} {:>11} {:>11}  unit",
+        "regressor", "parameter", "value", "std", "%sigma", "%sigma eff"
+    );
+    for p in &f.params {
+        let _ = writeln!(
+            s,
+            "  {:<12} {:<9} {:>13} {:>12} {:>11} {:>11}  {}",
+            p.symbol,
+            p.name,
+            fmt_num(p.value),
+            fmt_num(p.std),
+            fmt_pct(p.pct_sigma),
+            fmt_pct(p.pct_sigma_eff),
+            p.unit
+        );
+    }
+    let _ = writeln!(s, "  errors: {}", format_stats(&f.errors));
+    s
+}
+
+/// Error statistics in one line.
+pub fn format_stats(e: &ErrorStats) -> String {
+    format!(
+        "n {}, mean {} {u}, mean|e| {} {u}, max {} {u}, min {} {u}, RMSE {} {u}",
+        e.n,
+        fmt_num(e.mean),
+        fmt_num(e.mean_abs),
+        fmt_num(e.max),
+        fmt_num(e.min),
+        fmt_num(e.rmse),
+        u = e.unit
+    )
+}
+
+/// The whole report as text.
+pub fn format_report(r: &IdentifyReport) -> String {
+    let mut s = String::new();
+    if let Some(b) = &r.bm {
+        s.push_str(&format_fit(&b.fit));
+        if let Some(p) = b.coulomb_dropped_pct_sigma {
+            let _ = writeln!(
+                s,
+                "  Coulomb term sgn(phi') dropped (%sigma {})",
+                fmt_pct(p)
+            );
+        }
+        let _ = writeln!(
+            s,
+            "  -> dob.viscous_nm_s_rad = {:e} (seed: 1.6934e-5)\n",
+            b.b_m_nm_s_rad
+        );
+    }
+    if let Some(j) = &r.jae {
+        s.push_str(&format_fit(&j.fit));
+        let _ = writeln!(s, "  identification error: {}", format_stats(&j.error_deg));
+        let _ = writeln!(
+            s,
+            "  -> jae: chi_s = [{}, {}, {}, {}], offset {} rad (seed: [0.0805, 0.5225, 0.0025, 264.356], error mean 0.275°, max 0.836°)\n",
+            fmt_num(j.chi_s[0]),
+            fmt_num(j.chi_s[1]),
+            fmt_num(j.chi_s[2]),
+            fmt_num(j.chi_s[3]),
+            fmt_num(j.offset_rad)
+        );
+    }
+    if let Some(t) = &r.tension {
+        let _ = writeln!(
+            s,
+            "tension models: theta from {}, DOB with B_m = {:e} N·m·s/rad",
+            t.theta_source, t.b_m_used_nm_s_rad
+        );
+        for m in [&t.model_a, &t.model_b] {
+            match m {
+                Ok(f) => s.push_str(&format_fit(f)),
+                Err(e) => {
+                    let _ = writeln!(s, "  not fitted: {e}");
+                }
+            }
+        }
+        s.push_str(&format_fit(&t.model_c));
+        let dropped: Vec<String> = t
+            .dropped
+            .iter()
+            .map(|(r, p)| format!("{} ({})", r.symbol(), fmt_pct(*p)))
+            .collect();
+        let _ = writeln!(s, "pruned (%sigma above the limit): {}", dropped.join(", "));
+        s.push_str(&format_fit(&t.simplified));
+        if !t.not_written.is_empty() {
+            let nw: Vec<&str> = t.not_written.iter().map(|r| r.symbol()).collect();
+            let _ = writeln!(
+                s,
+                "  kept terms the core's model does not evaluate (not written): {}",
+                nw.join(", ")
+            );
+            s.push_str(&format_fit(&t.core));
+        }
+        let _ = writeln!(
+            s,
+            "  -> tension: chi_p = [f_sc1 {}, f_cp2 {}, K_s {}, F_0 {}] (seed: [3.879, 5.027, 707.7, 19.52])\n",
+            fmt_num(t.chi_p[0]),
+            fmt_num(t.chi_p[1]),
+            fmt_num(t.chi_p[2]),
+            fmt_num(t.chi_p[3])
+        );
+    }
+    if !r.validation.is_empty() {
+        let _ = writeln!(
+            s,
+            "validation (model - measured, data not used for the fit):"
+        );
+        for v in &r.validation {
+            let _ = writeln!(s, "  {} on {}: {}", v.model, v.log, format_stats(&v.errors));
+        }
+    }
+    s
+}
+
+/// Run the subcommand.
+pub fn run(args: IdentifyArgs) -> Result<()> {
+    let (rep, config) = identify(&args)?;
+    print!("{}", format_report(&rep));
+    write_config(&args.config_out, &config)?;
+    println!("configuration written to {}", args.config_out.display());
+    if let Some(p) = &args.json {
+        let text = serde_json::to_string_pretty(&rep).context("serializing the report")?;
+        write_atomic(p, &text)?;
+        println!("report written to {}", p.display());
+    }
+    Ok(())
+}

@@ -9,6 +9,8 @@
 //!   `current_limit_a`. Anti-windup by conditional integration: the
 //!   integrator does not move in the direction that deepens saturation, and is
 //!   clamped so that it alone never exceeds the limit.
+//! * While the reference is at rest, a small dead band on the position error
+//!   stops the hold from hunting against stiction.
 //! * Feed-forward current `i_ff` (the modelled tension's holding current) is
 //!   added before the limit, so the integrator only trims.
 
@@ -52,6 +54,8 @@ pub struct CascadeIn {
     pub current_ff_a: f32,
     /// Motor rad per joint rad of the rigid transmission (`z_i r / r_m`).
     pub motor_per_joint: f32,
+    /// The reference is at rest: apply the hold dead band.
+    pub hold: bool,
 }
 
 /// One step of the cascade with period `period_s`.
@@ -62,7 +66,11 @@ pub fn step(
     inp: &CascadeIn,
     period_s: f32,
 ) -> CascadeOut {
-    let e = inp.angle_ref_rad - inp.angle_fb_rad;
+    let mut e = inp.angle_ref_rad - inp.angle_fb_rad;
+    if inp.hold {
+        // Continuous dead band: zero inside, shifted linear outside.
+        e -= clamp(e, -cfg.hold_deadband_rad, cfg.hold_deadband_rad);
+    }
     let de = if s.primed {
         (e - s.last_error_rad) / period_s
     } else {
@@ -154,6 +162,33 @@ mod tests {
             out.current_a < cfg.current_limit_a,
             "still saturated: {}",
             out.current_a
+        );
+    }
+
+    #[test]
+    fn hold_dead_band_asks_for_no_motion_inside_and_is_continuous_outside() {
+        let cfg = CascadeConfig {
+            vel_feedforward: 0.0,
+            kd_pos: 0.0,
+            ..Default::default()
+        };
+        let db = cfg.hold_deadband_rad;
+        let run = |e: f32, hold: bool| {
+            let mut s = CascadeState::default();
+            let inp = CascadeIn {
+                angle_ref_rad: e,
+                motor_per_joint: 23.33,
+                hold,
+                ..Default::default()
+            };
+            step(&cfg, &mut s, &inp, 5e-4).motor_vel_ref_rad_s
+        };
+        assert_eq!(run(0.9 * db, true), 0.0);
+        assert!(run(0.9 * db, false) > 0.0, "no dead band while tracking");
+        let just_out = run(1.01 * db, true);
+        assert!(
+            just_out > 0.0 && just_out < cfg.kp_pos_1_s * 0.02 * db * 23.33,
+            "{just_out}"
         );
     }
 

@@ -158,6 +158,11 @@ pub struct CascadeConfig {
     /// keeps the non-collocated cable resonance out of the position loop
     /// while the JAE still sets the steady angle.
     pub jae_blend_hz: f32,
+    /// Position-error dead band while the reference is at rest, rad. Inside
+    /// it the position loop asks for no motion, so the velocity integrator
+    /// stops pushing against stiction and the hold does not hunt (stick-slip
+    /// limit cycle). Keep it near the JAE's resolution (`c4` × 1 count).
+    pub hold_deadband_rad: f32,
     /// Output current limit, A (at most the drive's limit).
     pub current_limit_a: f32,
 }
@@ -177,6 +182,7 @@ impl Default for CascadeConfig {
             vel_feedforward: 1.0,
             tension_feedforward: true,
             jae_blend_hz: 0.0,
+            hold_deadband_rad: 5e-4,
             current_limit_a: 2.0,
         }
     }
@@ -253,6 +259,9 @@ pub struct FaultLimits {
     pub max_motor_speed_rad_s: f32,
     /// Joint-angle range, rad (|theta_hat| beyond it is a fault).
     pub max_joint_angle_rad: f32,
+    /// Largest `|theta_hat - theta_motor|` that cable stretch can explain, rad;
+    /// beyond it a cable is slack or broken.
+    pub max_stretch_rad: f32,
 }
 
 impl Default for FaultLimits {
@@ -261,6 +270,7 @@ impl Default for FaultLimits {
             max_grating_speed_m_s: 0.5,
             max_motor_speed_rad_s: 1200.0,
             max_joint_angle_rad: 1.6,
+            max_stretch_rad: 0.35,
         }
     }
 }
@@ -458,6 +468,7 @@ impl Config {
         non_negative("cascade.vel_feedforward", c.vel_feedforward)?;
         positive("cascade.current_limit_a", c.current_limit_a)?;
         non_negative("cascade.jae_blend_hz", c.jae_blend_hz)?;
+        non_negative("cascade.hold_deadband_rad", c.hold_deadband_rad)?;
         if c.current_limit_a > m.current_limit_a {
             return Err(ConfigError {
                 field: "cascade.current_limit_a",
@@ -493,6 +504,7 @@ impl Config {
         positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
         positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;
         positive("limits.max_joint_angle_rad", l.max_joint_angle_rad)?;
+        positive("limits.max_stretch_rad", l.max_stretch_rad)?;
         Ok(())
     }
 }

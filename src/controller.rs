@@ -449,6 +449,9 @@ impl Controller {
         if math::abs(theta_hat_rad) > cfg.limits.max_joint_angle_rad {
             fault = fault.or(Some(Fault::AngleRange));
         }
+        if st.primed && math::abs(theta_hat_rad - theta_motor_rad) > cfg.limits.max_stretch_rad {
+            fault = fault.or(Some(Fault::TransmissionSlack));
+        }
         timer.mark(Stage::Jae);
 
         // --- Tension model and DOB ---------------------------------------------
@@ -461,7 +464,8 @@ impl Controller {
         }
         if !st.primed {
             d.dob.reset(&mut st.dob, model_n);
-            st.last_current_a = 0.0;
+            // Best knowledge of the current on the first tick: the monitor.
+            st.last_current_a = i_meas_a;
         }
         let drive_current = if cfg.dob.use_measured_current {
             i_meas_a
@@ -508,6 +512,7 @@ impl Controller {
                 motor_vel_rad_s: phi.vel,
                 current_ff_a,
                 motor_per_joint: d.motor_per_joint,
+                hold: reference.vel_rad_s == 0.0,
             },
             d.period_s,
         );
@@ -634,11 +639,37 @@ mod tests {
             assert!(!out.drive_enable, "does not re-enable on its own");
         }
         c.clear_fault();
+        // After a fault the operator re-homes before running again.
+        c.set_origin(&raw);
         let out = c.step(&raw);
         assert_eq!(
             (out.fault, out.mode, out.drive_enable),
             (None, Mode::Idle, false)
         );
+    }
+
+    #[test]
+    fn slack_cable_is_a_fault() {
+        let mut c = Controller::new(Config::default()).unwrap();
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        });
+        let mut raw = at_rest();
+        c.step(&raw);
+        // The motor unwinds 30° of joint angle while slider 2 stays put.
+        let counts_per_joint_rad = 4000.0 / (2.0 * math::PI) * c.derived.motor_per_joint;
+        let target = (0.52 * counts_per_joint_rad) as i32;
+        let mut out = c.step(&raw);
+        for k in 1..=200 {
+            raw.motor = MotorCount((-(target * k / 200)) as i16 as u16);
+            out = c.step(&raw);
+            if out.fault.is_some() {
+                break;
+            }
+        }
+        assert_eq!(out.fault, Some(Fault::TransmissionSlack));
+        assert!(!out.drive_enable);
     }
 
     #[test]

@@ -37,6 +37,9 @@ pub enum Fault {
     AngleRange,
     /// The motor's velocity exceeded its limit.
     Overspeed,
+    /// The motor-implied and the estimated joint angle disagree by more than
+    /// any cable stretch can explain: a cable went slack or broke.
+    TransmissionSlack,
     /// The control task missed its deadline.
     Overrun,
     /// The drive reported a fault on its fault line.
@@ -63,6 +66,7 @@ impl Fault {
             Fault::NonFinite => 11,
             Fault::AngleRange => 12,
             Fault::Overspeed => 13,
+            Fault::TransmissionSlack => 14,
             Fault::Overrun => 20,
             Fault::DriveFault => 21,
             Fault::OriginDuringMotion => 22,
@@ -83,6 +87,7 @@ impl Fault {
             11 => Fault::NonFinite,
             12 => Fault::AngleRange,
             13 => Fault::Overspeed,
+            14 => Fault::TransmissionSlack,
             20 => Fault::Overrun,
             21 => Fault::DriveFault,
             22 => Fault::OriginDuringMotion,
@@ -109,6 +114,7 @@ impl fmt::Display for Fault {
             Fault::NonFinite => f.write_str("non-finite value in a filter or estimator"),
             Fault::AngleRange => f.write_str("joint-angle estimate out of mechanical range"),
             Fault::Overspeed => f.write_str("motor overspeed"),
+            Fault::TransmissionSlack => f.write_str("cable slack: motor and joint angle disagree"),
             Fault::Overrun => f.write_str("control tick overran its deadline"),
             Fault::DriveFault => f.write_str("drive reported a fault"),
             Fault::OriginDuringMotion => f.write_str("origin switch hit during motion"),
@@ -132,7 +138,7 @@ mod tests {
                 seen[code as usize] = true;
             }
         }
-        assert_eq!(seen.iter().filter(|s| **s).count(), 14);
+        assert_eq!(seen.iter().filter(|s| **s).count(), 15);
         assert_eq!(Fault::from_code(0), None);
         assert_eq!(Fault::code_of(None), 0);
     }

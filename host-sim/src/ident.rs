@@ -492,6 +492,8 @@ struct Prepared {
     cfg: Config,
     /// Rows usable at all: after the start-up, not faulted.
     usable: Vec<bool>,
+    /// Time and code of the first fault the replay latched.
+    first_fault: Option<(f64, u8)>,
     theta: Option<Vec<f64>>,
     theta_kin: Option<(Vec<f64>, Vec<f64>)>,
     theta_source: &'static str,
@@ -516,6 +518,11 @@ impl Prepared {
             .zip(fault)
             .map(|(t, f)| *t >= t0 + opts.skip_start_s && *f == 0.0)
             .collect();
+        let first_fault = t
+            .iter()
+            .zip(fault)
+            .find(|(_, f)| **f != 0.0)
+            .map(|(t, f)| (*t, *f as u8));
         // The magnetic encoder when it is measured on every row, else the JAE.
         let (theta, theta_source) = match derived.col_opt("theta_rad") {
             Some(v) if v.iter().all(Option::is_some) => {
@@ -541,6 +548,7 @@ impl Prepared {
         });
         Ok(Self {
             label: label.to_owned(),
+            first_fault,
             derived,
             cfg,
             usable,
@@ -756,7 +764,21 @@ fn design(
         }
     }
     if d.y.is_empty() {
-        bail!("no usable rows (after the start-up, faults and the velocity limit)");
+        let faults: Vec<String> = preps
+            .iter()
+            .filter_map(|p| {
+                p.first_fault.map(|(t, code)| {
+                    let name = cable_joint::Fault::from_code(code)
+                        .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+                    format!("{}: the replay latched {name} at t = {t:.3} s", p.label)
+                })
+            })
+            .collect();
+        bail!(
+            "no usable rows (after the start-up, faults and the velocity limit){}{}",
+            if faults.is_empty() { "" } else { "; " },
+            faults.join("; ")
+        );
     }
     Ok(d)
 }
@@ -946,7 +968,7 @@ pub fn identify_bm_with(
     config: &Config,
     opts: &IdentOptions,
 ) -> Result<BmResult> {
-    let preps = prepare_all(logs, config, opts)?;
+    let preps = prepare_all(logs, &decoupled(config), opts)?;
     let fit_with = |terms: &[ModelTerm]| {
         fit_terms(
             "B_m (no-load motor)",
@@ -985,8 +1007,17 @@ pub fn validate_bm(
     config: &Config,
     opts: &IdentOptions,
 ) -> Result<ErrorStats> {
-    let preps = prepare_all(&[("validation", log)], config, opts)?;
+    let preps = prepare_all(&[("validation", log)], &decoupled(config), opts)?;
     evaluate(&result.fit, &preps, Target::MotorTorque, opts, 1.0, "N·m")
+}
+
+/// The configuration for replaying a no-load motor run: with the rope wheel
+/// unhooked the motor angle says nothing about the joint, so the
+/// transmission-slack check (`limits.max_stretch_rad`) is switched off.
+pub fn decoupled(config: &Config) -> Config {
+    let mut c = *config;
+    c.limits.max_stretch_rad = f32::MAX;
+    c
 }
 
 impl BmResult {
@@ -1715,4 +1746,167 @@ pub fn run(args: IdentifyArgs) -> Result<()> {
         println!("report written to {}", p.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// xorshift64*, uniform in [-1, 1).
+    struct Rng(u64);
+    impl Rng {
+        fn uniform(&mut self) -> f64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            let u = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11;
+            u as f64 / (1u64 << 52) as f64 - 1.0
+        }
+        fn normal(&mut self) -> f64 {
+            (0..12).map(|_| 0.5 * (self.uniform() + 1.0)).sum::<f64>() - 6.0
+        }
+    }
+
+    const TERMS: [ModelTerm; 5] = [
+        term(Regressor::SgnX1Vel, "f_sc1", "N"),
+        term(Regressor::SgnX2Vel, "f_cp2", "N"),
+        term(Regressor::X2, "K_s", "N/m"),
+        term(Regressor::One, "F_0", "N"),
+        term(Regressor::X1Acc, "m_0", "kg"),
+    ];
+
+    /// `y = 6 s1 + 2 s2 + 650 x2 + 19.5 + noise n`, with `s2` equal to `s1`
+    /// except on `split` of the rows, and a junk column (`x1''`-like) that
+    /// does not enter `y`.
+    fn design(split: usize, noise: f64, rng: &mut Rng) -> Design {
+        let n = 4000;
+        let mut d = Design {
+            cols: vec![Vec::new(); 5],
+            y: Vec::new(),
+        };
+        for k in 0..n {
+            let t = k as f64 * 1e-3;
+            let s1 = if (t * 3.0).sin() >= 0.0 { 1.0 } else { -1.0 };
+            let s2 = if k % (n / split.max(1)) < 1 && split > 0 {
+                -s1
+            } else {
+                s1
+            };
+            let x2 = 3e-3 * (t * 1.3).sin();
+            let junk = 1e-3 * rng.normal();
+            let y = 6.0 * s1 + 2.0 * s2 + 650.0 * x2 + 19.5 + noise * rng.normal();
+            for (c, v) in d.cols.iter_mut().zip([s1, s2, x2, 1.0, junk]) {
+                c.push(v);
+            }
+            d.y.push(y);
+        }
+        d
+    }
+
+    fn kept(d: &Design, opts: &IdentOptions) -> (Vec<Regressor>, Fit<MAX_REGRESSORS>) {
+        let all: Vec<usize> = (0..TERMS.len()).collect();
+        let first = solve(d, &all, opts).unwrap();
+        let p = prune(d, &TERMS, first, opts).unwrap();
+        (
+            p.active.iter().map(|j| TERMS[*j].regressor).collect(),
+            p.fit,
+        )
+    }
+
+    #[test]
+    fn pruning_drops_the_junk_and_keeps_the_physics() {
+        let mut rng = Rng(0x1234_5678_9abc_def1);
+        // s1 and s2 differ on 400 rows: both are determined.
+        let d = design(400, 0.3, &mut rng);
+        let opts = IdentOptions::default();
+        let (kept, fit) = kept(&d, &opts);
+        assert_eq!(
+            kept,
+            vec![
+                Regressor::SgnX1Vel,
+                Regressor::SgnX2Vel,
+                Regressor::X2,
+                Regressor::One
+            ]
+        );
+        for (k, want) in [6.0, 2.0, 650.0, 19.5].iter().enumerate() {
+            assert!(
+                (fit.params[k] - want).abs() < 0.05 * want,
+                "param {k}: {} vs {want}",
+                fit.params[k]
+            );
+        }
+    }
+
+    #[test]
+    fn one_at_a_time_keeps_one_of_a_collinear_pair() {
+        let mut rng = Rng(42);
+        // s1 and s2 differ on 4 rows only: each alone is poorly determined,
+        // their sum (8 N) is not.
+        let d = design(4, 2.0, &mut rng);
+        let full = solve(&d, &[0, 1, 2, 3, 4], &IdentOptions::default()).unwrap();
+        assert!(full.pct_sigma(0) > 5.0 && full.pct_sigma(1) > 5.0);
+        let (kept, fit) = kept(&d, &IdentOptions::default());
+        assert_eq!(kept.len(), 3, "{kept:?}");
+        assert!(kept.contains(&Regressor::X2) && kept.contains(&Regressor::One));
+        let sign = kept
+            .iter()
+            .position(|r| matches!(r, Regressor::SgnX1Vel | Regressor::SgnX2Vel))
+            .expect("one friction sign kept");
+        assert!((fit.params[sign] - 8.0).abs() < 0.1, "{}", fit.params[sign]);
+        // The seed's all-at-once rule loses the friction altogether.
+        let seed = IdentOptions {
+            prune_all_at_once: true,
+            ..IdentOptions::default()
+        };
+        let (kept, _) = self::kept(&d, &seed);
+        assert!(
+            !kept.contains(&Regressor::SgnX1Vel) && !kept.contains(&Regressor::SgnX2Vel),
+            "{kept:?}"
+        );
+    }
+
+    #[test]
+    fn correlation_time_of_white_and_ar1_noise() {
+        let mut rng = Rng(7);
+        let white: Vec<f64> = (0..20_000).map(|_| rng.normal()).collect();
+        let tau = correlation_time(&white);
+        assert!(tau < 1.5, "white noise: {tau}");
+        // AR(1) with phi = 0.9: tau = (1 + phi) / (1 - phi) = 19.
+        let mut x = 0.0;
+        let ar: Vec<f64> = (0..100_000)
+            .map(|_| {
+                x = 0.9 * x + rng.normal();
+                x
+            })
+            .collect();
+        let tau = correlation_time(&ar);
+        assert!((tau - 19.0).abs() < 4.0, "AR(1): {tau}");
+    }
+
+    #[test]
+    fn error_stats() {
+        let s = ErrorStats::of([1.0, -3.0, 2.0], 2.0, "x");
+        assert_eq!((s.n, s.max, s.min), (3, 4.0, -6.0));
+        assert!((s.mean - 0.0).abs() < 1e-12);
+        assert!((s.mean_abs - 4.0).abs() < 1e-12);
+        assert!((s.rmse - (56.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert_eq!(s.max_abs(), 6.0);
+    }
+
+    #[test]
+    fn logs_are_assigned_to_procedures() {
+        let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let a = assign(&v(&["a", "b", "c"]), Procedure::All).unwrap();
+        assert_eq!(
+            a.iter().map(|(p, _)| *p).collect::<Vec<_>>(),
+            vec![Procedure::Bm, Procedure::Jae, Procedure::Tension]
+        );
+        let a = assign(&v(&["tension=t.csv", "bm=b.csv"]), Procedure::All).unwrap();
+        assert_eq!(a[0], (Procedure::Tension, PathBuf::from("t.csv")));
+        assert!(assign(&v(&["a", "b"]), Procedure::All).is_err());
+        assert!(assign(&v(&["jae=j.csv"]), Procedure::Bm).is_err());
+        let a = assign(&v(&["x.csv", "y.csv"]), Procedure::Jae).unwrap();
+        assert!(a.iter().all(|(p, _)| *p == Procedure::Jae));
+    }
 }

@@ -1,0 +1,327 @@
+//! Identification on simulated logs: each procedure recovers the plant's
+//! parameters (the simulator's ground truth), and each identified model is
+//! checked on a log with another seed and trajectory than the fit.
+//!
+//! The logs follow the seed's order: `bm-noload` for `B_m`, `jae-ident` for
+//! the JAE, then `tension-ident` run in closed loop on the *identified* JAE
+//! and `B_m` (as on the prototype) for the tension models.
+
+use std::sync::OnceLock;
+
+use cable_joint::Config;
+use host_sim::ident::{
+    decoupled, identify, identify_bm_with, identify_jae_with, identify_tension_with, load_config,
+    validate_bm, validate_jae, validate_tension, IdentOptions, IdentifyArgs, Procedure, Regressor,
+    SIMPLIFIED_C,
+};
+use host_sim::log::Log;
+use host_sim::plant::PlantParams;
+use host_sim::scenario::{self, ScenarioOptions};
+use host_sim::sim::LogRecorder;
+
+/// Run `name` for `duration_s` of simulated time (every segment scaled).
+fn simulate(name: &str, config: &Config, seed: Option<u64>, duration_s: f64) -> Log {
+    let mut opts = ScenarioOptions::default();
+    let full = scenario::plan(name, &opts).expect("plan").duration_s();
+    opts.duration_scale = duration_s / full;
+    let mut rec = LogRecorder::new(true);
+    scenario::run(name, PlantParams::default(), *config, seed, &opts, &mut rec)
+        .expect("scenario runs");
+    rec.to_log().expect("log")
+}
+
+struct Chain {
+    plant: PlantParams,
+    bm_log: Log,
+    jae_log: Log,
+    /// Configuration with the identified `B_m` and JAE.
+    config: Config,
+    tension_log: Log,
+    /// JAE closed loop on another trajectory (validation).
+    track_log: Log,
+}
+
+/// The seed's programme on the simulator, shared by the tests.
+fn chain() -> &'static Chain {
+    static CHAIN: OnceLock<Chain> = OnceLock::new();
+    CHAIN.get_or_init(|| {
+        let opts = IdentOptions::default();
+        let base = Config::default();
+        // The unhooked rope wheel is a slack transmission by design.
+        let bm_log = simulate("bm-noload", &decoupled(&base), None, 6.0);
+        let jae_log = simulate("jae-ident", &base, None, 12.0);
+        let mut config = base;
+        identify_bm_with(&[("bm", &bm_log)], &config, &opts)
+            .expect("B_m")
+            .apply(&mut config);
+        identify_jae_with(&[("jae", &jae_log)], &config, &opts)
+            .expect("JAE")
+            .apply(&mut config);
+        let tension_log = simulate("tension-ident", &config, None, 30.0);
+        let track_log = simulate("track-jae", &config, Some(7), 10.0);
+        Chain {
+            plant: PlantParams::default(),
+            bm_log,
+            jae_log,
+            config,
+            tension_log,
+            track_log,
+        }
+    })
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+#[test]
+fn bm_recovers_the_plants_damping_and_coulomb_torque() {
+    let c = chain();
+    let opts = IdentOptions::default();
+    let r = identify_bm_with(&[("bm", &c.bm_log)], &Config::default(), &opts).unwrap();
+    let truth = c.plant.motor.viscous_nm_s_rad;
+    assert!(
+        rel(r.b_m_nm_s_rad, truth) < 0.02,
+        "B_m {:e} vs plant {truth:e}",
+        r.b_m_nm_s_rad
+    );
+    let p = r.fit.param(Regressor::PhiVel).unwrap();
+    assert!(p.pct_sigma < 5.0, "B_m %sigma {}", p.pct_sigma);
+    // The plant's motor has Coulomb friction (brushes, gearhead): it is
+    // found, and leaving it out (the seed's model) biases B_m.
+    let coulomb = c.plant.motor.coulomb_nm;
+    assert!(coulomb > 0.0, "test assumes a motor with Coulomb friction");
+    let tau_c = r.coulomb_nm.expect("Coulomb term kept");
+    assert!(
+        rel(tau_c, coulomb) < 0.05,
+        "tau_c {tau_c:e} vs plant {coulomb:e}"
+    );
+    let plain = identify_bm_with(
+        &[("bm", &c.bm_log)],
+        &Config::default(),
+        &IdentOptions {
+            bm_coulomb: false,
+            ..opts
+        },
+    )
+    .unwrap();
+    assert!(plain.coulomb_nm.is_none());
+    assert!(
+        rel(plain.b_m_nm_s_rad, truth) > 3.0 * rel(r.b_m_nm_s_rad, truth),
+        "without the Coulomb term B_m should be visibly biased: {:e} vs {:e}",
+        plain.b_m_nm_s_rad,
+        r.b_m_nm_s_rad
+    );
+
+    // Validation: another seed and another schedule of the speeds.
+    let other = simulate("bm-noload", &decoupled(&Config::default()), Some(3), 9.0);
+    let mut cfg = Config::default();
+    r.apply(&mut cfg);
+    let v = validate_bm(&r, &other, &cfg, &opts).unwrap();
+    // The torque explained is B_m phi' ~ 5 mN·m at the top speed.
+    assert!(v.n > 10_000, "rows {}", v.n);
+    assert!(v.rmse < 3e-4, "validation RMSE {:e} N·m", v.rmse);
+    assert!(v.mean.abs() < 5e-5, "validation bias {:e} N·m", v.mean);
+}
+
+#[test]
+fn jae_matches_the_physical_coefficient_and_beats_the_seeds_error() {
+    let c = chain();
+    let opts = IdentOptions::default();
+    let r = identify_jae_with(&[("jae", &c.jae_log)], &Config::default(), &opts).unwrap();
+    // c4 = (K_s + K_w2) / (K_w2 r) from the plant's springs.
+    let c4 = c.plant.jae_coefficients()[3];
+    assert!(
+        rel(r.chi_s[3], c4) < 0.005,
+        "c4 {} vs physical {c4}",
+        r.chi_s[3]
+    );
+    assert!(r.fit.param(Regressor::X2).unwrap().pct_sigma < 0.1);
+    // The seed: mean 0.275°, max 0.836° (their "mean" is the mean size).
+    let e = &r.error_deg;
+    assert_eq!(e.unit, "deg");
+    assert!(e.mean_abs < 0.275, "mean |error| {}°", e.mean_abs);
+    assert!(e.max_abs() < 0.836, "max |error| {}°", e.max_abs());
+
+    // Validation on the JAE closed loop (another trajectory and seed).
+    let mut cfg = Config::default();
+    r.apply(&mut cfg);
+    let v = validate_jae(&r, &c.track_log, &cfg, &opts).unwrap();
+    assert!(
+        v.mean_abs < 0.275,
+        "validation mean |error| {}°",
+        v.mean_abs
+    );
+    assert!(v.max_abs() < 1.0, "validation max |error| {}°", v.max_abs());
+}
+
+#[test]
+fn tension_models_prune_to_the_core_structure_with_the_plants_spring_and_preload() {
+    let c = chain();
+    let opts = IdentOptions::default();
+    let r = identify_tension_with(&[("tension", &c.tension_log)], &c.config, &opts).unwrap();
+    assert_eq!(r.theta_source, "theta_rad");
+    assert_eq!(
+        r.b_m_used_nm_s_rad,
+        f64::from(c.config.dob.viscous_nm_s_rad)
+    );
+    assert!(r.model_a.is_ok() && r.model_b.is_ok(), "A and B fitted");
+    assert_eq!(r.model_c.params.len(), 11);
+
+    // Pruning: every kept term is determined to 5 %, and the dropped ones
+    // were not; slider 1's mass (40 g, x1'' tiny) is among them.
+    for p in &r.simplified.params {
+        assert!(p.pct_sigma <= 5.0, "kept {} at {} %", p.symbol, p.pct_sigma);
+    }
+    assert!(!r.dropped.is_empty());
+    for (reg, pct) in &r.dropped {
+        assert!(*pct > 5.0, "{reg:?} dropped at {pct} %");
+    }
+    assert!(
+        r.dropped.iter().any(|(reg, _)| *reg == Regressor::X1Acc),
+        "x1'' should be dropped: {:?}",
+        r.dropped
+    );
+
+    // What is written has the core's structure, [sgn x1', sgn x2', x2, 1]
+    // or a subset, with the spring and the preload always there.
+    for p in &r.core.params {
+        assert!(SIMPLIFIED_C.contains(&p.regressor), "{:?}", p.regressor);
+    }
+    let ks = c.plant.spring.stiffness_n_m;
+    let f0 = c.plant.spring.preload_n;
+    // K_s rests on a few mm of x2 under ~2 N of DOB noise that is
+    // correlated over tens of ticks: its honest standard deviation (scaled
+    // by the residual's correlation time) is several %. The estimate must lie
+    // within three of those, and within 12 %.
+    let ks_fit = r.core.param(Regressor::X2).unwrap();
+    let ks_std_eff = ks_fit.std * r.core.residual_corr_ticks.sqrt();
+    assert!(
+        (r.chi_p[2] - ks).abs() < 3.0 * ks_std_eff && rel(r.chi_p[2], ks) < 0.12,
+        "K_s {} ± {ks_std_eff} (effective) vs plant {ks}",
+        r.chi_p[2]
+    );
+    assert!(r.core.residual_corr_ticks > 1.0);
+    assert!(rel(r.chi_p[3], f0) < 0.01, "F_0 {} vs {f0}", r.chi_p[3]);
+    // Coulomb friction seen by the DOB in cable-1 units: slider 1, the
+    // motor's (the DOB does not subtract it), and slider 2 + joint (f_cp2).
+    // When the joint moves the three signs agree, so only their sum is
+    // well determined.
+    let m = &c.plant.motor;
+    let coulomb_total = c.plant.slider1.coulomb_n
+        + m.coulomb_nm * m.gear_ratio / m.rope_wheel_radius_m
+        + c.plant.model_c_coefficients()[1];
+    let sum = r.chi_p[0] + r.chi_p[1];
+    assert!(
+        rel(sum, coulomb_total) < 0.1,
+        "f_sc1 + f_cp2 = {sum} vs plant {coulomb_total}"
+    );
+
+    // Validation on the JAE closed loop, another seed and trajectory: the
+    // written model is as good as the plant's own coefficients there.
+    let mut cfg = c.config;
+    r.apply(&mut cfg);
+    let v = validate_tension(&r, &c.track_log, &cfg, &opts).unwrap();
+    let written = &v.iter().find(|(m, _)| m.contains("written")).unwrap().1;
+    let mut truth = r.clone();
+    for p in &mut truth.core.params {
+        p.value = match p.regressor {
+            Regressor::SgnX1Vel => sum,
+            Regressor::X2 => ks,
+            Regressor::One => f0,
+            _ => 0.0,
+        };
+    }
+    let vt = validate_tension(&truth, &c.track_log, &cfg, &opts).unwrap();
+    let best = &vt.iter().find(|(m, _)| m.contains("written")).unwrap().1;
+    assert!(written.n > 10_000);
+    assert!(
+        written.rmse < 1.1 * best.rmse,
+        "written model RMSE {} N vs {} N with the plant's values",
+        written.rmse,
+        best.rmse
+    );
+    assert!(written.mean.abs() < 0.2, "bias {} N", written.mean);
+}
+
+#[test]
+fn pruning_all_at_once_is_the_seeds_rule() {
+    let c = chain();
+    let opts = IdentOptions {
+        prune_all_at_once: true,
+        ..IdentOptions::default()
+    };
+    let r = identify_tension_with(&[("tension", &c.tension_log)], &c.config, &opts).unwrap();
+    // Every model-C parameter above 5 % is in the dropped list.
+    for p in &r.model_c.params {
+        if p.pct_sigma > 5.0 {
+            assert!(
+                r.dropped.iter().any(|(reg, _)| *reg == p.regressor),
+                "{} at {} % kept",
+                p.symbol,
+                p.pct_sigma
+            );
+        }
+    }
+    for p in &r.simplified.params {
+        assert!(p.pct_sigma <= 5.0);
+    }
+}
+
+#[test]
+fn the_command_runs_all_three_and_writes_a_config_that_loads_back() {
+    let c = chain();
+    let dir = tempfile::tempdir().unwrap();
+    let path = |n: &str| dir.path().join(n);
+    c.bm_log.write(path("bm.csv")).unwrap();
+    c.jae_log.write(path("jae.csv")).unwrap();
+    c.tension_log.write(path("tension.csv")).unwrap();
+    c.track_log.write(path("track.csv")).unwrap();
+    let s = |n: &str| path(n).display().to_string();
+    let args = IdentifyArgs {
+        procedure: Procedure::All,
+        log: vec![s("bm.csv"), s("jae.csv"), s("tension.csv")],
+        validate: vec![
+            format!("jae={}", s("track.csv")),
+            format!("tension={}", s("track.csv")),
+        ],
+        config: None,
+        config_out: path("out.toml"),
+        json: Some(path("out.json")),
+        skip_start_s: 0.2,
+        min_joint_vel_rad_s: 0.05,
+        holdoff_s: 0.0,
+        no_filter: false,
+        max_pct_sigma: 5.0,
+        prune_all_at_once: false,
+        post_filter_hz: 0.0,
+        bm_no_coulomb: false,
+    };
+    let (rep, config) = identify(&args).unwrap();
+    let (bm, jae, ten) = (
+        rep.bm.as_ref().unwrap(),
+        rep.jae.as_ref().unwrap(),
+        rep.tension.as_ref().unwrap(),
+    );
+    assert_eq!(config.dob.viscous_nm_s_rad, bm.b_m_nm_s_rad as f32);
+    assert_eq!(config.jae.c_pos_rad_m, jae.chi_s[3] as f32);
+    assert_eq!(config.tension.k_s_n_m, ten.chi_p[2] as f32);
+    // Validation rows: one for the JAE, five tension models.
+    assert_eq!(rep.validation.len(), 6, "{:?}", rep.validation);
+
+    host_sim::ident::run(args.clone()).unwrap();
+    let loaded = load_config(path("out.toml")).unwrap();
+    assert_eq!(loaded, config, "the written configuration loads back equal");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path("out.json")).unwrap()).unwrap();
+    assert!(json["tension"]["chi_p"].is_array());
+
+    // `all` with a missing log is refused before anything is written.
+    let bad = IdentifyArgs {
+        log: vec![s("bm.csv"), s("jae.csv")],
+        config_out: path("never.toml"),
+        ..args
+    };
+    assert!(identify(&bad).is_err());
+    assert!(!path("never.toml").exists());
+}

@@ -41,7 +41,7 @@ pub fn median_period_s(t_s: &[f64]) -> Option<f64> {
 pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
     let t = log.time_s()?;
     let dt = median_period_s(t).context("log has fewer than two rows")?;
-    if !(dt > 0.0) {
+    if dt.is_nan() || dt <= 0.0 {
         bail!("log time step is not positive");
     }
     let mut c = *config;

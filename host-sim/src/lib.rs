@@ -3,8 +3,10 @@
 pub mod derive;
 pub mod ident;
 pub mod import;
+pub mod ingest;
 pub mod log;
 pub mod plant;
 pub mod scenario;
 pub mod sim;
 pub mod simulate;
+pub mod trace;

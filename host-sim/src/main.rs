@@ -26,6 +26,10 @@ enum Command {
     // Each helper adds its variant here: `Name(host_sim::module::Args)`.
     /// Convert a measured run (MRDLab) to the project's CSV log.
     Import(host_sim::import::ImportArgs),
+    /// Decoded defmt telemetry (probe-rs run / defmt-print) to a CSV log.
+    Ingest(host_sim::ingest::IngestArgs),
+    /// Record the sensor trace the QEMU firmware replays.
+    Trace(host_sim::trace::TraceArgs),
     /// Run one scenario on the simulated prototype and write the CSV log.
     Simulate(host_sim::simulate::SimulateArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
@@ -40,6 +44,8 @@ fn main() -> ExitCode {
             Ok(())
         }
         Some(Command::Import(args)) => host_sim::import::run(args),
+        Some(Command::Ingest(args)) => host_sim::ingest::run(args),
+        Some(Command::Trace(args)) => host_sim::trace::run(args),
         Some(Command::Simulate(a)) => host_sim::simulate::run(a),
         Some(Command::Identify(a)) => host_sim::ident::run(a),
         #[allow(unreachable_patterns)]

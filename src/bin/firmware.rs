@@ -1,8 +1,318 @@
-//! Firmware placeholder (issue 3 builds the RTIC app here).
-#![cfg_attr(target_os = "none", no_std)]
-#![cfg_attr(target_os = "none", no_main)]
+//! RTIC 2 firmware of the cable-driven joint (STM32F407VG, 168 MHz).
+//!
+//! What it does: at every TIM6 update (2 kHz by default, `Config::
+//! control_rate_hz`, up to 20 kHz) it samples the two gratings, the motor and
+//! magnetic encoders and the current monitor, runs the core's
+//! `Controller::step` (JAE, DOB, PD/PI cascade), writes the current reference
+//! to the DAC and the drive enable line, and queues a raw telemetry record.
+//! Start-up: drive disabled, clocks, sensor check, homing on the origin
+//! switch, then the program (`board::Program::default()`: joint to 30° in one
+//! second and hold, the seed's loading protocol).
+//!
+//! Tasks and priorities (higher preempts lower):
+//!
+//! | task | binds / kind | priority | deadline and miss |
+//! |---|---|---|---|
+//! | `drive_fault`, `origin_switch` | EXTI1, EXTI2 | 4 | cut the drive at once (BSRR), leave the fault for the control task |
+//! | `control` | TIM6 update | 3 | one control period; a miss is `Fault::Overrun` (latched, drive cut) |
+//! | `telemetry`, `command` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; requests queue (4) |
+//! | `idle` | – | 0 | `wfi` |
+//!
+//! Settings: the core's `Config::default()` (datasheet values, compiled in;
+//! new parameters arrive as `Request::SetConfig` through the `command` task),
+//! the program, and the telemetry decimation (`TELEMETRY_DECIMATION`: every
+//! 10th tick on hardware, i.e. 200 Hz; every tick under QEMU).
+//!
+//! Telemetry: defmt over RTT (defmt-semihosting under QEMU). Each record is
+//! one `tlm [bytes]` line (`cable_joint::telemetry`: raw counts, ADC code,
+//! DAC code and current reference, theta_ref, theta_hat, F_ext_hat, mode,
+//! fault code, start-up phase, input lines, cycles of the whole tick and of
+//! each step stage); `host-sim ingest` turns the decoded text into the
+//! project's CSV log. Phase and fault changes are also logged as text.
+//!
+//! Variants: the default build drives the board (`hw` module); `--features
+//! qemu` replays `firmware/trace.bin` on QEMU's netduinoplus2 (`qemu`
+//! module). Nothing else differs. On the host this file compiles to a stub.
+
+#![cfg_attr(target_os = "none", no_std, no_main)]
+// RTIC's generated `spawn` returns the argument back on failure; a
+// `Request` (a whole `Config` at most) is large, and there is no allocator
+// to box it.
+#![cfg_attr(target_os = "none", allow(clippy::result_large_err))]
 
 #[cfg(not(target_os = "none"))]
 fn main() {
-    eprintln!("the firmware runs on the STM32F407: build it with `cargo fw`");
+    eprintln!(
+        "the firmware runs on the STM32F407: build it with `cargo fw` \
+         (or `cargo fw-qemu` for the QEMU replay variant)"
+    );
+}
+
+#[cfg(all(target_os = "none", not(feature = "qemu")))]
+#[path = "firmware/hw.rs"]
+mod board;
+
+#[cfg(all(target_os = "none", feature = "qemu"))]
+#[path = "firmware/qemu.rs"]
+mod board;
+
+#[cfg(all(target_os = "none", not(feature = "qemu")))]
+use defmt_rtt as _;
+
+#[cfg(all(target_os = "none", feature = "qemu"))]
+use defmt_semihosting as _;
+
+/// What the fault tasks leave for the control task (lock-free).
+#[cfg(target_os = "none")]
+static EVENTS: cable_joint::board::Events = cable_joint::board::Events::new();
+
+/// The QEMU trace is played; the telemetry task exits after flushing.
+#[cfg(all(target_os = "none", feature = "qemu"))]
+static DONE: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
+/// Log one telemetry record as a `tlm [bytes]` line.
+#[cfg(target_os = "none")]
+fn log_record(record: &cable_joint::telemetry::Record) {
+    let mut buf = [0u8; cable_joint::telemetry::MAX_RECORD_LEN];
+    defmt::info!("tlm {=[u8]}", record.encode(&mut buf));
+}
+
+#[cfg(target_os = "none")]
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART1, USART2])]
+mod app {
+    use cable_joint::board::{
+        on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine, Program, Request,
+    };
+    use cable_joint::telemetry::Record;
+    use cable_joint::Config;
+    use heapless::spsc::{Consumer, Producer, Queue};
+
+    use super::{board, log_record, EVENTS};
+
+    #[shared]
+    struct Shared {}
+
+    #[local]
+    struct Local {
+        control: ControlLoop,
+        front_end: board::FrontEnd,
+        counter: board::Counter,
+        drive: DriveEnable<board::DrivePin>,
+        tick: board::TickTimer,
+        requests_rx: Consumer<'static, Request>,
+        requests_tx: Producer<'static, Request>,
+        telemetry_tx: Producer<'static, Record>,
+        telemetry_rx: Consumer<'static, Record>,
+        drive_fault: InputLine<board::FaultPin>,
+        origin: InputLine<board::OriginPin>,
+    }
+
+    #[init(local = [
+        requests: Queue<Request, 4> = Queue::new(),
+        telemetry: Queue<Record, 64> = Queue::new(),
+    ])]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let config = Config::default();
+        // Drive disabled first, then clocks, sensors and the control timer.
+        let mut b = board::init(cx.device, cx.core, config.control_rate_hz);
+        let control = match ControlLoop::new(config, board::TELEMETRY_DECIMATION) {
+            Ok(c) => c,
+            Err(e) => panic!("invalid built-in configuration: {}", e.field),
+        };
+        // An already asserted fault line has no edge to report it.
+        let origin = b.origin.asserted();
+        let fault = b.drive_fault.asserted();
+        EVENTS.init_levels(origin, fault);
+        log_record(&Record::Start(control.start_record()));
+        defmt::info!(
+            "cable-joint firmware up: {=f32} Hz control, telemetry every {=u32} ticks",
+            config.control_rate_hz,
+            board::TELEMETRY_DECIMATION
+        );
+        let (requests_tx, requests_rx) = cx.local.requests.split();
+        let (telemetry_tx, telemetry_rx) = cx.local.telemetry.split();
+        // The selected program: check, homing, then its command.
+        if command::spawn(Request::Program(Program::default())).is_err() {
+            defmt::error!("could not start the program");
+        }
+        (
+            Shared {},
+            Local {
+                control,
+                front_end: b.front_end,
+                counter: b.counter,
+                drive: b.drive,
+                tick: b.tick,
+                requests_rx,
+                requests_tx,
+                telemetry_tx,
+                telemetry_rx,
+                drive_fault: b.drive_fault,
+                origin: b.origin,
+            },
+        )
+    }
+
+    #[idle]
+    fn idle(_: idle::Context) -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    /// Control tick: sample, step, DAC, drive line, telemetry record.
+    ///
+    /// Deadline: the next TIM6 update, one control period (500 µs at the
+    /// default 2 kHz, 50 µs at 20 kHz); the measured tick is about 3000
+    /// instructions (docs/firmware.md). Preempted only by the fault inputs.
+    /// On overrun (the next update flagged before this task ends) the
+    /// controller latches `Fault::Overrun` through `report_fault` and the
+    /// drive is disabled immediately; from the next tick on the output is
+    /// zero until an operator `Request::ClearFault`.
+    #[task(binds = TIM6_DAC, priority = 3, local = [
+        control, front_end, counter, drive, tick, requests_rx, telemetry_tx,
+        dropped: u32 = 0,
+    ])]
+    fn control(cx: control::Context) {
+        let control::LocalResources {
+            control,
+            front_end,
+            counter,
+            drive,
+            tick,
+            requests_rx,
+            telemetry_tx,
+            dropped,
+            ..
+        } = cx.local;
+        tick.ack();
+        let request = requests_rx.dequeue();
+        let outcome = control.tick(front_end, drive, &EVENTS, request, counter);
+        let mut queued = false;
+        if let Some(origin) = outcome.origin {
+            queued |= push(telemetry_tx, Record::Origin(origin), dropped);
+        }
+        if outcome.telemetry_due {
+            queued |= push(telemetry_tx, Record::Tick(outcome.record), dropped);
+        }
+        if tick.overran() {
+            control.overrun(drive);
+        }
+        #[cfg(feature = "qemu")]
+        if front_end.finished() {
+            tick.stop();
+            super::DONE.store(true, core::sync::atomic::Ordering::SeqCst);
+            queued = true;
+        }
+        if queued {
+            // Fails only while the task is still draining: it will see the record.
+            telemetry::spawn().ok();
+        }
+    }
+
+    fn push(tx: &mut Producer<'static, Record>, record: Record, dropped: &mut u32) -> bool {
+        if tx.enqueue(record).is_err() {
+            *dropped = dropped.wrapping_add(1);
+            false
+        } else {
+            true
+        }
+    }
+
+    /// Drive fault line (EXTI1, both edges): cut the drive, leave the fault.
+    /// Deadline: none beyond "at once"; it preempts the control task.
+    #[task(binds = EXTI1, priority = 4, local = [drive_fault, kill: board::Kill = board::Kill])]
+    fn drive_fault(cx: drive_fault::Context) {
+        board::clear_exti(1);
+        on_drive_fault_edge(cx.local.drive_fault, cx.local.kill, &EVENTS);
+    }
+
+    /// Origin switch (EXTI2, both edges): homing input, or a fault when the
+    /// joint estimate is away from zero (`board::on_origin_edge`).
+    #[task(binds = EXTI2, priority = 4, local = [origin, kill: board::Kill = board::Kill])]
+    fn origin_switch(cx: origin_switch::Context) {
+        board::clear_exti(2);
+        on_origin_edge(cx.local.origin, cx.local.kill, &EVENTS);
+    }
+
+    /// QEMU only: TIM5 stands in for TIM6, which QEMU does not model.
+    #[cfg(feature = "qemu")]
+    #[task(binds = TIM5, priority = 5)]
+    fn qemu_tick(_: qemu_tick::Context) {
+        board::on_tick_source();
+    }
+
+    /// Telemetry: encode the queued raw records and log them; report phase
+    /// and fault changes as text. No deadline: when it falls behind, the
+    /// control task drops records (counted) instead of waiting.
+    #[task(priority = 1, local = [telemetry_rx, last: (u8, u8) = (u8::MAX, 0)])]
+    async fn telemetry(cx: telemetry::Context) {
+        let telemetry::LocalResources {
+            telemetry_rx, last, ..
+        } = cx.local;
+        drain(telemetry_rx, last);
+        #[cfg(feature = "qemu")]
+        if super::DONE.load(core::sync::atomic::Ordering::SeqCst) {
+            // The control task stopped before setting DONE: this drain
+            // flushes everything it queued.
+            drain(telemetry_rx, last);
+            defmt::info!("trace played");
+            board::finish();
+        }
+    }
+
+    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8)) {
+        while let Some(record) = rx.dequeue() {
+            log_record(&record);
+            if let Record::Tick(t) = record {
+                if (t.phase, t.fault) != *last {
+                    defmt::info!(
+                        "tick {=u32}: phase {=u8}, fault {=u8}, mode {=u8}",
+                        t.tick,
+                        t.phase,
+                        t.fault,
+                        t.mode
+                    );
+                    *last = (t.phase, t.fault);
+                }
+            }
+        }
+    }
+
+    /// Operator requests (mode/command, parameters, fault clear, telemetry
+    /// rate): validated here at priority 1, applied by the control task at
+    /// its next tick, one per tick. No deadline.
+    #[task(priority = 1, local = [requests_tx])]
+    async fn command(cx: command::Context, request: Request) {
+        if let Err(e) = request.validate() {
+            defmt::warn!(
+                "request rejected: {=str} must be {=str}",
+                e.field,
+                e.expected
+            );
+            return;
+        }
+        if cx.local.requests_tx.enqueue(request).is_err() {
+            defmt::warn!("request queue full: request dropped");
+        }
+    }
+}
+
+/// Panic: the drive is disabled before anything else, then the message is
+/// logged and the core stops (`udf` on hardware, a semihosting failure exit
+/// under QEMU).
+#[cfg(target_os = "none")]
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    board::kill_drive();
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    board::halt_failure()
+}
+
+/// HardFault: drive disabled, then stop (failure exit under QEMU).
+#[cfg(target_os = "none")]
+#[cortex_m_rt::exception]
+unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    board::kill_drive();
+    board::halt_failure()
 }

@@ -120,7 +120,7 @@ impl ControlLoop {
             }
             Request::SetConfig(c) => {
                 // Validated by the command task; a failure leaves the old one.
-                let _ = self.ctrl.set_config(c);
+                let _ = self.seq.set_config(&mut self.ctrl, c);
             }
             Request::ClearFault => {
                 self.ctrl.clear_fault();

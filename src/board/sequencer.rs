@@ -15,6 +15,15 @@
 //!    switch zeroes every counter ([`Controller::set_origin`] with that
 //!    tick's sample). No edge before the move ends (plus a margin) is
 //!    [`Fault::Homing`].
+//!
+//! With the drive off the cable preload back-drives the gearhead, so the
+//! joint boots relaxed, far on the negative side, with slack cables; homing
+//! re-tensions them while it searches (positive direction by default).
+//! Before homing the joint angle is unknown and the cables may be slack, so
+//! while leaving and homing the controller's joint-angle range check is
+//! widened by twice the search span and its slack check
+//! (`limits.max_stretch_rad`) by the span; the user's limits are restored on
+//! the edge (one `set_config` each time).
 //! 4. **Running**: the program's command. From now on a rising origin edge
 //!    farther than [`HomingConfig::origin_tolerance_rad`] from zero (by the
 //!    joint estimate) is [`Fault::OriginDuringMotion`].
@@ -47,8 +56,8 @@ impl Default for HomingConfig {
         Self {
             check_s: 0.05,
             max_idle_current_a: 0.2,
-            search_rad: -0.8,
-            speed_rad_s: 0.5,
+            search_rad: 2.5,
+            speed_rad_s: 2.0,
             origin_tolerance_rad: 0.1,
         }
     }
@@ -135,6 +144,8 @@ pub struct Sequencer {
     ticks_in_phase: u32,
     limit_ticks: u32,
     last_ref_rad: f32,
+    /// The user's joint-angle range and slack limit while homing widens them.
+    user_limits: Option<(f32, f32)>,
 }
 
 /// Ticks in `s` seconds at `period_s`, at least one.
@@ -166,6 +177,7 @@ impl Sequencer {
 
     /// Start again from the check (after a cleared fault).
     pub fn restart(&mut self, ctrl: &mut Controller) {
+        self.restore_range(ctrl);
         ctrl.set_command(Command::default());
         self.enter(if self.program.is_some() {
             Phase::Check
@@ -177,6 +189,50 @@ impl Sequencer {
     fn enter(&mut self, phase: Phase) {
         self.phase = phase;
         self.ticks_in_phase = 0;
+    }
+
+    /// Replace the controller's configuration; while homing, the user's
+    /// range is kept aside and the widened one stays in force.
+    pub fn set_config(
+        &mut self,
+        ctrl: &mut Controller,
+        mut config: crate::Config,
+    ) -> Result<(), crate::ConfigError> {
+        config.validate()?;
+        if let Some(user) = self.user_limits.as_mut() {
+            let l = &mut config.limits;
+            *user = (l.max_joint_angle_rad, l.max_stretch_rad);
+            l.max_joint_angle_rad = ctrl.config().limits.max_joint_angle_rad;
+            l.max_stretch_rad = ctrl.config().limits.max_stretch_rad;
+        }
+        ctrl.set_config(config)
+    }
+
+    /// Widen the range and slack checks for the search (unknown angle,
+    /// possibly slack cables).
+    fn widen_range(&mut self, ctrl: &mut Controller, homing: &HomingConfig) {
+        if self.user_limits.is_some() {
+            return;
+        }
+        let mut c = *ctrl.config();
+        let user = (c.limits.max_joint_angle_rad, c.limits.max_stretch_rad);
+        let span = math::abs(homing.search_rad);
+        c.limits.max_joint_angle_rad = user.0 + 2.0 * span;
+        c.limits.max_stretch_rad = user.1 + span;
+        if ctrl.set_config(c).is_ok() {
+            self.user_limits = Some(user);
+        }
+    }
+
+    /// Put the user's limits back.
+    fn restore_range(&mut self, ctrl: &mut Controller) {
+        if let Some((range, stretch)) = self.user_limits.take() {
+            let mut c = *ctrl.config();
+            c.limits.max_joint_angle_rad = range;
+            c.limits.max_stretch_rad = stretch;
+            // Both came from a validated configuration.
+            let _ = ctrl.set_config(c);
+        }
     }
 
     /// A homing move of `span_rad` from the last reference, and the ticks it
@@ -196,8 +252,9 @@ impl Sequencer {
         self.limit_ticks = ticks(1.2 * duration_s, ctrl.period_s());
     }
 
-    /// Before the step. Returns the sample taken as the origin, if homing
-    /// completed on this tick.
+    /// Before the step. Returns the sample taken as the origin of the
+    /// counters on this tick, if any: at the end of the check (the homing
+    /// move starts from where the joint rests) and on the homing edge.
     pub fn before_step(
         &mut self,
         ctrl: &mut Controller,
@@ -215,6 +272,7 @@ impl Sequencer {
                     // Counters relative to where the joint rests now.
                     ctrl.set_origin(raw);
                     self.last_ref_rad = 0.0;
+                    self.widen_range(ctrl, h);
                     if origin_level {
                         self.move_by(ctrl, h, -h.search_rad);
                         self.enter(Phase::Leaving);
@@ -222,8 +280,10 @@ impl Sequencer {
                         self.move_by(ctrl, h, h.search_rad);
                         self.enter(Phase::Homing);
                     }
+                    Some(*raw)
+                } else {
+                    None
                 }
-                None
             }
             Phase::Leaving => {
                 if !origin_level {
@@ -237,6 +297,7 @@ impl Sequencer {
             Phase::Homing => {
                 if origin_edge {
                     ctrl.set_origin(raw);
+                    self.restore_range(ctrl);
                     ctrl.set_command(program.command);
                     self.enter(Phase::Running);
                     Some(*raw)
@@ -251,6 +312,7 @@ impl Sequencer {
     }
 
     fn fail(&mut self, ctrl: &mut Controller) {
+        self.restore_range(ctrl);
         ctrl.report_fault(Fault::Homing);
         ctrl.set_command(Command::default());
         self.enter(Phase::Failed);
@@ -325,26 +387,31 @@ mod tests {
         seq.start(&mut ctrl, Program::default());
         let check_ticks = (0.05 * 2000.0) as usize;
         for k in 0..check_ticks {
-            let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+            let (origin, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
             assert_eq!(seq.phase(), Phase::Check, "tick {k}");
             assert!(!out.drive_enable, "drive stays off during the check");
+            assert_eq!(origin, None);
         }
-        let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        let (origin, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        assert_eq!(origin, Some(raw), "homing starts from the resting sample");
         assert_eq!(seq.phase(), Phase::Homing);
         assert_eq!(out.mode, Mode::MotorPosition);
         assert!(out.drive_enable);
-        // The reference moves toward the search direction (negative).
+        // The reference moves in the search direction (positive).
         let mut last_ref = out.est.theta_ref_rad;
-        // 0.5 s into the 3 s minimum-jerk search of -0.8 rad: s = 1/6,
-        // -0.8 (10 s^3 - 15 s^4 + 6 s^5) = -0.0283 rad.
-        for _ in 0..1000 {
+        // 0.2 s into the minimum-jerk search of `search_rad` lasting
+        // 1.875 |search| / speed: s = 0.2 / T, ref = search (10 s^3 - 15 s^4 + 6 s^5).
+        let h = HomingConfig::default();
+        let s = 0.2 / (1.875 * h.search_rad.abs() / h.speed_rad_s);
+        let expected = h.search_rad * s * s * s * (10.0 - 15.0 * s + 6.0 * s * s);
+        for _ in 0..400 {
             let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
-            assert!(out.est.theta_ref_rad <= last_ref);
+            assert!(out.est.theta_ref_rad >= last_ref);
             last_ref = out.est.theta_ref_rad;
         }
         assert!(
-            (last_ref + 0.0283).abs() < 1e-3,
-            "homing move under way: {last_ref}"
+            expected > 0.01 && (last_ref - expected).abs() < 1e-3,
+            "homing move under way: {last_ref}, expected {expected}"
         );
 
         let mut at_origin = raw;
@@ -365,8 +432,9 @@ mod tests {
         let program = Program::default();
         seq.start(&mut ctrl, program);
         let h = program.homing;
-        let limit =
-            (0.05 * 2000.0) as usize + (1.2 * 1.875 * 0.8 / h.speed_rad_s * 2000.0) as usize + 5;
+        let limit = (0.05 * 2000.0) as usize
+            + (1.2 * 1.875 * h.search_rad.abs() / h.speed_rad_s * 2000.0) as usize
+            + 5;
         let mut failed_at = None;
         for k in 0..limit + 10 {
             let (_, out) = run(&mut seq, &mut ctrl, &rest(), false, false, &events);
@@ -394,7 +462,7 @@ mod tests {
         let mut last = 0.0;
         for _ in 0..100 {
             let (_, out) = run(&mut seq, &mut ctrl, &rest(), false, true, &events);
-            assert!(out.est.theta_ref_rad >= last, "leaving moves positive");
+            assert!(out.est.theta_ref_rad <= last, "leaving moves negative");
             last = out.est.theta_ref_rad;
         }
         run(&mut seq, &mut ctrl, &rest(), false, false, &events);
@@ -413,6 +481,41 @@ mod tests {
         assert_eq!(seq.phase(), Phase::Failed);
         let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
         assert_eq!(out.fault, Some(Fault::Homing));
+    }
+
+    #[test]
+    fn range_check_is_widened_while_homing_and_restored_on_the_edge() {
+        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        let user = ctrl.config().limits;
+        seq.start(&mut ctrl, Program::default());
+        for _ in 0..=100 {
+            run(&mut seq, &mut ctrl, &rest(), false, false, &events);
+        }
+        assert_eq!(seq.phase(), Phase::Homing);
+        let widened = ctrl.config().limits;
+        assert_eq!(
+            widened.max_joint_angle_rad,
+            user.max_joint_angle_rad + 2.0 * 2.5
+        );
+        assert_eq!(widened.max_stretch_rad, user.max_stretch_rad + 2.5);
+        // A parameter update while homing keeps the widened range in force
+        // and becomes the range restored afterwards.
+        let mut c = Config::default();
+        c.limits.max_joint_angle_rad = 1.2;
+        c.limits.max_stretch_rad = 0.2;
+        c.jae.offset_rad = 0.01;
+        seq.set_config(&mut ctrl, c).unwrap();
+        assert_eq!(ctrl.config().limits, widened);
+        assert_eq!(ctrl.config().jae.offset_rad, 0.01);
+        run(&mut seq, &mut ctrl, &rest(), true, true, &events);
+        assert_eq!(seq.phase(), Phase::Running);
+        assert_eq!(ctrl.config().limits.max_joint_angle_rad, 1.2);
+        assert_eq!(ctrl.config().limits.max_stretch_rad, 0.2);
+        let mut bad = Config::default();
+        bad.limits.max_joint_angle_rad = -1.0;
+        assert!(seq.set_config(&mut ctrl, bad).is_err());
     }
 
     #[test]

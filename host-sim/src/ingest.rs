@@ -1,0 +1,418 @@
+//! `host-sim ingest FILE --out run.csv`: firmware telemetry → project CSV log.
+//!
+//! Input: the decoded defmt text that `probe-rs run` (hardware, RTT) or
+//! `defmt-print` (QEMU, semihosting) prints. Lines carrying a telemetry
+//! record (`tlm [..]`, see [`cable_joint::telemetry`]) are decoded; all other
+//! lines (log messages, locations) are skipped. A malformed record is an
+//! error naming the file and the line.
+//!
+//! Conversion to SI units happens here, on the host, with the same
+//! [`Scales`] functions the core uses: counters are taken relative to the
+//! latest origin record (the controller's own zero), the 16-bit motor and
+//! magnetic counters are extended across records (at most 32767 counts
+//! between two records: at the default 200 Hz telemetry rate that is
+//! 1030 rad/s of the motor, near its speed limit; lower the decimation for
+//! faster motion). Output columns: DESIGN.md §2's `t_s`, `x1_m`, `x2_m`,
+//! `phi_rad`, `i_ref_a`, `i_meas_a`, (`theta_rad` with `--magnetic`),
+//! `theta_ref_rad`, then `theta_hat_rad`, `f_ext_hat_n`, `dac_code`, `mode`,
+//! `fault_code`, `drive_enable`, `fw_phase`, `origin_switch`,
+//! `drive_fault_line`, `tick` and the cycle counts `cycles`,
+//! `cycles_sensing`, `cycles_jae`, `cycles_dob`, `cycles_cascade`.
+//!
+//! `--stats` prints min/median/max of the cycle counts per stage.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use cable_joint::telemetry::{parse_line, Record, StartRecord, TickRecord};
+use cable_joint::units::{Extender16, GratingCount, Scales};
+use cable_joint::Config;
+
+use crate::log::Log;
+
+/// Arguments of `host-sim ingest`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct IngestArgs {
+    /// Decoded defmt text (from `probe-rs run` or `defmt-print`); `-` reads
+    /// standard input.
+    pub file: PathBuf,
+    /// CSV log to write (written to a temporary file, then renamed).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Core configuration (TOML) for the sensor scales; defaults to the
+    /// datasheet values the firmware is built with.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// The magnetic joint encoder is fitted: add the `theta_rad` column.
+    #[arg(long)]
+    pub magnetic: bool,
+    /// Print min/median/max cycle counts per control stage.
+    #[arg(long)]
+    pub stats: bool,
+}
+
+/// Options of the conversion.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LogOptions {
+    /// Add `theta_rad` from the magnetic encoder.
+    pub magnetic: bool,
+}
+
+/// Read every telemetry record of a decoded defmt text. `name` is used in
+/// error messages.
+pub fn parse_stream(reader: impl Read, name: &str) -> anyhow::Result<Vec<Record>> {
+    let mut out = Vec::new();
+    for (i, line) in BufReader::new(reader).lines().enumerate() {
+        let line = line.with_context(|| format!("{name}:{}: reading", i + 1))?;
+        if let Some(rec) = parse_line(&line) {
+            out.push(rec.map_err(|e| anyhow::anyhow!("{name}:{}: {e}", i + 1))?);
+        }
+    }
+    Ok(out)
+}
+
+/// Read a stream from a file (`-` for standard input).
+pub fn read_stream(path: &Path) -> anyhow::Result<Vec<Record>> {
+    if path == Path::new("-") {
+        parse_stream(std::io::stdin().lock(), "<stdin>")
+    } else {
+        let f = File::open(path).with_context(|| format!("opening {}", path.display()))?;
+        parse_stream(f, &path.display().to_string())
+    }
+}
+
+/// Column names of [`to_log`].
+pub fn columns(opts: &LogOptions) -> Vec<&'static str> {
+    let mut c = vec!["t_s", "x1_m", "x2_m", "phi_rad", "i_ref_a", "i_meas_a"];
+    if opts.magnetic {
+        c.push("theta_rad");
+    }
+    c.extend([
+        "theta_ref_rad",
+        "theta_hat_rad",
+        "f_ext_hat_n",
+        "dac_code",
+        "mode",
+        "fault_code",
+        "drive_enable",
+        "fw_phase",
+        "origin_switch",
+        "drive_fault_line",
+        "tick",
+        "cycles",
+        "cycles_sensing",
+        "cycles_jae",
+        "cycles_dob",
+        "cycles_cascade",
+    ]);
+    c
+}
+
+/// Convert a telemetry stream to the project's CSV log.
+pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow::Result<Log> {
+    let start: Option<StartRecord> = records.iter().find_map(|r| match r {
+        Record::Start(s) => Some(*s),
+        _ => None,
+    });
+    let rate_hz = start.map_or(config.control_rate_hz, |s| s.control_rate_hz);
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        bail!("telemetry start record has an impossible control rate {rate_hz} Hz");
+    }
+    let s: &Scales = &config.scales;
+    let mut log = Log::with_columns(&columns(opts))?;
+    let mut motor = Extender16::default();
+    let mut magnetic = Extender16::default();
+    let mut origin = (0i32, 0i32, 0i32, 0i32);
+    let mut last_tick: Option<u32> = None;
+    let mut starts = 0;
+    let mut row = Vec::with_capacity(32);
+    for rec in records {
+        match rec {
+            Record::Start(_) => {
+                starts += 1;
+                if starts > 1 {
+                    bail!("a second start record: the firmware restarted; split the file there");
+                }
+            }
+            Record::Origin(o) => {
+                let (m, _) = motor.update(o.raw.motor.0);
+                let (g, _) = magnetic.update(o.raw.magnetic.0);
+                origin = (o.raw.grating1.0, o.raw.grating2.0, m, g);
+            }
+            Record::Tick(t) => {
+                if let Some(prev) = last_tick {
+                    if t.tick <= prev {
+                        bail!(
+                            "tick {} after tick {prev}: the firmware restarted or the \
+                             stream is out of order",
+                            t.tick
+                        );
+                    }
+                }
+                last_tick = Some(t.tick);
+                let (m, _) = motor.update(t.raw.motor.0);
+                let (g, _) = magnetic.update(t.raw.magnetic.0);
+                row.clear();
+                row.push(t.tick as f64 / rate_hz as f64);
+                row.push(s.grating_m(GratingCount(t.raw.grating1.0.wrapping_sub(origin.0))) as f64);
+                row.push(s.grating_m(GratingCount(t.raw.grating2.0.wrapping_sub(origin.1))) as f64);
+                row.push(s.motor_rad(m.wrapping_sub(origin.2)) as f64);
+                row.push(t.current_ref_a as f64);
+                row.push(s.adc_a(t.raw.current) as f64);
+                if opts.magnetic {
+                    row.push(s.magnetic_rad(g.wrapping_sub(origin.3)) as f64);
+                }
+                row.extend(tick_columns(t));
+                log.push_row(&row)?;
+            }
+        }
+    }
+    Ok(log)
+}
+
+fn tick_columns(t: &TickRecord) -> [f64; 16] {
+    [
+        t.theta_ref_rad as f64,
+        t.theta_hat_rad as f64,
+        t.f_ext_hat_n as f64,
+        t.dac.0 as f64,
+        t.mode as f64,
+        t.fault as f64,
+        t.drive_enable as u8 as f64,
+        t.phase as f64,
+        t.inputs.origin() as u8 as f64,
+        t.inputs.drive_fault() as u8 as f64,
+        t.tick as f64,
+        t.cycles as f64,
+        t.stage_cycles[0] as f64,
+        t.stage_cycles[1] as f64,
+        t.stage_cycles[2] as f64,
+        t.stage_cycles[3] as f64,
+    ]
+}
+
+/// Minimum, median and maximum of a set of counts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Spread {
+    /// Smallest.
+    pub min: u32,
+    /// Median (lower middle for an even count).
+    pub median: u32,
+    /// Largest.
+    pub max: u32,
+}
+
+impl Spread {
+    /// Spread of `values`; `None` when empty.
+    pub fn of(mut values: Vec<u32>) -> Option<Spread> {
+        values.sort_unstable();
+        Some(Spread {
+            min: *values.first()?,
+            median: values[(values.len() - 1) / 2],
+            max: *values.last()?,
+        })
+    }
+}
+
+/// Cycle (or instruction) counts per stage over the tick records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CycleStats {
+    /// Ticks counted.
+    pub ticks: usize,
+    /// Sensing, JAE, DOB, cascade.
+    pub stages: [Spread; 4],
+    /// The whole `step_timed` (sum of the stages).
+    pub step: Spread,
+    /// The whole tick (task body: sample to drive line).
+    pub tick: Spread,
+}
+
+/// Stage statistics over `ticks`; `None` without ticks.
+pub fn cycle_stats(ticks: &[TickRecord]) -> Option<CycleStats> {
+    let stage = |i: usize| Spread::of(ticks.iter().map(|t| t.stage_cycles[i] as u32).collect());
+    Some(CycleStats {
+        ticks: ticks.len(),
+        stages: [stage(0)?, stage(1)?, stage(2)?, stage(3)?],
+        step: Spread::of(ticks.iter().map(|t| t.step_cycles()).collect())?,
+        tick: Spread::of(ticks.iter().map(|t| t.cycles).collect())?,
+    })
+}
+
+impl std::fmt::Display for CycleStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "{} ticks", self.ticks)?;
+        writeln!(
+            f,
+            "{:<10} {:>8} {:>8} {:>8}",
+            "stage", "min", "median", "max"
+        )?;
+        let names = ["sensing", "jae", "dob", "cascade"];
+        for (name, s) in names.iter().zip(self.stages.iter()) {
+            writeln!(f, "{name:<10} {:>8} {:>8} {:>8}", s.min, s.median, s.max)?;
+        }
+        let (s, t) = (self.step, self.tick);
+        writeln!(
+            f,
+            "{:<10} {:>8} {:>8} {:>8}",
+            "step", s.min, s.median, s.max
+        )?;
+        write!(
+            f,
+            "{:<10} {:>8} {:>8} {:>8}",
+            "tick", t.min, t.median, t.max
+        )
+    }
+}
+
+/// Load the core configuration (TOML over the defaults).
+pub fn load_config(path: Option<&Path>) -> anyhow::Result<Config> {
+    let Some(path) = path else {
+        return Ok(Config::default());
+    };
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let config: Config =
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    config
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(config)
+}
+
+/// `host-sim ingest`.
+pub fn run(args: IngestArgs) -> anyhow::Result<()> {
+    let config = load_config(args.config.as_deref())?;
+    let records = read_stream(&args.file)?;
+    let ticks: Vec<TickRecord> = records
+        .iter()
+        .filter_map(|r| match r {
+            Record::Tick(t) => Some(*t),
+            _ => None,
+        })
+        .collect();
+    if ticks.is_empty() {
+        bail!(
+            "{}: no telemetry record (`tlm [..]` lines) found",
+            args.file.display()
+        );
+    }
+    let opts = LogOptions {
+        magnetic: args.magnetic,
+    };
+    let log = to_log(&records, &config, &opts)?;
+    log.write(&args.out)?;
+    eprintln!(
+        "{}: {} tick records -> {}",
+        args.file.display(),
+        ticks.len(),
+        args.out.display()
+    );
+    if args.stats {
+        if let Some(s) = cycle_stats(&ticks) {
+            println!("{s}");
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cable_joint::telemetry::{OriginRecord, FORMAT_VERSION, MAX_RECORD_LEN};
+    use cable_joint::units::{AdcCode, MagneticCount, MotorCount};
+    use cable_joint::RawSample;
+
+    fn line(rec: &Record) -> String {
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let bytes = rec.encode(&mut buf);
+        let items: Vec<String> = bytes.iter().map(|b| b.to_string()).collect();
+        format!("0.000500 INFO  tlm [{}]", items.join(", "))
+    }
+
+    fn tick(k: u32, g2: i32, motor: u16) -> TickRecord {
+        TickRecord {
+            tick: k,
+            raw: RawSample {
+                grating2: GratingCount(g2),
+                motor: MotorCount(motor),
+                magnetic: MagneticCount(0),
+                current: AdcCode(2048 + 82),
+                ..Default::default()
+            },
+            current_ref_a: 0.25,
+            stage_cycles: [k as u16, 10, 20, 30],
+            cycles: 100 + k,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn stream_becomes_si_columns_relative_to_the_origin_across_the_motor_wrap() {
+        let origin_raw = RawSample {
+            grating2: GratingCount(1000),
+            motor: MotorCount(65_000),
+            ..Default::default()
+        };
+        let records = [
+            Record::Start(StartRecord {
+                version: FORMAT_VERSION,
+                control_rate_hz: 2000.0,
+                decimation: 10,
+            }),
+            Record::Origin(OriginRecord {
+                tick: 5,
+                raw: origin_raw,
+            }),
+            Record::Tick(tick(10, 1500, 65_500)),
+            Record::Tick(tick(20, 2000, 464)), // 1000 counts past the origin, wrapped
+        ];
+        let mut text = String::from("INFO  firmware up\n");
+        for r in &records {
+            text.push_str(&line(r));
+            text.push_str("\n└─ firmware @ src/bin/firmware.rs:10\n");
+        }
+        let parsed = parse_stream(text.as_bytes(), "run.txt").unwrap();
+        assert_eq!(parsed, records);
+        let log = to_log(&parsed, &Config::default(), &LogOptions::default()).unwrap();
+        assert_eq!(log.len(), 2);
+        assert_eq!(log.col("t_s").unwrap(), [0.005, 0.01]);
+        let x2 = log.col("x2_m").unwrap();
+        assert!((x2[0] - 0.5e-3).abs() < 1e-9 && (x2[1] - 1.0e-3).abs() < 1e-9);
+        let phi = log.col("phi_rad").unwrap();
+        let rev = 2.0 * std::f64::consts::PI;
+        assert!((phi[0] - 500.0 / 4000.0 * rev).abs() < 1e-5, "{}", phi[0]);
+        assert!((phi[1] - 1000.0 / 4000.0 * rev).abs() < 1e-5, "{}", phi[1]);
+        let i = log.col("i_meas_a").unwrap();
+        assert!((i[0] - 82.0 * 5.0 / 4096.0).abs() < 1e-6);
+        assert_eq!(log.col("i_ref_a").unwrap(), [0.25, 0.25]);
+        assert!(!log.has("theta_rad"));
+        let stats = cycle_stats(&[tick(1, 0, 0), tick(2, 0, 0), tick(9, 0, 0)]).unwrap();
+        assert_eq!(
+            stats.stages[0],
+            Spread {
+                min: 1,
+                median: 2,
+                max: 9
+            }
+        );
+        assert_eq!(
+            stats.step,
+            Spread {
+                min: 61,
+                median: 62,
+                max: 69
+            }
+        );
+    }
+
+    #[test]
+    fn bad_streams_are_errors_naming_the_line() {
+        let err = parse_stream("INFO hello\ntlm [3, 1]\n".as_bytes(), "run.txt").unwrap_err();
+        assert!(err.to_string().starts_with("run.txt:2:"), "{err}");
+        let back = [Record::Tick(tick(10, 0, 0)), Record::Tick(tick(10, 0, 0))];
+        let err = to_log(&back, &Config::default(), &LogOptions::default()).unwrap_err();
+        assert!(err.to_string().contains("restarted"), "{err}");
+    }
+}

@@ -1,0 +1,357 @@
+//! `host-sim trace`: record the sensor trace that the QEMU firmware replays.
+//!
+//! QEMU models neither the encoder timers nor the ADC, so the `qemu` firmware
+//! variant plays back what the board would have read. The trace must come
+//! from a closed-loop run of the *firmware's* logic, or the replayed sensors
+//! would not answer the firmware's commands: this generator runs the
+//! simulated prototype ([`crate::plant::Plant`]) in closed loop with
+//! [`cable_joint::board::Harness`], the same start-up sequencer, fault
+//! handlers and control tick the firmware runs, with the firmware's
+//! configuration ([`Config::default`]) and program ([`Program::default`]).
+//! Tick order is [`crate::sim::Sim::step`]'s: sample, control, drive
+//! command, then the plant integrates one period in whole sub-steps.
+//!
+//! The run (defaults):
+//!
+//! 1. power off (not recorded, `--relax-s` 1.5 s): with the drive disabled
+//!    the cable preload back-drives the gearhead and the mechanism comes to
+//!    rest relaxed, on the negative side of the origin;
+//! 2. boot: the timers restart from zero, the drive is disabled, the
+//!    firmware checks its sensors for 50 ms, then homes: it winds the cables
+//!    in (positive search) until the photoelectric origin switch (asserted
+//!    while the joint angle is >= 0) rises, zeroes the counters there, and
+//!    runs its program (joint to 30° in one second, then hold);
+//! 3. a weight (`--load-n`, 0.49 N = 50 g) is hung on the tip at
+//!    `--load-at-s` (1.0 s, while the joint moves), so the DOB sees a load;
+//! 4. the drive's fault line is asserted at `--drive-fault-at-s` (2.5 s), so
+//!    the fault path (drive cut, fault latched) is in the trace too.
+//!
+//! Output: the binary trace (layout in [`cable_joint::board::trace`]) and,
+//! with `--csv`, the firmware logic's own telemetry as a project CSV log.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use cable_joint::board::trace::trace_header;
+use cable_joint::board::{ControlLoop, Harness, Program, Request, TickOutcome, TraceSample};
+use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
+use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
+use cable_joint::{Config, RawSample};
+
+use crate::plant::PlantParams;
+use crate::sim::{NullRecorder, Sim};
+
+/// Arguments of `host-sim trace`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct TraceArgs {
+    /// Trace file to write (the qemu firmware embeds `firmware/trace.bin`).
+    #[arg(long, default_value = "firmware/trace.bin")]
+    pub out: PathBuf,
+    /// Also write the firmware logic's telemetry as a CSV log.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Plant parameters (TOML, merged over the prototype's defaults).
+    #[arg(long)]
+    pub plant: Option<PathBuf>,
+    #[command(flatten)]
+    pub options: TraceOptions,
+}
+
+/// What the recorded run does.
+#[derive(clap::Args, Debug, Clone, Copy, PartialEq)]
+pub struct TraceOptions {
+    /// Seconds recorded after boot.
+    #[arg(long, default_value_t = 2.6)]
+    pub duration_s: f64,
+    /// Seconds the mechanism relaxes with the drive off before boot.
+    #[arg(long, default_value_t = 1.5)]
+    pub relax_s: f64,
+    /// Weight hung on the tip during the hold, N.
+    #[arg(long, default_value_t = 0.49)]
+    pub load_n: f64,
+    /// When the weight is hung (ramped in over 50 ms), s after boot.
+    #[arg(long, default_value_t = 1.0)]
+    pub load_at_s: f64,
+    /// When the drive's fault line is asserted, s after boot (negative:
+    /// never).
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
+    pub drive_fault_at_s: f64,
+    /// Noise seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+impl Default for TraceOptions {
+    fn default() -> Self {
+        Self {
+            duration_s: 2.6,
+            relax_s: 1.5,
+            load_n: 0.49,
+            load_at_s: 1.0,
+            drive_fault_at_s: 2.5,
+            seed: 1,
+        }
+    }
+}
+
+/// A recorded run: what the board read, what the firmware logic did, and the
+/// plant's truth.
+#[derive(Debug, Clone, Default)]
+pub struct Recorded {
+    /// Control rate, Hz.
+    pub control_rate_hz: f32,
+    /// One sample per tick (boot-relative counters, input lines).
+    pub samples: Vec<TraceSample>,
+    /// The firmware logic's outcome per tick.
+    pub outcomes: Vec<TickOutcome>,
+    /// True joint angle at each sample, rad.
+    pub theta_true_rad: Vec<f64>,
+    /// Applied tip force at each sample, N.
+    pub f_ext_true_n: Vec<f64>,
+}
+
+impl Recorded {
+    /// The trace file's bytes.
+    pub fn trace_bytes(&self) -> Vec<u8> {
+        let mut v = Vec::with_capacity(16 + 17 * self.samples.len());
+        v.extend_from_slice(&trace_header(
+            self.control_rate_hz,
+            self.samples.len() as u32,
+        ));
+        for s in &self.samples {
+            v.extend_from_slice(&s.to_bytes());
+        }
+        v
+    }
+
+    /// The outcomes as the firmware's telemetry stream (start, origins,
+    /// every tick).
+    pub fn telemetry(&self) -> Vec<Record> {
+        let mut out = Vec::with_capacity(self.outcomes.len() + 3);
+        out.push(Record::Start(cable_joint::telemetry::StartRecord {
+            version: cable_joint::telemetry::FORMAT_VERSION,
+            control_rate_hz: self.control_rate_hz,
+            decimation: 1,
+        }));
+        for o in &self.outcomes {
+            if let Some(origin) = o.origin {
+                out.push(Record::Origin(origin));
+            }
+            out.push(Record::Tick(o.record));
+        }
+        out
+    }
+}
+
+/// Counters as the board reads them after a reset at `boot`.
+fn boot_relative(raw: &RawSample, boot: &RawSample) -> RawSample {
+    RawSample {
+        grating1: GratingCount(raw.grating1.0.wrapping_sub(boot.grating1.0)),
+        grating2: GratingCount(raw.grating2.0.wrapping_sub(boot.grating2.0)),
+        motor: MotorCount(raw.motor.0.wrapping_sub(boot.motor.0)),
+        magnetic: MagneticCount(raw.magnetic.0.wrapping_sub(boot.magnetic.0)),
+        current: raw.current,
+    }
+}
+
+/// Run the closed loop and record it.
+pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorded> {
+    let config = Config::default();
+    anyhow::ensure!(
+        opts.duration_s.is_finite() && opts.duration_s > 0.0,
+        "--duration-s must be > 0"
+    );
+    // Power off: the drive is disabled and the preload back-drives the
+    // gearhead until the mechanism rests, relaxed.
+    let mut sim = Sim::new(plant, config, opts.seed)?;
+    sim.run_for(opts.relax_s, &mut NullRecorder);
+    let period_s = sim.period_s();
+    let substeps = sim.substeps();
+    let scales = sim.plant().params().sensors.scales;
+    let plant = sim.plant_mut();
+
+    let control = ControlLoop::new(config, 1).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut harness = Harness::new(control);
+    let boot = plant.sample();
+    let n = (opts.duration_s / period_s).round() as usize;
+    let mut rec = Recorded {
+        control_rate_hz: config.control_rate_hz,
+        ..Default::default()
+    };
+    let load = |t_s: f64| -> f64 {
+        let u = ((t_s - opts.load_at_s) / 0.05).clamp(0.0, 1.0);
+        opts.load_n * u
+    };
+    for k in 0..n {
+        let t_s = k as f64 * period_s;
+        let raw = boot_relative(&plant.sample(), &boot);
+        let theta = plant.state().theta_rad;
+        let inputs = Inputs::new(
+            theta >= 0.0,
+            opts.drive_fault_at_s >= 0.0 && t_s >= opts.drive_fault_at_s,
+        );
+        let sample = TraceSample { raw, inputs };
+        let request = (k == 0).then_some(Request::Program(Program::default()));
+        let outcome = harness.tick(&sample, request);
+        let current_a = if harness.drive_enabled() {
+            scales.dac_a(outcome.output.dac) as f64
+        } else {
+            0.0
+        };
+        rec.samples.push(sample);
+        rec.outcomes.push(outcome);
+        rec.theta_true_rad.push(theta);
+        rec.f_ext_true_n.push(plant.external_force_n());
+        plant.set_current_command(current_a);
+        let dt = period_s / substeps as f64;
+        for j in 0..substeps {
+            plant.set_external_force(load(t_s + j as f64 * dt));
+            plant.step();
+        }
+    }
+    Ok(rec)
+}
+
+/// Origins and ticks of a stream, for writers.
+pub fn split(records: &[Record]) -> (Vec<OriginRecord>, Vec<TickRecord>) {
+    let mut origins = Vec::new();
+    let mut ticks = Vec::new();
+    for r in records {
+        match r {
+            Record::Origin(o) => origins.push(*o),
+            Record::Tick(t) => ticks.push(*t),
+            Record::Start(_) => {}
+        }
+    }
+    (origins, ticks)
+}
+
+fn load_plant(path: Option<&Path>) -> anyhow::Result<PlantParams> {
+    match path {
+        None => Ok(PlantParams::default()),
+        Some(p) => {
+            let text = fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            PlantParams::from_toml_str(&text).with_context(|| format!("{}", p.display()))
+        }
+    }
+}
+
+/// Write `bytes` to `path` through a temporary file and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)
+        .with_context(|| format!("temporary file in {}", dir.display()))?;
+    std::io::Write::write_all(&mut tmp, bytes)?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // A temporary file is private (0600); the result is an ordinary file.
+        tmp.as_file()
+            .set_permissions(fs::Permissions::from_mode(0o644))?;
+    }
+    tmp.persist(path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// `host-sim trace`.
+pub fn run(args: TraceArgs) -> anyhow::Result<()> {
+    let plant = load_plant(args.plant.as_deref())?;
+    let rec = record(plant, &args.options)?;
+    write_atomic(&args.out, &rec.trace_bytes())?;
+    let homed = rec
+        .outcomes
+        .iter()
+        .rev()
+        .find_map(|o| o.origin)
+        .map(|o| o.tick);
+    eprintln!(
+        "wrote {} ({} ticks at {} Hz; homed at tick {:?})",
+        args.out.display(),
+        rec.samples.len(),
+        rec.control_rate_hz,
+        homed
+    );
+    if let Some(csv) = &args.csv {
+        let log = crate::ingest::to_log(
+            &rec.telemetry(),
+            &Config::default(),
+            &crate::ingest::LogOptions::default(),
+        )?;
+        log.write(csv)?;
+        eprintln!("wrote {}", csv.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cable_joint::board::Phase;
+    use cable_joint::Fault;
+
+    /// What the firmware logic must do on the simulated prototype whatever
+    /// the controller's tuning: check with the drive off, home on the
+    /// switch edge, cut the drive on the fault line. (Tracking and force
+    /// accuracy are the core's and the simulator's tests.)
+    #[test]
+    fn recorded_run_checks_homes_on_the_edge_and_cuts_on_the_fault_line() {
+        let opts = TraceOptions::default();
+        let rec = record(PlantParams::default(), &opts).unwrap();
+        let period = 1.0 / rec.control_rate_hz as f64;
+        assert_eq!(
+            rec.outcomes.len(),
+            (opts.duration_s / period).round() as usize
+        );
+        // Boot: relaxed on the negative side, switch released, drive off.
+        assert!(
+            rec.theta_true_rad[0] < -0.1,
+            "relaxed at {}",
+            rec.theta_true_rad[0]
+        );
+        let check = (0.05 / period) as usize;
+        for o in &rec.outcomes[..check] {
+            assert_eq!(o.record.phase, Phase::Check.code());
+            assert!(!o.record.drive_enable, "drive off during the check");
+        }
+        // Homed on the tick the switch rose: the true angle just crossed zero.
+        let homed = rec
+            .outcomes
+            .iter()
+            .position(|o| o.record.phase == Phase::Running.code())
+            .expect("homing completes");
+        assert!(rec.samples[homed].inputs.origin() && !rec.samples[homed - 1].inputs.origin());
+        let origin = rec.outcomes[homed]
+            .origin
+            .expect("origin record on the edge");
+        assert_eq!(origin.raw, rec.samples[homed].raw);
+        assert!(
+            (0.0..0.01).contains(&rec.theta_true_rad[homed]),
+            "homed at {} rad",
+            rec.theta_true_rad[homed]
+        );
+        // The weight was hung while recording.
+        let loaded = ((opts.load_at_s + 0.06) / period) as usize;
+        assert!((rec.f_ext_true_n[loaded] - opts.load_n).abs() < 1e-9);
+        // From the fault line on: latched fault, drive off, zero current.
+        let fault_tick = (opts.drive_fault_at_s / period).ceil() as usize;
+        assert!(rec.samples[fault_tick].inputs.drive_fault());
+        for o in &rec.outcomes[fault_tick..] {
+            assert_ne!(o.record.fault, 0);
+            assert!(!o.record.drive_enable && o.record.current_ref_a == 0.0);
+        }
+        let first_fault = rec.outcomes.iter().find(|o| o.record.fault != 0).unwrap();
+        if first_fault.record.tick as usize == fault_tick {
+            assert_eq!(first_fault.record.fault, Fault::DriveFault.code());
+        }
+        // The trace round-trips.
+        let bytes = rec.trace_bytes();
+        let t = cable_joint::board::Trace::parse(&bytes).unwrap();
+        assert_eq!(t.iter().collect::<Vec<_>>(), rec.samples);
+    }
+}

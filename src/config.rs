@@ -248,6 +248,46 @@ impl Default for TensionConfig {
     }
 }
 
+/// Cable-stretch force estimator: the joint torque from the two cables'
+/// stretch, measured by the gratings and the estimated joint angle,
+/// `tau = r [K_w1 (x1 - r theta) - K_w2 (r theta - x2)]` (seed Eq. 9, 12, 13;
+/// the preload cancels). It needs no motor current and is blind to the
+/// sliders' friction, which sits outside the two cables.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct StretchConfig {
+    /// Cable 1 stiffness `K_w1`, N/m.
+    pub cable1_n_m: f32,
+    /// Cable 2 stiffness `K_w2`, N/m.
+    pub cable2_n_m: f32,
+}
+
+impl Default for StretchConfig {
+    fn default() -> Self {
+        // DESIGN.md: c4 = (K_s + K_w2) / (K_w2 r) of the seed's JAE gives
+        // K_w2 near 11.4 N/mm; cable 1 is the same cable.
+        Self {
+            cable1_n_m: 11_400.0,
+            cable2_n_m: 11_400.0,
+        }
+    }
+}
+
+impl StretchConfig {
+    /// Cable stiffnesses implied by a JAE position coefficient `c4` (rad/m)
+    /// and the spring `K_s` (N/m): `K_w2 = K_s / (c4 r - 1)`, with cable 1
+    /// taken as the same cable. `None` when `c4 r <= 1` (no finite stiffness).
+    pub fn from_jae(c4_rad_m: f32, spring_n_m: f32, pulley_radius_m: f32) -> Option<Self> {
+        let d = c4_rad_m * pulley_radius_m - 1.0;
+        let k = spring_n_m / d;
+        (d > 0.0 && k.is_finite() && k > 0.0).then_some(Self {
+            cable1_n_m: k,
+            cable2_n_m: k,
+        })
+    }
+}
+
 /// Limits beyond which a reading is impossible (a fault).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -296,6 +336,8 @@ pub struct Config {
     pub dob: DobConfig,
     /// No-load tension model.
     pub tension: TensionConfig,
+    /// Cable-stretch force estimator.
+    pub stretch: StretchConfig,
     /// Fault limits.
     pub limits: FaultLimits,
 }
@@ -311,6 +353,7 @@ impl Default for Config {
             cascade: CascadeConfig::default(),
             dob: DobConfig::default(),
             tension: TensionConfig::default(),
+            stretch: StretchConfig::default(),
             limits: FaultLimits::default(),
         }
     }
@@ -500,6 +543,9 @@ impl Config {
             });
         }
 
+        positive("stretch.cable1_n_m", self.stretch.cable1_n_m)?;
+        positive("stretch.cable2_n_m", self.stretch.cable2_n_m)?;
+
         let l = &self.limits;
         positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
         positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;
@@ -516,6 +562,14 @@ mod tests {
     #[test]
     fn defaults_are_valid() {
         Config::default().validate().unwrap();
+    }
+
+    #[test]
+    fn cable_stiffness_from_the_seeds_jae() {
+        let m = Machine::default();
+        let s = StretchConfig::from_jae(264.356, m.spring_n_m, m.pulley_radius_m).unwrap();
+        assert!((s.cable2_n_m - 11_437.0).abs() < 20.0, "{}", s.cable2_n_m);
+        assert!(StretchConfig::from_jae(200.0, m.spring_n_m, m.pulley_radius_m).is_none());
     }
 
     #[test]

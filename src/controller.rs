@@ -134,8 +134,11 @@ pub struct Estimates {
     pub tension1_n: f32,
     /// Modelled no-load cable-1 tension (filtered like the DOB), N.
     pub tension1_model_n: f32,
-    /// Estimated external tip force, N.
+    /// Estimated external tip force (DOB, seed Fig. 6), N.
     pub f_ext_hat_n: f32,
+    /// Estimated external tip force from the cables' stretch, through the
+    /// same low-pass as the DOB, N.
+    pub f_ext_stretch_n: f32,
 }
 
 /// Result of one step.
@@ -203,6 +206,7 @@ struct Derived {
     motor_obs: TrackingObserver,
     dob: Dob,
     blend: Option<LowPass1>,
+    force_lp: LowPass1,
     motor_per_joint: f32,
     max_grating_step: i32,
     max_motor_step: i32,
@@ -228,6 +232,7 @@ impl Derived {
             grating_obs: TrackingObserver::new(d.grating_bandwidth_hz, period_s),
             motor_obs: TrackingObserver::new(d.motor_bandwidth_hz, period_s),
             dob: Dob::new(&c.dob, m, period_s),
+            force_lp: LowPass1::new(c.dob.cutoff_rad_s, period_s),
             blend: (c.cascade.jae_blend_hz > 0.0)
                 .then(|| LowPass1::new(2.0 * math::PI * c.cascade.jae_blend_hz, period_s)),
             motor_per_joint: m.gear_ratio * m.pulley_radius_m / m.rope_wheel_radius_m,
@@ -254,6 +259,8 @@ pub struct State {
     tension_terms: AddedState,
     dob: DobState,
     cascade: CascadeState,
+    /// Low-passed stretch force estimate, N.
+    stretch_force_n: f32,
     /// Low-passed cable stretch `theta_hat - theta_motor` (feedback blend), rad.
     stretch_rad: f32,
     last_current_a: f32,
@@ -473,6 +480,18 @@ impl Controller {
             st.last_current_a
         };
         let dob_out: DobOut = d.dob.update(&mut st.dob, drive_current, phi.vel, model_n);
+        let m = &cfg.machine;
+        let r = m.pulley_radius_m;
+        let joint_torque_nm = r
+            * (cfg.stretch.cable1_n_m * (x1_m - r * theta_hat_rad)
+                - cfg.stretch.cable2_n_m * (r * theta_hat_rad - x2_m));
+        if !st.primed {
+            st.stretch_force_n = joint_torque_nm / m.gripper_length_m;
+        }
+        let f_ext_stretch_n = d.force_lp.update(
+            &mut st.stretch_force_n,
+            joint_torque_nm / m.gripper_length_m,
+        );
         timer.mark(Stage::Dob);
 
         // --- Reference and cascade -------------------------------------------
@@ -495,7 +514,6 @@ impl Controller {
             Mode::JointClosedLoop => theta_motor_rad + stretch_rad,
             _ => theta_motor_rad,
         };
-        let m = &cfg.machine;
         let current_ff_a = if cfg.cascade.tension_feedforward {
             (model_n * m.rope_wheel_radius_m / m.gear_ratio + cfg.dob.viscous_nm_s_rad * phi.vel)
                 / m.torque_constant_nm_a
@@ -538,10 +556,12 @@ impl Controller {
             tension1_n: dob_out.tension1_n,
             tension1_model_n: dob_out.tension1_model_n,
             f_ext_hat_n: dob_out.f_ext_n,
+            f_ext_stretch_n,
         };
         let finite = casc.current_a.is_finite()
             && theta_hat_rad.is_finite()
             && dob_out.f_ext_n.is_finite()
+            && f_ext_stretch_n.is_finite()
             && dob_out.tension1_n.is_finite()
             && x1.acc.is_finite()
             && phi.acc.is_finite();
@@ -670,6 +690,41 @@ mod tests {
         }
         assert_eq!(out.fault, Some(Fault::TransmissionSlack));
         assert!(!out.drive_enable);
+    }
+
+    /// The stretch estimator reads the joint torque off the two cables:
+    /// a static pose with cable 1 stretched by 20 µm beyond cable 2's side.
+    #[test]
+    fn stretch_force_matches_the_cable_balance() {
+        let mut cfg = Config::default();
+        cfg.jae = crate::config::JaeConfig {
+            c_acc_rad_s2_m: 0.0,
+            c_vel_rad_s_m: 0.0,
+            c_sign_rad: 0.0,
+            ..cfg.jae
+        };
+        let mut c = Controller::new(cfg).unwrap();
+        c.step(&at_rest());
+        let raw = RawSample {
+            grating1: GratingCount(520),
+            grating2: GratingCount(500),
+            ..at_rest()
+        };
+        let mut out = c.step(&raw);
+        for _ in 0..2000 {
+            out = c.step(&raw);
+        }
+        let (x1, x2, r) = (520e-6f32, 500e-6f32, cfg.machine.pulley_radius_m);
+        let theta = cfg.jae.c_pos_rad_m * x2;
+        let tau = r
+            * (cfg.stretch.cable1_n_m * (x1 - r * theta)
+                - cfg.stretch.cable2_n_m * (r * theta - x2));
+        let want = tau / cfg.machine.gripper_length_m;
+        assert!(
+            (out.est.f_ext_stretch_n - want).abs() < 1e-3 * want.abs().max(1.0),
+            "{} vs {want}",
+            out.est.f_ext_stretch_n
+        );
     }
 
     #[test]

@@ -16,7 +16,7 @@ use cable_joint::{Config, Controller, RawSample};
 use crate::log::Log;
 
 /// Columns [`derive`] adds beyond the run-time signals ([`SIGNAL_NAMES`]).
-pub const EXTRA_COLUMNS: [&str; 8] = [
+pub const EXTRA_COLUMNS: [&str; 9] = [
     "x1_acc_m_s2",
     "phi_acc_rad_s2",
     "theta_hat_rad",
@@ -24,6 +24,7 @@ pub const EXTRA_COLUMNS: [&str; 8] = [
     "tension1_model_n",
     "load_torque_nm",
     "f_ext_hat_n",
+    "f_ext_stretch_n",
     "fault_code",
 ];
 
@@ -120,6 +121,7 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
             e.tension1_model_n as f64,
             e.load_torque_nm as f64,
             e.f_ext_hat_n as f64,
+            e.f_ext_stretch_n as f64,
             cable_joint::Fault::code_of(o.fault) as f64,
         ];
         out.push_row(&row)?;

@@ -1104,6 +1104,16 @@ impl JaeResult {
         j.c_sign_rad = self.chi_s[2] as f32;
         j.c_pos_rad_m = self.chi_s[3] as f32;
         j.offset_rad = self.offset_rad as f32;
+        // The position coefficient fixes the cable stiffness (Eq. 16):
+        // c4 = (K_s + K_w2) / (K_w2 r), with the datasheet spring.
+        let m = &config.machine;
+        if let Some(s) = cable_joint::config::StretchConfig::from_jae(
+            j.c_pos_rad_m,
+            m.spring_n_m,
+            m.pulley_radius_m,
+        ) {
+            config.stretch = s;
+        }
     }
 }
 

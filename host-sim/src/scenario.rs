@@ -445,6 +445,8 @@ pub struct RunSummary {
     /// Force-estimate error in the `Stable` phases (estimate − applied), N:
     /// `(mean, max |error|)`.
     pub force_error_n: Option<(f64, f64)>,
+    /// The same for the cable-stretch estimate `f_ext_stretch_n`.
+    pub force_stretch_error_n: Option<(f64, f64)>,
     /// Latched fault at the end, if any.
     pub fault: Option<Fault>,
 }
@@ -486,12 +488,17 @@ struct ForceAcc {
     n: u64,
     sum: f64,
     max_abs: f64,
+    stretch_sum: f64,
+    stretch_max_abs: f64,
 }
 
 impl Recorder for ForceAcc {
     fn record(&mut self, r: &TickRecord) {
         if r.phase == Phase::Stable.code() && r.output.drive_enable {
             let e = r.output.est.f_ext_hat_n as f64 - r.f_ext_n;
+            let es = r.output.est.f_ext_stretch_n as f64 - r.f_ext_n;
+            self.stretch_sum += es;
+            self.stretch_max_abs = self.stretch_max_abs.max(es.abs());
             self.n += 1;
             self.sum += e;
             self.max_abs = self.max_abs.max(e.abs());
@@ -537,6 +544,8 @@ pub fn run<R: Recorder + ?Sized>(
         tracking: errors.tracking(),
         jae: errors.jae(),
         force_error_n: (force.n > 0).then(|| (force.sum / force.n as f64, force.max_abs)),
+        force_stretch_error_n: (force.n > 0)
+            .then(|| (force.stretch_sum / force.n as f64, force.stretch_max_abs)),
         fault: sim.output().fault,
     })
 }

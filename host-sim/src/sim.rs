@@ -363,7 +363,7 @@ impl Sim {
 ///   disabled); `i_true_a`: the winding current.
 /// * `mode`: [`Mode::code`]; `fault_code`: [`Fault::code_of`]; `phase`: the
 ///   scenario's phase tag.
-pub const LOG_COLUMNS: [&str; 37] = [
+pub const LOG_COLUMNS: [&str; 38] = [
     "t_s",
     "x1_m",
     "x2_m",
@@ -376,6 +376,7 @@ pub const LOG_COLUMNS: [&str; 37] = [
     "theta_hat_rad",
     "theta_motor_rad",
     "f_ext_hat_n",
+    "f_ext_stretch_n",
     "tension1_hat_n",
     "tension1_model_n",
     "load_torque_nm",
@@ -403,7 +404,7 @@ pub const LOG_COLUMNS: [&str; 37] = [
     "phase",
 ];
 
-fn log_row(r: &TickRecord, magnetic_fitted: bool) -> [f64; 37] {
+fn log_row(r: &TickRecord, magnetic_fitted: bool) -> [f64; 38] {
     let e = &r.output.est;
     let s = &r.state;
     let t = &r.tensions;
@@ -425,6 +426,7 @@ fn log_row(r: &TickRecord, magnetic_fitted: bool) -> [f64; 37] {
         f(e.theta_hat_rad),
         f(e.theta_motor_rad),
         f(e.f_ext_hat_n),
+        f(e.f_ext_stretch_n),
         f(e.tension1_n),
         f(e.tension1_model_n),
         f(e.load_torque_nm),

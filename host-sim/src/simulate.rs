@@ -208,7 +208,12 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     );
     if let Some((mean, max)) = summary.force_error_n {
         println!(
-            "  force estimate in stable regions: mean error {mean:+.3} N, max |error| {max:.3} N"
+            "  force estimate (DOB) in stable regions: mean error {mean:+.3} N, max |error| {max:.3} N"
+        );
+    }
+    if let Some((mean, max)) = summary.force_stretch_error_n {
+        println!(
+            "  force estimate (stretch) in stable regions: mean error {mean:+.3} N, max |error| {max:.3} N"
         );
     }
     if let Some(f) = summary.fault {

@@ -38,15 +38,21 @@
 //!
 //! # Creep and drift (instead of the seed's SNN, Sect. 2.3)
 //!
-//! Two interpretable per-axis terms may be added to the least-squares model:
+//! Two interpretable per-axis terms may be added to the least-squares model,
+//! each switched on per axis:
 //!
-//! * **creep**: the reading follows a fraction `rho_k` of the load the axis
-//!   has carried, with a first-order lag of time constant `tau`:
-//!   `F_u,k = rho_k lag_tau(F_s,k)` (strain-gauge creep: after a load step
-//!   `F`, the reading settles from `F` to `(1 + rho) F`). The lag is driven by
-//!   the measured wrench, so the column needs no prior model, and it is
-//!   computed by the project's effect library
-//!   ([`EffectKind::Relaxation`](crate::effects::EffectKind::Relaxation)).
+//! * **creep** of the payload load: a fraction `rho_k` of every change of the
+//!   payload wrench `L = A phi` on axis `k` shows up with a first-order delay
+//!   `tau`: `F_u,k = -rho_k creep_tau(L_k)`, where `creep_tau(u) = u -
+//!   lag_tau(u)` is the part of a change still to come
+//!   ([`EffectKind::Creep`](crate::effects::EffectKind::Creep) of the
+//!   project's effect library). After a load step `dL` the reading jumps by
+//!   `(1 - rho) dL` and creeps to `dL` (strain-gauge creep for `rho > 0`). The
+//!   column is driven by the *model's* payload load, not by the measured
+//!   wrench: a sustained contact wrench is not washed out, and the column is
+//!   zero-mean, so it does not compete with `F_0`. `L` needs the inertial
+//!   parameters: the identifier takes them from a first fit without creep
+//!   ([`IdentConfig::creep_load`]); the estimator uses its own.
 //! * **drift**: `F_u,k = d_k t`, `t` the time since the state was reset
 //!   ([`EffectKind::Time`](crate::effects::EffectKind::Time)).
 //!
@@ -240,6 +246,8 @@ impl fmt::Display for PayloadError {
     }
 }
 
+impl core::error::Error for PayloadError {}
+
 /// Settings of the creep/drift terms (shared by identification and
 /// estimation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -248,16 +256,29 @@ impl fmt::Display for PayloadError {
 pub struct CompConfig {
     /// Creep time constant, s (`None`: no creep columns).
     pub creep_tau_s: Option<f32>,
-    /// Whether the per-axis linear drift columns are used.
-    pub drift: bool,
+    /// Axes with a creep column (used only with `creep_tau_s`).
+    pub creep_axes: [bool; 6],
+    /// Axes with a linear drift column.
+    pub drift_axes: [bool; 6],
 }
 
 impl CompConfig {
     /// No compensation terms.
     pub const NONE: CompConfig = CompConfig {
         creep_tau_s: None,
-        drift: false,
+        creep_axes: [false; 6],
+        drift_axes: [false; 6],
     };
+
+    /// Creep with time constant `tau_s` on every axis (and drift on every
+    /// axis if `drift`).
+    pub const fn all_axes(creep_tau_s: Option<f32>, drift: bool) -> Self {
+        Self {
+            creep_tau_s,
+            creep_axes: [creep_tau_s.is_some(); 6],
+            drift_axes: [drift; 6],
+        }
+    }
 
     /// Check the time constant.
     pub fn validate(&self) -> Result<(), PayloadError> {
@@ -269,9 +290,21 @@ impl CompConfig {
         }
     }
 
-    /// Number of least-squares columns these terms add (0, 6 or 12).
+    /// Whether axis `k` has a creep column.
+    pub fn creep_on(&self, k: usize) -> bool {
+        self.creep_tau_s.is_some() && self.creep_axes.get(k).copied().unwrap_or(false)
+    }
+
+    /// Whether axis `k` has a drift column.
+    pub fn drift_on(&self, k: usize) -> bool {
+        self.drift_axes.get(k).copied().unwrap_or(false)
+    }
+
+    /// Number of least-squares columns these terms add (0 to 12).
     pub fn n_cols(&self) -> usize {
-        6 * (usize::from(self.creep_tau_s.is_some()) + usize::from(self.drift))
+        (0..6)
+            .map(|k| usize::from(self.creep_on(k)) + usize::from(self.drift_on(k)))
+            .sum()
     }
 }
 
@@ -282,11 +315,10 @@ pub struct CompState {
     time: TermState,
 }
 
-/// The creep (lag of the measured wrench) and drift (time) columns of one
-/// sample.
+/// The creep and drift columns of one sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CompColumns {
-    /// `lag_tau(F_s,k)` per axis (zero without creep).
+    /// `-creep_tau(L_k) = lag_tau(L_k) - L_k` per axis (zero where off).
     pub creep: [f32; 6],
     /// Time since the reset, s (zero without drift).
     pub time_s: f32,
@@ -294,28 +326,26 @@ pub struct CompColumns {
 
 impl CompState {
     /// Forget the lags and restart the clock (the next sample initialises the
-    /// lags settled on its reading).
+    /// lags settled on its load).
     pub fn reset(&mut self) {
         *self = Self::default();
     }
 
-    /// Compute the columns of one sample and advance the state. The caller
-    /// checks finiteness of `measured` and `dt_s` first.
-    pub fn update(
-        &mut self,
-        config: &CompConfig,
-        measured: &Wrench<f32>,
-        dt_s: f32,
-    ) -> CompColumns {
+    /// Compute the columns of one sample from the payload load `L = A phi`
+    /// (no offsets) and advance the state. The caller checks finiteness
+    /// first.
+    pub fn update(&mut self, config: &CompConfig, load: &Wrench<f32>, dt_s: f32) -> CompColumns {
         let mut out = CompColumns::default();
-        let signals: [f32; 6] = (*measured).into();
+        let signals: [f32; 6] = (*load).into();
         if let Some(tau_s) = config.creep_tau_s {
             for (k, (s, o)) in self.lag.iter_mut().zip(out.creep.iter_mut()).enumerate() {
-                let term = Term::new(EffectKind::Relaxation { tau_s }, k as u8);
-                *o = term.update(s, &signals, dt_s);
+                if config.creep_on(k) {
+                    let term = Term::new(EffectKind::Creep { tau_s }, k as u8);
+                    *o = -term.update(s, &signals, dt_s);
+                }
             }
         }
-        if config.drift {
+        if config.drift_axes.iter().any(|d| *d) {
             let term = Term::new(EffectKind::Time { scale_s: 1.0 }, 0);
             out.time_s = term.update(&mut self.time, &signals, dt_s);
         }
@@ -332,6 +362,9 @@ pub struct IdentConfig {
     pub inertia: bool,
     /// Creep/drift columns.
     pub comp: CompConfig,
+    /// Inertial parameters whose payload load `A phi` drives the creep
+    /// columns (from a fit without creep; ignored without creep).
+    pub creep_load: [f64; N_INERTIAL],
     /// Row weights per axis (typically `1 / noise std`): forces in N and
     /// torques in N·m are put on a common footing. All finite and positive.
     pub axis_weight: [f64; 6],
@@ -344,6 +377,7 @@ impl Default for IdentConfig {
         Self {
             inertia: true,
             comp: CompConfig::NONE,
+            creep_load: [0.0; N_INERTIAL],
             axis_weight: [1.0; 6],
             lsq: LsqConfig::default(),
         }
@@ -359,6 +393,11 @@ impl IdentConfig {
     /// Check the ranges.
     pub fn validate(&self) -> Result<(), PayloadError> {
         self.comp.validate()?;
+        if self.creep_load.iter().any(|v| !v.is_finite()) {
+            return Err(PayloadError::InvalidConfig {
+                field: "creep_load",
+            });
+        }
         if self
             .axis_weight
             .iter()
@@ -369,6 +408,41 @@ impl IdentConfig {
             });
         }
         Ok(())
+    }
+}
+
+/// What one least-squares column of [`PayloadIdentifier`] holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Column {
+    /// Zero drift of axis `k`.
+    Offset(usize),
+    /// Entry `j` of `phi` (Eq. 7).
+    Inertial(usize),
+    /// Creep fraction of axis `k`.
+    Creep(usize),
+    /// Drift rate of axis `k`.
+    Drift(usize),
+}
+
+impl IdentConfig {
+    /// The meaning of least-squares column `col` (`None` past the last).
+    pub fn column(&self, col: usize) -> Option<Column> {
+        let n_phi = if self.inertia { N_INERTIAL } else { 4 };
+        if col < N_OFFSET {
+            return Some(Column::Offset(col));
+        }
+        let mut c = col - N_OFFSET;
+        if c < n_phi {
+            return Some(Column::Inertial(c));
+        }
+        c -= n_phi;
+        let creep = (0..6).filter(|&k| self.comp.creep_on(k));
+        let drift = (0..6).filter(|&k| self.comp.drift_on(k));
+        creep
+            .map(Column::Creep)
+            .chain(drift.map(Column::Drift))
+            .nth(c)
     }
 }
 
@@ -498,14 +572,14 @@ impl PayloadIdentifier {
             for j in 0..n_phi {
                 put(row, a[(k, j)]);
             }
-            if config.comp.creep_tau_s.is_some() {
-                for j in 0..6 {
+            for j in 0..6 {
+                if config.comp.creep_on(j) {
                     let v = comp.creep.get(k).copied().unwrap_or(0.0);
                     put(row, if j == k { f64::from(v) } else { 0.0 });
                 }
             }
-            if config.comp.drift {
-                for j in 0..6 {
+            for j in 0..6 {
+                if config.comp.drift_on(j) {
                     put(row, if j == k { f64::from(comp.time_s) } else { 0.0 });
                 }
             }
@@ -526,9 +600,10 @@ impl PayloadIdentifier {
         if !kin.is_finite() || measured.iter().any(|v| !v.is_finite()) || !dt_s.is_finite() {
             return Err(PayloadError::NonFinite);
         }
-        let meas32: Wrench<f32> = measured.map(|v| v as f32);
+        let load = regressor(kin) * SVector::<f64, N_INERTIAL>::from(self.config.creep_load);
+        let load32: Wrench<f32> = load.map(|v| v as f32);
         let mut comp_state = self.comp;
-        let comp = comp_state.update(&self.config.comp, &meas32, dt_s as f32);
+        let comp = comp_state.update(&self.config.comp, &load32, dt_s as f32);
         let (rows, y) = Self::rows(&self.config, kin, measured, &comp);
         let mut lsq = self.lsq.clone();
         for (row, yk) in rows.iter().zip(y.iter()) {
@@ -564,17 +639,23 @@ impl PayloadIdentifier {
         {
             take(p, s);
         }
-        if self.config.comp.creep_tau_s.is_some() {
-            for (p, s) in params.creep.iter_mut().zip(std_dev.creep.iter_mut()) {
+        for (k, (p, s)) in params
+            .creep
+            .iter_mut()
+            .zip(std_dev.creep.iter_mut())
+            .enumerate()
+        {
+            if self.config.comp.creep_on(k) {
                 take(p, s);
             }
         }
-        if self.config.comp.drift {
-            for (p, s) in params
-                .drift_per_s
-                .iter_mut()
-                .zip(std_dev.drift_per_s.iter_mut())
-            {
+        for (k, (p, s)) in params
+            .drift_per_s
+            .iter_mut()
+            .zip(std_dev.drift_per_s.iter_mut())
+            .enumerate()
+        {
+            if self.config.comp.drift_on(k) {
                 take(p, s);
             }
         }
@@ -629,20 +710,21 @@ impl PayloadModel {
     }
 
     /// The wrench the model expects with no contact: `A_ext [F_0; phi] +
-    /// F_u`, advancing the creep/drift state with this sample's reading.
+    /// F_u`, advancing the creep/drift state with this sample's payload load.
+    /// A non-finite input returns [`PayloadError::NonFinite`] and leaves the
+    /// state unchanged.
     pub fn predict(
         &self,
         state: &mut CompState,
         kin: &Kinematics<f32>,
-        measured: &Wrench<f32>,
         dt_s: f32,
     ) -> Result<Wrench<f32>, PayloadError> {
-        if !kin.is_finite() || measured.iter().any(|v| !v.is_finite()) || !dt_s.is_finite() {
+        if !kin.is_finite() || !dt_s.is_finite() {
             return Err(PayloadError::NonFinite);
         }
-        let cols = state.update(&self.comp, measured, dt_s);
         let phi = SVector::<f32, N_INERTIAL>::from(self.inertial);
         let mut f = regressor(kin) * phi;
+        let cols = state.update(&self.comp, &f, dt_s);
         for (k, fk) in f.iter_mut().enumerate() {
             let off = self.offset.get(k).copied().unwrap_or(0.0);
             let rho = self.creep.get(k).copied().unwrap_or(0.0);
@@ -662,7 +744,10 @@ impl PayloadModel {
         measured: &Wrench<f32>,
         dt_s: f32,
     ) -> Result<Wrench<f32>, PayloadError> {
-        Ok(measured - self.predict(state, kin, measured, dt_s)?)
+        if measured.iter().any(|v| !v.is_finite()) {
+            return Err(PayloadError::NonFinite);
+        }
+        Ok(measured - self.predict(state, kin, dt_s)?)
     }
 }
 
@@ -859,10 +944,7 @@ mod tests {
     #[test]
     fn bad_config_and_input_are_values() {
         let cfg = IdentConfig {
-            comp: CompConfig {
-                creep_tau_s: Some(-1.0),
-                drift: false,
-            },
+            comp: CompConfig::all_axes(Some(-1.0), false),
             ..IdentConfig::default()
         };
         assert_eq!(

@@ -96,6 +96,22 @@ pub enum EffectKind {
     /// `u * a`: load-dependent stretch (e.g. tension times position, the
     /// stiffening or softening of a cable with load), or `u^2` with `a = u`.
     Product,
+    /// `|a| tanh(v / v_eps)`, `v` the input (a velocity), `a` the second
+    /// signal (a load): Coulomb friction proportional to the force the
+    /// element transmits (a cable wrapped on a pulley, a loaded gear: the
+    /// capstan effect, a load-dependent efficiency). Coefficient = friction
+    /// per unit of load.
+    LoadCoulomb {
+        /// Smoothing velocity of the sign (input unit).
+        v_eps: f32,
+    },
+    /// `|a| z`, `z` the [`Dahl`](EffectKind::Dahl) state of the input (a
+    /// position), `a` the second signal (a load): presliding hysteresis whose
+    /// level grows with the transmitted load.
+    LoadDahl {
+        /// Characteristic length `L`, input unit.
+        length: f32,
+    },
     /// First-order lag `y' = (u - y) / tau`: the part of a response that
     /// follows the input slowly (viscoelastic relaxation).
     Relaxation {
@@ -229,6 +245,8 @@ impl EffectKind {
             EffectKind::Dahl { .. } => "dahl",
             EffectKind::DeadZone { .. } => "deadzone",
             EffectKind::Product => "product",
+            EffectKind::LoadCoulomb { .. } => "load_coulomb",
+            EffectKind::LoadDahl { .. } => "load_dahl",
             EffectKind::Relaxation { .. } => "relax",
             EffectKind::Creep { .. } => "creep",
             EffectKind::Thermal { .. } => "thermal",
@@ -257,6 +275,12 @@ impl EffectKind {
             }
             EffectKind::DeadZone { .. } => "dead zone on a position: slack cable or backlash",
             EffectKind::Product => "product of two signals: load-dependent stretch or stiffness",
+            EffectKind::LoadCoulomb { .. } => {
+                "Coulomb friction growing with the transmitted load (capstan, load-dependent efficiency)"
+            }
+            EffectKind::LoadDahl { .. } => {
+                "presliding hysteresis (Dahl) whose level grows with the transmitted load"
+            }
             EffectKind::Relaxation { .. } => {
                 "first-order lagged copy of the signal: viscoelastic relaxation"
             }
@@ -279,6 +303,14 @@ impl EffectKind {
         )
     }
 
+    /// Whether the kind reads a second signal (`aux`).
+    pub const fn uses_aux(&self) -> bool {
+        matches!(
+            self,
+            EffectKind::Product | EffectKind::LoadCoulomb { .. } | EffectKind::LoadDahl { .. }
+        )
+    }
+
     /// The positive parameters of the kind, with their names.
     fn positive_params(&self) -> [(&'static str, f32); 2] {
         const NONE: (&str, f32) = ("", 1.0);
@@ -288,7 +320,9 @@ impl EffectKind {
             | EffectKind::Relaxation { tau_s }
             | EffectKind::Creep { tau_s }
             | EffectKind::Thermal { tau_s } => [("tau_s", tau_s), NONE],
-            EffectKind::SmoothSign { v_eps } => [("v_eps", v_eps), NONE],
+            EffectKind::SmoothSign { v_eps } | EffectKind::LoadCoulomb { v_eps } => {
+                [("v_eps", v_eps), NONE]
+            }
             EffectKind::Stribeck { v_s, v_eps } => [("v_s", v_s), ("v_eps", v_eps)],
             EffectKind::Play { half_width } | EffectKind::Stop { half_width } => {
                 [("half_width", half_width), NONE]
@@ -298,7 +332,9 @@ impl EffectKind {
                 let c = if center.is_finite() { 1.0 } else { f32::NAN };
                 [("half_width", half_width), ("center", c)]
             }
-            EffectKind::Dahl { length } => [("length", length), NONE],
+            EffectKind::Dahl { length } | EffectKind::LoadDahl { length } => {
+                [("length", length), NONE]
+            }
             EffectKind::Constant
             | EffectKind::Linear
             | EffectKind::Product
@@ -334,6 +370,12 @@ impl Term {
         }
     }
 
+    /// A two-signal term: `kind` reads `input` and `aux` (the load of
+    /// [`EffectKind::LoadCoulomb`] and [`EffectKind::LoadDahl`]).
+    pub const fn with_aux(kind: EffectKind, input: u8, aux: u8) -> Self {
+        Self { kind, input, aux }
+    }
+
     /// Short name of the kind.
     pub const fn name(&self) -> &'static str {
         self.kind.name()
@@ -356,7 +398,7 @@ impl Term {
         if self.kind.uses_input() && self.input as usize >= n_signals {
             return Err(out(self.input));
         }
-        if self.kind == EffectKind::Product && self.aux as usize >= n_signals {
+        if self.kind.uses_aux() && self.aux as usize >= n_signals {
             return Err(out(self.aux));
         }
         for (name, v) in self.kind.positive_params() {
@@ -375,6 +417,10 @@ impl Term {
     pub fn update(&self, state: &mut TermState, signals: &[f32], dt_s: f32) -> f32 {
         let u = signals.get(self.input as usize).copied().unwrap_or(0.0);
         if self.kind.uses_input() && !u.is_finite() {
+            return f32::NAN;
+        }
+        let a = signals.get(self.aux as usize).copied().unwrap_or(0.0);
+        if self.kind.uses_aux() && !a.is_finite() {
             return f32::NAN;
         }
         let dt_s = if dt_s > 0.0 && dt_s.is_finite() {
@@ -410,31 +456,15 @@ impl Term {
             EffectKind::Stop { half_width } => {
                 (f64::from(u) - play(state, u, half_width, first)) as f32
             }
-            EffectKind::Dahl { length } => {
-                let x = f64::from(u);
-                if first {
-                    state.y = 0.0;
-                } else {
-                    let dx = x - state.aux;
-                    if dx != 0.0 {
-                        // Exact solution over a monotone step:
-                        // z = s - (s - z0) exp(-|dx| / L).
-                        let s = if dx > 0.0 { 1.0 } else { -1.0 };
-                        let a =
-                            one_minus_exp_neg(if dx > 0.0 { dx } else { -dx } / f64::from(length));
-                        state.y += (s - state.y) * a;
-                    }
-                }
-                state.aux = x;
-                state.y as f32
+            EffectKind::Dahl { length } => dahl(state, u, length, first) as f32,
+            EffectKind::LoadDahl { length } => {
+                (dahl(state, u, length, first) * f64::from(math::abs(a))) as f32
             }
+            EffectKind::LoadCoulomb { v_eps } => math::abs(a) * math::tanh(u / v_eps),
             EffectKind::DeadZone { center, half_width } => {
                 u - math::clamp(u, center - half_width, center + half_width)
             }
-            EffectKind::Product => {
-                let a = signals.get(self.aux as usize).copied().unwrap_or(0.0);
-                u * a
-            }
+            EffectKind::Product => u * a,
             EffectKind::Relaxation { tau_s } => {
                 let x = f64::from(u);
                 state.y = if first {
@@ -479,6 +509,25 @@ fn lag(state: &mut TermState, y: f64, x: f64, dt_s: f32, tau_s: f32) -> f64 {
     y + state.alpha * (x - y)
 }
 
+/// Dahl state `z` of the position `u`: `dz/dx = (1 - z sgn(dx)) / L`, solved
+/// exactly over each monotone step, `z = s - (s - z0) exp(-|dx| / L)`; 0 at
+/// the first sample.
+fn dahl(state: &mut TermState, u: f32, length: f32, first: bool) -> f64 {
+    let x = f64::from(u);
+    if first {
+        state.y = 0.0;
+    } else {
+        let dx = x - state.aux;
+        if dx != 0.0 {
+            let s = if dx > 0.0 { 1.0 } else { -1.0 };
+            let a = one_minus_exp_neg(if dx > 0.0 { dx } else { -dx } / f64::from(length));
+            state.y += (s - state.y) * a;
+        }
+    }
+    state.aux = x;
+    state.y
+}
+
 /// Play operator: the output stays put until the input is more than `w` away,
 /// then is dragged along at distance `w`.
 fn play(state: &mut TermState, u: f32, w: f32, first: bool) -> f64 {
@@ -513,6 +562,12 @@ impl fmt::Display for Term {
                 write!(f, "{n}[{}](w={half_width:e})", self.input)
             }
             EffectKind::Dahl { length } => write!(f, "{n}[{}](L={length:e})", self.input),
+            EffectKind::LoadCoulomb { v_eps } => {
+                write!(f, "{n}[{}*|{}|](eps={v_eps:e})", self.input, self.aux)
+            }
+            EffectKind::LoadDahl { length } => {
+                write!(f, "{n}[{}*|{}|](L={length:e})", self.input, self.aux)
+            }
             EffectKind::DeadZone { center, half_width } => {
                 write!(f, "{n}[{}](c={center:e},w={half_width:e})", self.input)
             }
@@ -649,7 +704,9 @@ pub const LIBRARY_MAX: usize = 40;
 /// * velocity: linear (viscous), `coulomb` at 0.5/2 % and `stribeck` at 5/20 %
 ///   of the largest speed;
 /// * current: linear, `thermal` at three time constants;
-/// * load: linear, `load x position`, `load^2`, `creep` at three time constants.
+/// * load: linear, `load x position`, `load^2`, `creep` at three time constants;
+///   with a velocity, `load_coulomb` at the `coulomb` widths; with a
+///   position, `load_dahl` at the `dahl` lengths.
 ///
 /// Time constants are `tau_lo = max(20 dt, T/100)`, `tau_hi = T/3` and their
 /// geometric mean. `play` and `relax` are left out because with the linear
@@ -657,7 +714,7 @@ pub const LIBRARY_MAX: usize = 40;
 /// an empty range are skipped.
 pub fn candidate_library(spec: &LibrarySpec) -> heapless::Vec<Term, LIBRARY_MAX> {
     let mut v = heapless::Vec::new();
-    // LIBRARY_MAX exceeds the largest set (34 terms), so pushes cannot fail.
+    // LIBRARY_MAX exceeds the largest set (39 terms), so pushes cannot fail.
     let mut add = |t: Term| {
         let _ = v.push(t);
     };
@@ -710,7 +767,8 @@ pub fn candidate_library(spec: &LibrarySpec) -> heapless::Vec<Term, LIBRARY_MAX>
             add(Term::new(EffectKind::Creep { tau_s }, i));
         }
     }
-    if let Some(s) = spec.velocity.filter(|s| s.span().is_some()) {
+    let vel = spec.velocity.filter(|s| s.span().is_some());
+    if let Some(s) = vel {
         let (i, m) = (s.index, s.magnitude());
         add(Term::new(EffectKind::Linear, i));
         for f in [0.005, 0.02] {
@@ -738,6 +796,21 @@ pub fn candidate_library(spec: &LibrarySpec) -> heapless::Vec<Term, LIBRARY_MAX>
         add(Term::product(s.index, s.index));
         for tau_s in taus {
             add(Term::new(EffectKind::Creep { tau_s }, s.index));
+        }
+        if let Some(w) = vel {
+            for f in [0.005, 0.02] {
+                let kind = EffectKind::LoadCoulomb {
+                    v_eps: f * w.magnitude(),
+                };
+                add(Term::with_aux(kind, w.index, s.index));
+            }
+        }
+        if let Some(p) = pos {
+            let span = p.span().unwrap_or(1.0);
+            for f in [0.005, 0.02, 0.08] {
+                let kind = EffectKind::LoadDahl { length: f * span };
+                add(Term::with_aux(kind, p.index, s.index));
+            }
         }
     }
     v
@@ -994,6 +1067,55 @@ mod tests {
     }
 
     #[test]
+    fn load_friction_scales_with_the_load() {
+        // load_coulomb = |load| x coulomb, load_dahl = |load| x dahl, sample
+        // by sample, whatever the sign of the load.
+        let (ve, l) = (0.01f32, 0.05f32);
+        let lc = Term::with_aux(EffectKind::LoadCoulomb { v_eps: ve }, 0, 1);
+        let c = Term::new(EffectKind::SmoothSign { v_eps: ve }, 0);
+        let ld = Term::with_aux(EffectKind::LoadDahl { length: l }, 0, 1);
+        let d = Term::new(EffectKind::Dahl { length: l }, 0);
+        let (mut s1, mut s2, mut s3, mut s4) = Default::default();
+        let u: heapless::Vec<f32, 1024> = triangle(1.0, 100, 3).collect();
+        for (k, &x) in u.iter().enumerate() {
+            let load = 2.0 * libm::sinf(k as f32 * 0.03) - 0.5;
+            let v = if k > 0 { (x - u[k - 1]) * 100.0 } else { 0.0 };
+            let got = lc.update(&mut s1, &[v, load], 1e-2);
+            let want = libm::fabsf(load) * c.update(&mut s2, &[v, 0.0], 1e-2);
+            assert!(
+                (got - want).abs() < 1e-6,
+                "load_coulomb at {k}: {got} vs {want}"
+            );
+            let got = ld.update(&mut s3, &[x, load], 1e-2);
+            let want = libm::fabsf(load) * d.update(&mut s4, &[x, 0.0], 1e-2);
+            assert!(
+                (got - want).abs() < 1e-6,
+                "load_dahl at {k}: {got} vs {want}"
+            );
+        }
+        // Reads the load: validated against the signal count, NaN load gives
+        // NaN and leaves the Dahl state as it was.
+        assert_eq!(
+            ld.validate(0, 1),
+            Err(EffectError::InputOutOfRange {
+                term: 0,
+                index: 1,
+                n_signals: 1
+            })
+        );
+        let before = s3;
+        assert!(ld.update(&mut s3, &[0.3, f32::NAN], 1e-2).is_nan());
+        assert_eq!(s3, before, "state untouched by a NaN load");
+        assert_eq!(
+            Term::with_aux(EffectKind::LoadCoulomb { v_eps: 0.0 }, 0, 1).validate(0, 2),
+            Err(EffectError::BadParameter {
+                term: 0,
+                name: "v_eps"
+            })
+        );
+    }
+
+    #[test]
     fn bank_validates_and_computes() {
         let terms = [
             Term::CONSTANT,
@@ -1070,7 +1192,7 @@ mod tests {
             duration_s: 60.0,
         };
         let lib = candidate_library(&spec);
-        assert_eq!(lib.len(), 34);
+        assert_eq!(lib.len(), 39);
         let bank = EffectBank::<LIBRARY_MAX>::new(&lib, 4);
         assert!(bank.is_ok(), "{:?}", bank.err());
         for t in &lib {
@@ -1078,7 +1200,13 @@ mod tests {
                 EffectKind::Stop { half_width } => {
                     assert!((0.005 * 8e-3 * 0.99..=0.08 * 8e-3 * 1.01).contains(&half_width))
                 }
-                EffectKind::SmoothSign { v_eps } => assert!(v_eps <= 0.02 * 0.02 * 1.001),
+                EffectKind::SmoothSign { v_eps } | EffectKind::LoadCoulomb { v_eps } => {
+                    assert!(v_eps <= 0.02 * 0.02 * 1.001)
+                }
+                EffectKind::LoadDahl { length } => {
+                    assert!((0.005 * 8e-3 * 0.99..=0.08 * 8e-3 * 1.01).contains(&length));
+                    assert_eq!((t.input, t.aux), (0, 3), "position x load");
+                }
                 EffectKind::Creep { tau_s } | EffectKind::Thermal { tau_s } => {
                     assert!((0.6 * 0.99..=20.0 * 1.01).contains(&tau_s), "tau {tau_s}")
                 }

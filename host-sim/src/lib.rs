@@ -6,6 +6,8 @@ pub mod import;
 pub mod ingest;
 pub mod log;
 pub mod plant;
+pub mod plot;
+pub mod residual;
 pub mod scenario;
 pub mod sim;
 pub mod simulate;

@@ -34,6 +34,8 @@ enum Command {
     Simulate(host_sim::simulate::SimulateArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
     Identify(host_sim::ident::IdentifyArgs),
+    /// Residual analysis: rank and add effect terms, judged on validation data.
+    Residual(host_sim::residual::ResidualArgs),
 }
 
 fn main() -> ExitCode {
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
         Some(Command::Trace(args)) => host_sim::trace::run(args),
         Some(Command::Simulate(a)) => host_sim::simulate::run(a),
         Some(Command::Identify(a)) => host_sim::ident::run(a),
+        Some(Command::Residual(a)) => host_sim::residual::run(a),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),
     };

@@ -1,0 +1,693 @@
+//! From logs to a selection [`Problem`]: the target, the baseline regressors
+//! and the candidate effect library of each model.
+//!
+//! * `jae`: target `theta_rad` (magnetic encoder, calibration runs); baseline
+//!   the seed's Eq. 26 columns `[x2'', x2', sgn x2', x2]` and an offset, on the
+//!   signals the core derives from the log ([`crate::derive`]); candidates
+//!   read only the run-time signals ([`SIGNAL_NAMES`]), so the selected model
+//!   can be written to `config.jae` and run by the firmware.
+//! * `tension`: target the DOB's cable-1 tension `tension1_hat_n` (no-load
+//!   runs); baseline the simplified model C `[sgn x1', sgn x2', x2, 1]`. The
+//!   core compares the DOB's tension with `Q[F_1']` (the model through the
+//!   observer's low-pass), so every column is passed through the same `Q`.
+//!   The motor current enters only through the thermal terms: a term linear
+//!   in the current would copy the DOB's own input and hide any load.
+//! * `force`: target the reference tip force `f_ext_n`; baseline the DOB's
+//!   `f_ext_hat_n` as it is. Candidates are run-time signals through `Q`; a
+//!   selected term maps onto `config.tension.added` (the force estimate is
+//!   `(F_1_hat - Q[F_1']) r / l_e`).
+//! * generic (`--target`, `--inputs`): baseline linear in the inputs plus a
+//!   constant; candidates from the inputs, by unit suffix (`_m`, `_rad`:
+//!   position, with a velocity from the core's tracking observer; `_m_s`,
+//!   `_rad_s`: velocity; `_a`: current, also the load when no force or torque
+//!   input is given; `_n`, `_nm`: load).
+//!
+//! Reference columns (ground truth and reference sensors: [`is_reference`])
+//! are inputs only when `--inputs` names them.
+
+use std::path::Path;
+
+use anyhow::{bail, ensure, Context, Result};
+use cable_joint::effects::{candidate_library, EffectKind, LibrarySpec, SignalRange, Term};
+use cable_joint::filter::{LowPass1, SignMemory, TrackingObserver};
+use cable_joint::model::{sig, SIGNAL_NAMES};
+use cable_joint::Config;
+
+use super::select::{lowpass, term_column, Problem, RunData};
+use crate::derive::{config_for_log, derive, median_period_s};
+use crate::log::{Log, Schema};
+
+/// Which model to fit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ModelKind {
+    /// Joint-angle estimator (`theta_rad`).
+    Jae,
+    /// No-load cable-1 tension model (`tension1_hat_n`).
+    Tension,
+    /// External tip force (`f_ext_n`) on top of the DOB's estimate.
+    Force,
+    /// Any column from any inputs.
+    Generic {
+        /// Target column.
+        target: String,
+        /// Input columns (`None`: every column that is not a reference).
+        inputs: Option<Vec<String>>,
+    },
+}
+
+impl ModelKind {
+    /// Short name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ModelKind::Jae => "jae",
+            ModelKind::Tension => "tension",
+            ModelKind::Force => "force",
+            ModelKind::Generic { .. } => "generic",
+        }
+    }
+
+    /// The target column.
+    pub fn target(&self) -> &str {
+        match self {
+            ModelKind::Jae => "theta_rad",
+            ModelKind::Tension => "tension1_hat_n",
+            ModelKind::Force => "f_ext_n",
+            ModelKind::Generic { target, .. } => target,
+        }
+    }
+}
+
+/// Columns that exist only in calibration or as ground truth: never inputs
+/// unless named. Also any column containing `_true` (simulator truth).
+pub const REFERENCE_COLUMNS: [&str; 6] = [
+    "theta_rad",
+    "theta_mag_rad",
+    "f_ext_n",
+    "tau_ext_nm",
+    "tau_in_nm",
+    "theta_ref_rad",
+];
+
+/// Bookkeeping columns, never inputs.
+const BOOKKEEPING: [&str; 4] = ["t_s", "mode", "fault_code", "phase"];
+
+/// Whether a column is a reference (ground truth or a reference sensor).
+pub fn is_reference(name: &str) -> bool {
+    REFERENCE_COLUMNS.contains(&name) || name.contains("_true")
+}
+
+/// Zero of the angles of an imported MRDLab run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MrdlabZero {
+    /// The encoders' own zero, common to all runs (default): the jaw angle
+    /// from the jaw encoder's count, the spindle angle from the homing target
+    /// (raw column 10 at the first sample).
+    #[default]
+    Encoder,
+    /// Each run's first sample, as [`crate::import`] gives them.
+    FirstSample,
+}
+
+/// The first data line of a raw MRDLab file (for the encoders' zero).
+fn mrdlab_first_row(path: &Path) -> Result<Vec<f64>> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let gz = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    let reader: Box<dyn std::io::Read> = if gz {
+        Box::new(flate2::read::MultiGzDecoder::new(file))
+    } else {
+        Box::new(file)
+    };
+    for line in std::io::BufReader::new(reader).lines() {
+        let line = line.with_context(|| format!("reading {}", path.display()))?;
+        if line.starts_with('%') || line.trim().is_empty() {
+            continue;
+        }
+        return line
+            .split(',')
+            .map(|c| c.trim().parse::<f64>().map_err(anyhow::Error::from))
+            .collect::<Result<Vec<f64>>>()
+            .with_context(|| format!("{}: first data line", path.display()));
+    }
+    bail!("{}: no data line", path.display())
+}
+
+/// Read a log: MRDLab raw runs (`.TXT`, `.TXT.gz`) are imported (angles on
+/// `zero`), anything else is read as a CSV log (`project`: with the
+/// project's required columns; otherwise any columns, `t_s` required).
+///
+/// Why [`MrdlabZero::Encoder`]: the importer rebases every angle to the run's
+/// first sample. The jaw and spindle encoders were not reset between runs:
+/// every run starts with the spindle homed to the same count (within 3 of
+/// 8192) while the jaw rests up to 20 of 4000 counts (1.8°) apart, the state
+/// the transmission's hysteresis was left in. Rebased, each run would carry
+/// its own offset of up to 1.8° that no input-side signal can explain.
+pub fn load_log(path: &Path, project: bool, zero: MrdlabZero) -> Result<Log> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".gz").unwrap_or(&name);
+    if stem.ends_with(".txt") {
+        let mut log = crate::import::import_mrdlab(path)?;
+        if zero == MrdlabZero::Encoder {
+            use crate::import::{JAW_COUNTS_PER_REV, SPINDLE_COUNTS_PER_REV};
+            use std::f64::consts::TAU;
+            let first = mrdlab_first_row(path)?;
+            ensure!(
+                first.len() >= 10,
+                "{}: short first data line",
+                path.display()
+            );
+            let jaw0 = first[4] * TAU / JAW_COUNTS_PER_REV;
+            // The importer gives (first - raw) for the spindle (sign flipped)
+            // and (raw - first) for the jaw.
+            let spindle0 = (first[9] - first[1]) * TAU / SPINDLE_COUNTS_PER_REV;
+            for (col, d) in [("theta_rad", jaw0), ("spindle_rad", spindle0)] {
+                let v: Vec<f64> = log.col_required(col)?.iter().map(|x| x + d).collect();
+                log.set_col(col, v)?;
+            }
+        }
+        return Ok(log);
+    }
+    let schema = if project {
+        Schema::project()
+    } else {
+        Schema::with_required(&["t_s"])
+    };
+    Ok(Log::read_with(path, &schema)?)
+}
+
+/// A log with its name.
+#[derive(Clone, Debug)]
+pub struct NamedLog {
+    /// File name for reports.
+    pub name: String,
+    /// The data.
+    pub log: Log,
+}
+
+/// How the problem is built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildOptions {
+    /// Share of each fitting run held out for validation when no validation
+    /// log is given (its last part).
+    pub holdout: f64,
+    /// `jae`/`tension`: the terms already in the configuration's `added`
+    /// join the baseline (their coefficients are refitted), so the loop
+    /// continues from the model the estimator already runs.
+    pub keep_added: bool,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            holdout: 0.3,
+            keep_added: false,
+        }
+    }
+}
+
+fn f32s(v: &[f64]) -> Vec<f32> {
+    v.iter().map(|x| *x as f32).collect()
+}
+
+/// Signals by role for the candidate library.
+#[derive(Clone, Debug, Default)]
+struct Roles {
+    position: Vec<u8>,
+    velocity: Vec<u8>,
+    current: Vec<u8>,
+    load: Vec<u8>,
+}
+
+/// Per-signal range over the fitting rows of all runs.
+fn signal_range(runs: &[RunData], index: u8) -> Option<SignalRange> {
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for r in runs {
+        let s = &r.signals[index as usize];
+        for k in r.fit_rows.clone() {
+            let v = s[k];
+            if v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    (lo.is_finite() && hi > lo).then_some(SignalRange {
+        index,
+        min: lo,
+        max: hi,
+    })
+}
+
+/// The union of [`candidate_library`] over the roles' signals (without
+/// repeats): each position, velocity and current alone, each load with the
+/// first position and the first velocity (for the load x position products
+/// and the load-dependent friction).
+fn library(roles: &Roles, runs: &[RunData], period_s: f64, duration_s: f64) -> Vec<Term> {
+    let base = LibrarySpec {
+        position: None,
+        velocity: None,
+        current: None,
+        load: None,
+        sample_period_s: period_s as f32,
+        duration_s: duration_s as f32,
+    };
+    let range = |i: u8| signal_range(runs, i);
+    let mut specs = vec![base];
+    for &p in &roles.position {
+        specs.push(LibrarySpec {
+            position: range(p),
+            ..base
+        });
+    }
+    for &v in &roles.velocity {
+        specs.push(LibrarySpec {
+            velocity: range(v),
+            ..base
+        });
+    }
+    for &c in &roles.current {
+        specs.push(LibrarySpec {
+            current: range(c),
+            ..base
+        });
+    }
+    for &l in &roles.load {
+        specs.push(LibrarySpec {
+            load: range(l),
+            position: roles.position.first().and_then(|&p| range(p)),
+            velocity: roles.velocity.first().and_then(|&v| range(v)),
+            ..base
+        });
+    }
+    let mut out: Vec<Term> = Vec::new();
+    for s in specs {
+        for t in candidate_library(&s) {
+            if !out.contains(&t) {
+                out.push(t);
+            }
+        }
+    }
+    out
+}
+
+fn duration_s(runs: &[RunData]) -> f64 {
+    runs.iter()
+        .filter(|r| !r.fit_rows.is_empty())
+        .map(|r| r.t_s[r.fit_rows.end - 1] - r.t_s[r.fit_rows.start])
+        .fold(0.0, f64::max)
+}
+
+/// The run-time signals of a log as the core sees them (positions relative
+/// to the first sample, as after `set_origin`), the derived log, and the
+/// configuration at the log's rate.
+fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, Log, Config)> {
+    let cfg = config_for_log(log, config)?;
+    let d = derive(log, &cfg)?;
+    let mut signals = Vec::with_capacity(SIGNAL_NAMES.len());
+    for name in SIGNAL_NAMES {
+        let v = d.col_required(name)?;
+        let first = match name {
+            "x1_m" | "x2_m" | "phi_rad" => log.col_required(name)?[0],
+            _ => 0.0,
+        };
+        signals.push(v.iter().map(|x| (x - first) as f32).collect());
+    }
+    Ok((signals, d, cfg))
+}
+
+fn held_sign(vel: &[f32], switch_speed: f32) -> Vec<f64> {
+    let m = SignMemory { switch_speed };
+    let mut s = 0.0f32;
+    vel.iter()
+        .map(|v| f64::from(m.update(&mut s, *v)))
+        .collect()
+}
+
+/// What the core's configuration needs to take a `jae`/`tension` result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildInfo {
+    /// Configuration at the logs' control rate.
+    pub config: Config,
+}
+
+/// Build the problem for `kind` from fitting and validation logs.
+pub fn build(
+    kind: &ModelKind,
+    fit: &[NamedLog],
+    validate: &[NamedLog],
+    config: &Config,
+    opts: BuildOptions,
+) -> Result<(Problem, BuildInfo)> {
+    ensure!(!fit.is_empty(), "no log to fit");
+    ensure!(
+        (0.0..1.0).contains(&opts.holdout),
+        "holdout must be in [0, 1), got {}",
+        opts.holdout
+    );
+    let mut runs = Vec::new();
+    let mut problem = Problem {
+        model: kind.name().to_owned(),
+        target: kind.target().to_owned(),
+        ..Default::default()
+    };
+    let mut info = BuildInfo { config: *config };
+    let all = fit
+        .iter()
+        .map(|l| (l, true))
+        .chain(validate.iter().map(|l| (l, false)));
+    let period0 = median_period_s(fit[0].log.time_s()?).context("log too short")?;
+    let generic_cols = match kind {
+        ModelKind::Generic { target, inputs } => Some(generic_columns(&fit[0], target, inputs)?),
+        _ => None,
+    };
+    for (nl, is_fit) in all {
+        let n = nl.log.len();
+        let p = median_period_s(nl.log.time_s()?).context("log too short")?;
+        ensure!(
+            (p - period0).abs() <= 0.01 * period0,
+            "{}: sample period {p} s differs from the first log's {period0} s",
+            nl.name
+        );
+        let mut run = match kind {
+            ModelKind::Generic { target, .. } => {
+                let (inputs, velocities) = generic_cols.as_ref().map(|c| (&c.0, &c.1)).unwrap();
+                generic_run(nl, target, inputs, velocities, config, &mut problem)?
+            }
+            _ => {
+                let (run, cfg) = core_run(kind, nl, config, opts.keep_added, &mut problem)?;
+                info.config = cfg;
+                run
+            }
+        };
+        let (f, v) = if !is_fit {
+            (0..0, 0..n)
+        } else if validate.is_empty() {
+            let cut = ((1.0 - opts.holdout) * n as f64).round() as usize;
+            (0..cut, cut..n)
+        } else {
+            (0..n, 0..0)
+        };
+        run.fit_rows = f;
+        run.val_rows = v;
+        runs.push(run);
+    }
+    problem.runs = runs;
+
+    let roles = match kind {
+        ModelKind::Jae => Roles {
+            position: vec![sig::X2_M, sig::X1_M, sig::THETA_MOTOR_RAD],
+            velocity: vec![sig::X2_VEL_M_S, sig::X1_VEL_M_S, sig::PHI_VEL_RAD_S],
+            current: vec![sig::I_REF_A],
+            load: vec![sig::I_REF_A],
+        },
+        ModelKind::Tension => Roles {
+            position: vec![sig::X2_M, sig::X1_M],
+            velocity: vec![sig::X1_VEL_M_S, sig::X2_VEL_M_S, sig::PHI_VEL_RAD_S],
+            current: vec![sig::I_REF_A],
+            load: vec![],
+        },
+        ModelKind::Force => Roles {
+            position: vec![sig::X2_M, sig::X1_M],
+            velocity: vec![sig::X1_VEL_M_S, sig::X2_VEL_M_S, sig::PHI_VEL_RAD_S],
+            current: vec![sig::I_REF_A],
+            load: vec![sig::I_REF_A],
+        },
+        ModelKind::Generic { .. } => generic_roles(&problem.signal_names),
+    };
+    let mut lib = library(&roles, &problem.runs, period0, duration_s(&problem.runs));
+    if *kind == ModelKind::Tension {
+        // Current only through the winding temperature (see the module doc).
+        lib.retain(|t| {
+            let reads_current = t.kind.uses_input()
+                && (t.input == sig::I_REF_A
+                    || (t.kind == EffectKind::Product && t.aux == sig::I_REF_A));
+            !reads_current || matches!(t.kind, EffectKind::Thermal { .. })
+        });
+    }
+    problem.candidates = lib;
+    Ok((problem, info))
+}
+
+fn core_run(
+    kind: &ModelKind,
+    nl: &NamedLog,
+    config: &Config,
+    keep_added: bool,
+    problem: &mut Problem,
+) -> Result<(RunData, Config)> {
+    let log = &nl.log;
+    let missing: Vec<&str> = crate::log::REQUIRED_COLUMNS
+        .into_iter()
+        .filter(|c| !log.has(c))
+        .collect();
+    ensure!(
+        missing.is_empty(),
+        "{}: the {} model replays a prototype log through the core, which needs the columns {}; missing: {} (for other data use --target/--inputs)",
+        nl.name,
+        kind.name(),
+        crate::log::REQUIRED_COLUMNS.join(", "),
+        missing.join(", ")
+    );
+    let (signals, d, cfg) =
+        runtime_signals(log, config).with_context(|| format!("replaying {}", nl.name))?;
+    let t_s = log.time_s()?.to_vec();
+    let n = t_s.len();
+    let s = |i: u8| &signals[i as usize];
+    let to64 = |v: &[f32]| v.iter().map(|x| f64::from(*x)).collect::<Vec<f64>>();
+    let lp = LowPass1::new(cfg.dob.cutoff_rad_s, cfg.period_s());
+    problem.signal_names = SIGNAL_NAMES.iter().map(|s| (*s).to_owned()).collect();
+    problem.term_dt_s = Some(cfg.period_s());
+    let need = |name: &str, what: &str| -> Result<Vec<f64>> {
+        log.col(name).map(<[f64]>::to_vec).with_context(|| {
+            format!(
+                "{}: the {} model needs the column `{name}` ({what})",
+                nl.name,
+                kind.name()
+            )
+        })
+    };
+    let (target, fixed, mut baseline, names) = match kind {
+        ModelKind::Jae => {
+            let target = need("theta_rad", "the magnetic encoder of a calibration run")?;
+            let sign = held_sign(s(sig::X2_VEL_M_S), cfg.jae.sign_switch_m_s);
+            (
+                target,
+                vec![0.0; n],
+                vec![
+                    to64(s(sig::X2_ACC_M_S2)),
+                    to64(s(sig::X2_VEL_M_S)),
+                    sign,
+                    to64(s(sig::X2_M)),
+                    vec![1.0; n],
+                ],
+                ["x2_acc_m_s2", "x2_vel_m_s", "sgn(x2_vel)", "x2_m", "offset"],
+            )
+        }
+        ModelKind::Tension => {
+            let target = d.col_required("tension1_hat_n")?.to_vec();
+            let s1 = held_sign(s(sig::X1_VEL_M_S), cfg.tension.sign_switch_x1_m_s);
+            let s2 = held_sign(s(sig::X2_VEL_M_S), cfg.tension.sign_switch_x2_m_s);
+            problem.prefilter = Some(lp);
+            (
+                target,
+                vec![0.0; n],
+                vec![
+                    lowpass(lp, &s1),
+                    lowpass(lp, &s2),
+                    lowpass(lp, s(sig::X2_M)),
+                    vec![1.0; n],
+                ],
+                ["Q[sgn(x1_vel)]", "Q[sgn(x2_vel)]", "Q[x2_m]", "F_0", ""],
+            )
+        }
+        ModelKind::Force => {
+            let target = need("f_ext_n", "a reference force")?;
+            let fixed = d.col_required("f_ext_hat_n")?.to_vec();
+            problem.prefilter = Some(lp);
+            (target, fixed, Vec::new(), ["", "", "", "", ""])
+        }
+        ModelKind::Generic { .. } => bail!("internal: generic model in core_run"),
+    };
+    problem.baseline_names = names
+        .iter()
+        .take(baseline.len())
+        .map(|s| (*s).to_owned())
+        .collect();
+    if keep_added {
+        let (added, prefilter) = match kind {
+            ModelKind::Jae => (cfg.jae.added, None),
+            ModelKind::Tension => (cfg.tension.added, Some(lp)),
+            // The force estimate already contains config.tension.added.
+            _ => (Default::default(), None),
+        };
+        for t in added.active() {
+            baseline.push(term_column(
+                t,
+                &signals,
+                &t_s,
+                Some(cfg.period_s()),
+                prefilter,
+            ));
+            problem
+                .baseline_names
+                .push(super::select::term_label(t, &problem.signal_names));
+        }
+        problem.kept = added.active().to_vec();
+    }
+    Ok((
+        RunData {
+            name: nl.name.clone(),
+            t_s,
+            target,
+            fixed,
+            baseline,
+            signals,
+            fit_rows: 0..0,
+            val_rows: 0..0,
+        },
+        cfg,
+    ))
+}
+
+/// Inputs and derived velocities `(position input, velocity name)` of a
+/// generic model.
+type GenericCols = (Vec<String>, Vec<(String, String)>);
+
+fn generic_columns(
+    first: &NamedLog,
+    target: &str,
+    inputs: &Option<Vec<String>>,
+) -> Result<GenericCols> {
+    let log = &first.log;
+    ensure!(
+        log.has(target),
+        "{}: no target column `{target}` (columns: {})",
+        first.name,
+        log.names().join(", ")
+    );
+    let inputs: Vec<String> = match inputs {
+        Some(v) => v.clone(),
+        None => log
+            .names()
+            .into_iter()
+            .filter(|n| *n != target && !BOOKKEEPING.contains(n) && !is_reference(n))
+            .map(str::to_owned)
+            .collect(),
+    };
+    ensure!(!inputs.is_empty(), "no input columns");
+    ensure!(
+        !inputs.iter().any(|i| i == target),
+        "the target `{target}` is also an input"
+    );
+    ensure!(
+        inputs.len() + 1 + cable_joint::model::MAX_TERMS <= super::select::MAX_COLUMNS,
+        "{} inputs: too many for one fit; name them with --inputs",
+        inputs.len()
+    );
+    let mut vel = Vec::new();
+    for i in &inputs {
+        let v = if let Some(stem) = i.strip_suffix("_rad") {
+            format!("{stem}_vel_rad_s")
+        } else if let Some(stem) = i.strip_suffix("_m") {
+            format!("{stem}_vel_m_s")
+        } else {
+            continue;
+        };
+        if !inputs.contains(&v) {
+            vel.push((i.clone(), v));
+        }
+    }
+    Ok((inputs, vel))
+}
+
+fn generic_run(
+    nl: &NamedLog,
+    target: &str,
+    inputs: &[String],
+    velocities: &[(String, String)],
+    config: &Config,
+    problem: &mut Problem,
+) -> Result<RunData> {
+    let log = &nl.log;
+    let t_s = log.time_s()?.to_vec();
+    let n = t_s.len();
+    let period = median_period_s(&t_s).context("log too short")? as f32;
+    let col = |name: &str| -> Result<Vec<f64>> {
+        log.col(name).map(<[f64]>::to_vec).with_context(|| {
+            format!(
+                "{}: no column `{name}` (columns: {})",
+                nl.name,
+                log.names().join(", ")
+            )
+        })
+    };
+    let target_v = col(target)?;
+    let mut baseline = Vec::new();
+    let mut signals = Vec::new();
+    for i in inputs {
+        let v = col(i)?;
+        signals.push(f32s(&v));
+        baseline.push(v);
+    }
+    baseline.push(vec![1.0; n]);
+    for (pos, _) in velocities {
+        let bw = if pos.ends_with("_rad") {
+            config.differentiators.motor_bandwidth_hz
+        } else {
+            config.differentiators.grating_bandwidth_hz
+        };
+        let obs = TrackingObserver::new(bw, period);
+        let x = col(pos)?;
+        let mut st = Default::default();
+        obs.reset(&mut st, x[0] as f32);
+        signals.push(
+            x.iter()
+                .map(|v| obs.update(&mut st, *v as f32).vel)
+                .collect(),
+        );
+    }
+    problem.baseline_names = inputs.iter().cloned().chain(["const".to_owned()]).collect();
+    problem.signal_names = inputs
+        .iter()
+        .cloned()
+        .chain(velocities.iter().map(|v| v.1.clone()))
+        .collect();
+    problem.term_dt_s = None;
+    Ok(RunData {
+        name: nl.name.clone(),
+        t_s,
+        target: target_v,
+        fixed: vec![0.0; n],
+        baseline,
+        signals,
+        fit_rows: 0..0,
+        val_rows: 0..0,
+    })
+}
+
+fn generic_roles(names: &[String]) -> Roles {
+    let mut r = Roles::default();
+    for (k, n) in names.iter().enumerate() {
+        let k = k as u8;
+        if n.ends_with("_m_s2") || n.ends_with("_rad_s2") {
+            continue;
+        } else if n.ends_with("_m_s") || n.ends_with("_rad_s") {
+            r.velocity.push(k);
+        } else if n.ends_with("_m") || n.ends_with("_rad") {
+            r.position.push(k);
+        } else if n.ends_with("_a") {
+            r.current.push(k);
+        } else if n.ends_with("_n") || n.ends_with("_nm") {
+            r.load.push(k);
+        }
+    }
+    if r.load.is_empty() {
+        r.load = r.current.clone();
+    }
+    r
+}

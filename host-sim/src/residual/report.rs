@@ -1,0 +1,386 @@
+//! Printed table, JSON and plots of an [`Analysis`].
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use cable_joint::effects::Term;
+use serde_json::{json, Value};
+
+use super::select::{Coef, Diagnostics, Step};
+use super::Analysis;
+use crate::plot::{write_figure, Figure, Panel, Series};
+
+/// Display unit of a target by its name's suffix: `(unit, factor from SI)`.
+pub fn display_unit(target: &str) -> (&'static str, f64) {
+    if target.ends_with("_rad") {
+        ("deg", 180.0 / std::f64::consts::PI)
+    } else if target.ends_with("_nm") {
+        ("mN·m", 1e3)
+    } else if target.ends_with("_n") {
+        ("N", 1.0)
+    } else if target.ends_with("_m") {
+        ("µm", 1e6)
+    } else if target.ends_with("_a") {
+        ("mA", 1e3)
+    } else {
+        ("", 1.0)
+    }
+}
+
+/// SI unit of a target by its name's suffix.
+pub fn si_unit(target: &str) -> &'static str {
+    for (suffix, unit) in [
+        ("_rad", "rad"),
+        ("_nm", "N·m"),
+        ("_n", "N"),
+        ("_m", "m"),
+        ("_a", "A"),
+    ] {
+        if target.ends_with(suffix) {
+            return unit;
+        }
+    }
+    ""
+}
+
+/// Write bytes to `path` through a temporary file in the same directory.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)
+        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
+    std::io::Write::write_all(&mut tmp, bytes)
+        .with_context(|| format!("writing {}", path.display()))?;
+    tmp.persist(path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+fn baseline_label(a: &Analysis) -> String {
+    match a.kind {
+        super::ModelKind::Jae => "seed Eq. 26 [x2'', x2', sgn x2', x2] + offset".into(),
+        super::ModelKind::Tension => {
+            "simplified model C [sgn x1', sgn x2', x2, 1] (through Q)".into()
+        }
+        super::ModelKind::Force => "DOB estimate f_ext_hat_n".into(),
+        super::ModelKind::Generic { .. } => {
+            format!(
+                "linear in [{}] + constant",
+                a.problem.baseline_names[..a.problem.baseline_names.len() - 1].join(", ")
+            )
+        }
+    }
+}
+
+/// The kind's parameters as a JSON object (`{}` for kinds without any).
+fn params_json(t: &Term) -> Value {
+    match serde_json::to_value(t.kind) {
+        Ok(Value::Object(m)) => m.into_iter().next().map(|(_, v)| v).unwrap_or(json!({})),
+        _ => json!({}),
+    }
+}
+
+fn signal(a: &Analysis, i: u8) -> Value {
+    a.problem
+        .signal_names
+        .get(i as usize)
+        .map(|s| Value::String(s.clone()))
+        .unwrap_or(Value::Null)
+}
+
+fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
+    let t = &s.term;
+    let last = s.fit.coefs.last();
+    let c = coef.or(last);
+    json!({
+        "name": s.label,
+        "kind": t.name(),
+        "meaning": s.meaning,
+        "signal": if t.kind.uses_input() { signal(a, t.input) } else { Value::Null },
+        "aux_signal": if t.kind.uses_aux() { signal(a, t.aux) } else { Value::Null },
+        "parameters": params_json(t),
+        "term": serde_json::to_value(t).unwrap_or(Value::Null),
+        "coef": c.map(|c| c.value),
+        "coef_std": c.map(|c| c.std_dev),
+        "pct_sigma": c.map(|c| c.pct_sigma),
+        "err": s.err,
+        "train_rmse": s.fit.train_rmse,
+        "val_rmse": s.fit.val_rmse,
+        "gain": s.gain,
+    })
+}
+
+/// The analysis as JSON: `model`, `target`, `unit`, `before_rmse`,
+/// `after_rmse` (validation, SI unit), `baseline`, `effects` (kept, in
+/// order: `name`, `kind`, `meaning`, `signal`, `parameters`, `coef`,
+/// `val_rmse` after adding it, ...), `set_aside`, `final`, `diagnostics`,
+/// `runs`.
+pub fn json(a: &Analysis) -> Value {
+    let o = &a.outcome;
+    let nb = o.baseline.coefs.len();
+    let (du, ds) = display_unit(&a.problem.target);
+    json!({
+        "model": a.kind.name(),
+        "target": a.problem.target,
+        "unit": si_unit(&a.problem.target),
+        "display_unit": du,
+        "display_scale": ds,
+        "fit_logs": a.fit_logs,
+        "validate_logs": a.validate_logs,
+        "holdout": a.holdout,
+        "decimate": a.options.decimate,
+        "min_gain": a.options.min_gain,
+        "n_fit": o.n_fit,
+        "n_val": o.n_val,
+        "n_candidates": o.n_candidates,
+        "baseline": {
+            "model": baseline_label(a),
+            "coefs": o.baseline.coefs,
+            "train_rmse": o.baseline.train_rmse,
+            "val_rmse": o.baseline.val_rmse,
+            "condition": o.baseline.condition,
+        },
+        "before_rmse": o.baseline.val_rmse,
+        "after_rmse": o.final_fit.val_rmse,
+        "effects": o.accepted.iter().enumerate()
+            .map(|(k, s)| step_json(a, s, o.final_fit.coefs.get(nb + k)))
+            .collect::<Vec<_>>(),
+        "set_aside": o.rejected.iter().map(|s| step_json(a, s, None)).collect::<Vec<_>>(),
+        "final": o.final_fit,
+        "diagnostics": { "before": o.before, "after": o.after },
+        "runs": o.runs,
+    })
+}
+
+fn diag_rows(out: &mut String, b: &Diagnostics, f: &Diagnostics, scale: f64, unit: &str) {
+    let _ = writeln!(
+        out,
+        "\nresidual diagnostics (validation)      before        after"
+    );
+    let row = |out: &mut String, name: &str, x: f64, y: f64, u: &str| {
+        let _ = writeln!(out, "  {name:<34} {x:>10.4} {y:>12.4} {u}");
+    };
+    row(out, "RMSE", b.rmse * scale, f.rmse * scale, unit);
+    row(out, "mean", b.mean * scale, f.mean * scale, unit);
+    row(out, "max |e|", b.max_abs * scale, f.max_abs * scale, unit);
+    for ((lag, x), (_, y)) in b.autocorr.iter().zip(&f.autocorr) {
+        row(out, &format!("autocorrelation at {lag:.3} s"), *x, *y, "");
+    }
+    let ct = |c: Option<f64>| c.map(|v| format!("{v:.3} s")).unwrap_or_else(|| "-".into());
+    let _ = writeln!(
+        out,
+        "  {:<34} {:>10} {:>12}",
+        "correlation time (acf < 1/e)",
+        ct(b.corr_time_s),
+        ct(f.corr_time_s)
+    );
+    for (name, d) in [("before", b), ("after", f)] {
+        let _ = writeln!(
+            out,
+            "  candidates most correlated with the residual {name}:"
+        );
+        for (l, r) in &d.top_correlations {
+            let _ = writeln!(out, "    {r:+.3}  {l}");
+        }
+    }
+}
+
+/// The printed table.
+pub fn table(a: &Analysis) -> String {
+    let o = &a.outcome;
+    let (unit, scale) = display_unit(&a.problem.target);
+    let mut s = String::new();
+    let val = if a.validate_logs.is_empty() {
+        format!(
+            "last {:.0} % of each fitting log",
+            100.0 * a.holdout.unwrap_or(0.0)
+        )
+    } else {
+        a.validate_logs.join(" ")
+    };
+    let _ = writeln!(
+        s,
+        "residual: model {}, target {}\n  fit on: {}\n  validate on: {}\n  {} fitting rows, {} validation rows (every {} sample), {} candidate effects",
+        a.kind.name(),
+        a.problem.target,
+        a.fit_logs.join(" "),
+        val,
+        o.n_fit,
+        o.n_val,
+        a.options.decimate,
+        o.n_candidates
+    );
+    let _ = writeln!(s, "\nbaseline: {}", baseline_label(a));
+    for c in &o.final_fit.coefs[..o.baseline.coefs.len()] {
+        let _ = writeln!(
+            s,
+            "  {:<28} {:>+14.6e} ± {:.2e}  ({:.2} %σ)",
+            c.name, c.value, c.std_dev, c.pct_sigma
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n{:<4}{:<44} {:>12} {:>12} {:>8} {:>8}",
+        "",
+        "model (validation RMSE decides)",
+        format!("val [{unit}]"),
+        format!("fit [{unit}]"),
+        "ERR",
+        "gain"
+    );
+    let _ = writeln!(
+        s,
+        "{:<4}{:<44} {:>12.4} {:>12.4}",
+        "",
+        "baseline",
+        o.baseline.val_rmse * scale,
+        o.baseline.train_rmse * scale
+    );
+    let nb = o.baseline.coefs.len();
+    for (k, st) in o.accepted.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "{:<4}{:<44} {:>12.4} {:>12.4} {:>7.1}% {:>7.1}%",
+            format!("+{}", k + 1),
+            st.label,
+            st.fit.val_rmse * scale,
+            st.fit.train_rmse * scale,
+            100.0 * st.err,
+            100.0 * st.gain
+        );
+        if let Some(c) = o.final_fit.coefs.get(nb + k) {
+            let _ = writeln!(
+                s,
+                "      {}; coef {:+.4e} ± {:.1e} ({:.1} %σ)",
+                st.meaning, c.value, c.std_dev, c.pct_sigma
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "{:<4}{:<44} {:>12.4} {:>12.4}   ({:.1} % lower than the baseline)",
+        "",
+        "final",
+        o.final_fit.val_rmse * scale,
+        o.final_fit.train_rmse * scale,
+        100.0 * (1.0 - o.final_fit.val_rmse / o.baseline.val_rmse)
+    );
+    if !o.rejected.is_empty() {
+        let _ = writeln!(
+            s,
+            "set aside (cut the validation RMSE by less than {:.1} %):",
+            100.0 * a.options.min_gain
+        );
+        for st in &o.rejected {
+            let _ = writeln!(
+                s,
+                "    {:<44} ERR {:.1} %, validation {:.4} {unit} ({:+.1} %)",
+                st.label,
+                100.0 * st.err,
+                st.fit.val_rmse * scale,
+                -100.0 * st.gain
+            );
+        }
+    }
+    diag_rows(&mut s, &o.before, &o.after, scale, unit);
+    if o.runs.len() > 1 {
+        let _ = writeln!(
+            s,
+            "\nper validation run        RMSE before [{unit}]   after [{unit}]   mean after [{unit}]"
+        );
+        for r in &o.runs {
+            let _ = writeln!(
+                s,
+                "  {:<26} {:>12.4} {:>14.4} {:>16.4}",
+                r.name,
+                r.before_rmse * scale,
+                r.after_rmse * scale,
+                r.after_mean * scale
+            );
+        }
+    }
+    s
+}
+
+/// Write `residual_time` (residual before and after over time, per
+/// validation run) and, when effects were kept, `residual_effects` (for each
+/// effect: the baseline residual and the effect's fitted contribution against
+/// its input signal). Returns the files written.
+pub fn plots(a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
+    let o = &a.outcome;
+    let (unit, scale) = display_unit(&a.problem.target);
+    let mut files = Vec::new();
+    let mut panels = Vec::new();
+    for tr in o.traces.iter().take(6) {
+        let e = |p: &[f64]| -> Vec<f64> {
+            tr.target
+                .iter()
+                .zip(p)
+                .map(|(y, q)| (y - q) * scale)
+                .collect()
+        };
+        panels.push(
+            Panel::new(
+                format!("{}: residual of {} (validation)", tr.name, a.problem.target),
+                "t [s]",
+                format!("residual [{unit}]"),
+            )
+            .with(Series::line("baseline", tr.t_s.clone(), e(&tr.before)))
+            .with(Series::line(
+                format!("with {} effect(s)", o.accepted.len()),
+                tr.t_s.clone(),
+                e(&tr.after),
+            )),
+        );
+    }
+    let cols = if panels.len() > 1 { 2 } else { 1 };
+    files.extend(write_figure(
+        &Figure::grid(panels, cols),
+        &dir.join("residual_time"),
+    )?);
+
+    if !o.accepted.is_empty() {
+        let mut panels = Vec::new();
+        for (j, st) in o.accepted.iter().enumerate() {
+            let (mut x, mut before, mut contrib, mut partial) =
+                (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            for tr in &o.traces {
+                let (input, c) = &tr.terms[j];
+                for k in 0..tr.t_s.len() {
+                    x.push(input[k]);
+                    before.push((tr.target[k] - tr.before[k]) * scale);
+                    contrib.push(c[k] * scale);
+                    partial.push((tr.target[k] - tr.after[k] + c[k]) * scale);
+                }
+            }
+            let xname = if st.term.kind.uses_input() {
+                a.problem.signal_names[st.term.input as usize].clone()
+            } else {
+                "t_s".to_owned()
+            };
+            panels.push(
+                Panel::new(
+                    format!("+{} {}", j + 1, st.label),
+                    xname,
+                    format!("[{unit}]"),
+                )
+                .with(Series::points("baseline residual", x.clone(), before))
+                .with(Series::points(
+                    "final residual + this effect",
+                    x.clone(),
+                    partial,
+                ))
+                .with(Series::points("this effect (fitted)", x, contrib)),
+            );
+        }
+        let cols = if panels.len() > 1 { 2 } else { 1 };
+        files.extend(write_figure(
+            &Figure::grid(panels, cols),
+            &dir.join("residual_effects"),
+        )?);
+    }
+    Ok(files)
+}

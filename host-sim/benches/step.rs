@@ -1,4 +1,6 @@
-//! `cargo bench -p host-sim --bench step`: host cost of one control step.
+//! `cargo bench -p host-sim --bench step`: host cost of one control step, and
+//! the simulator's speed (one simulated second of the closed-loop prototype;
+//! the real-time factor is 1 s divided by the measured time).
 //!
 //! The step is fed a recorded-style sample stream (a slow sine on every
 //! counter) in joint closed-loop mode, so every stage of the control path runs.
@@ -45,5 +47,28 @@ fn bench_step(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench_step);
+fn bench_sim(c: &mut Criterion) {
+    use host_sim::plant::PlantParams;
+    use host_sim::sim::{NullRecorder, Sim};
+    let command = Command {
+        mode: Mode::JointClosedLoop,
+        trajectory: Trajectory::Sine { offset_rad: 0.0, amplitude_rad: 0.5, freq_hz: 0.5 },
+    };
+    let mut group = c.benchmark_group("simulator");
+    group.sample_size(10);
+    group.bench_function("one_simulated_second", |b| {
+        b.iter_batched(
+            || {
+                let mut sim = Sim::new(PlantParams::default(), Config::default(), 1).expect("sim");
+                sim.set_command(command);
+                sim
+            },
+            |mut sim| black_box(sim.run_for(1.0, &mut NullRecorder)),
+            criterion::BatchSize::LargeInput,
+        )
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_step, bench_sim);
 criterion_main!(benches);

@@ -15,7 +15,11 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "host-sim", version, about = "Simulated cable-driven joint prototype and host tools")]
+#[command(
+    name = "host-sim",
+    version,
+    about = "Simulated cable-driven joint prototype and host tools"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,

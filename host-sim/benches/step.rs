@@ -52,7 +52,11 @@ fn bench_sim(c: &mut Criterion) {
     use host_sim::sim::{NullRecorder, Sim};
     let command = Command {
         mode: Mode::JointClosedLoop,
-        trajectory: Trajectory::Sine { offset_rad: 0.0, amplitude_rad: 0.5, freq_hz: 0.5 },
+        trajectory: Trajectory::Sine {
+            offset_rad: 0.0,
+            amplitude_rad: 0.5,
+            freq_hz: 0.5,
+        },
     };
     let mut group = c.benchmark_group("simulator");
     group.sample_size(10);

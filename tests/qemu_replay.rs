@@ -18,14 +18,14 @@
 
 use std::path::PathBuf;
 
-use cable_joint::board::{ControlLoop, Harness, Phase, Program, Request, Trace};
+use cable_joint::board::{firmware_config, ControlLoop, Harness, Phase, Program, Request, Trace};
 use cable_joint::telemetry::{parse_line, Record, TickRecord};
-use cable_joint::{Config, Fault, Mode};
+use cable_joint::{Fault, Mode};
 
 /// Replay `trace` exactly as the QEMU firmware runs it (decimation 1, the
 /// program requested before the first tick) and return its telemetry stream.
 fn replay(trace: &Trace) -> Vec<Record> {
-    let control = ControlLoop::new(Config::default(), 1).expect("built-in configuration");
+    let control = ControlLoop::new(firmware_config(), 1).expect("built-in configuration");
     let mut records = vec![Record::Start(control.start_record())];
     let mut harness = Harness::new(control);
     for (k, sample) in trace.iter().enumerate() {
@@ -57,7 +57,7 @@ fn committed_trace_replays_through_the_firmware_sequence() {
     let trace = Trace::parse(bytes).expect("firmware/trace.bin is a trace");
     assert_eq!(
         trace.control_rate_hz(),
-        Config::default().control_rate_hz,
+        firmware_config().control_rate_hz,
         "the trace must be recorded at the firmware's control rate"
     );
     let records = replay(&trace);

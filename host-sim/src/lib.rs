@@ -5,6 +5,7 @@ pub mod ident;
 pub mod import;
 pub mod ingest;
 pub mod log;
+pub mod payload;
 pub mod plant;
 pub mod plot;
 pub mod residual;

@@ -36,6 +36,8 @@ enum Command {
     Trace(host_sim::trace::TraceArgs),
     /// Run one scenario on the simulated prototype and write the CSV log.
     Simulate(host_sim::simulate::SimulateArgs),
+    /// Tool payload identification and tool-end wrench estimation (KUKA wrist data).
+    Payload(host_sim::payload::PayloadArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
     Identify(host_sim::ident::IdentifyArgs),
     /// Residual analysis: rank and add effect terms, judged on validation data.
@@ -53,6 +55,7 @@ fn main() -> ExitCode {
         Some(Command::Ingest(args)) => host_sim::ingest::run(args),
         Some(Command::Trace(args)) => host_sim::trace::run(args),
         Some(Command::Simulate(a)) => host_sim::simulate::run(a),
+        Some(Command::Payload(a)) => host_sim::payload::run(a),
         Some(Command::Identify(a)) => host_sim::ident::run(a),
         Some(Command::Residual(a)) => host_sim::residual::run(a),
         #[allow(unreachable_patterns)]

@@ -7,7 +7,7 @@
 //! simulated prototype ([`crate::plant::Plant`]) in closed loop with
 //! [`cable_joint::board::Harness`], the same start-up sequencer, fault
 //! handlers and control tick the firmware runs, with the firmware's
-//! configuration ([`Config::default`]) and program ([`Program::default`]).
+//! configuration ([`firmware_config`]) and program ([`Program::default`]).
 //! Tick order is [`crate::sim::Sim::step`]'s: sample, control, drive
 //! command, then the plant integrates one period in whole sub-steps.
 //!
@@ -34,10 +34,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use cable_joint::board::trace::trace_header;
-use cable_joint::board::{ControlLoop, Harness, Program, Request, TickOutcome, TraceSample};
+use cable_joint::board::{
+    firmware_config, ControlLoop, Harness, Program, Request, TickOutcome, TraceSample,
+};
 use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
 use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
-use cable_joint::{Config, RawSample};
+use cable_joint::RawSample;
 
 use crate::plant::PlantParams;
 use crate::sim::{NullRecorder, Sim};
@@ -157,7 +159,7 @@ fn boot_relative(raw: &RawSample, boot: &RawSample) -> RawSample {
 
 /// Run the closed loop and record it.
 pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorded> {
-    let config = Config::default();
+    let config = firmware_config();
     anyhow::ensure!(
         opts.duration_s.is_finite() && opts.duration_s > 0.0,
         "--duration-s must be > 0"
@@ -280,7 +282,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     if let Some(csv) = &args.csv {
         let log = crate::ingest::to_log(
             &rec.telemetry(),
-            &Config::default(),
+            &firmware_config(),
             &crate::ingest::LogOptions::default(),
         )?;
         log.write(csv)?;

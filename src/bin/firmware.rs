@@ -18,10 +18,11 @@
 //! | `telemetry`, `command` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; requests queue (4) |
 //! | `idle` | – | 0 | `wfi` |
 //!
-//! Settings: the core's `Config::default()` (datasheet values, compiled in;
-//! new parameters arrive as `Request::SetConfig` through the `command` task),
-//! the program, and the telemetry decimation (`TELEMETRY_DECIMATION`: every
-//! 10th tick on hardware, i.e. 200 Hz; every tick under QEMU).
+//! Settings: `board::firmware_config()` (the core's datasheet defaults at
+//! `board::CONTROL_RATE_HZ`, 2 kHz, up to 20 kHz; compiled in; new parameters
+//! at the same rate arrive as `Request::SetConfig` through the `command`
+//! task), the program, and the telemetry decimation (`TELEMETRY_DECIMATION`:
+//! every 10th tick on hardware, i.e. 200 Hz; every tick under QEMU).
 //!
 //! Telemetry: defmt over RTT (defmt-semihosting under QEMU). Each record is
 //! one `tlm [bytes]` line (`cable_joint::telemetry`: raw counts, ADC code,
@@ -81,10 +82,10 @@ fn log_record(record: &cable_joint::telemetry::Record) {
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART1, USART2])]
 mod app {
     use cable_joint::board::{
-        on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine, Program, Request,
+        firmware_config, on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine,
+        Program, Request,
     };
     use cable_joint::telemetry::Record;
-    use cable_joint::Config;
     use heapless::spsc::{Consumer, Producer, Queue};
 
     use super::{board, log_record, EVENTS};
@@ -112,7 +113,7 @@ mod app {
         telemetry: Queue<Record, 64> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        let config = Config::default();
+        let config = firmware_config();
         // Drive disabled first, then clocks, sensors and the control timer.
         let mut b = board::init(cx.device, cx.core, config.control_rate_hz);
         let control = match ControlLoop::new(config, board::TELEMETRY_DECIMATION) {

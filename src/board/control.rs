@@ -72,6 +72,7 @@ pub struct ControlLoop {
     seq: Sequencer,
     decimation: u32,
     tick: u32,
+    rejected: u32,
 }
 
 impl ControlLoop {
@@ -83,6 +84,7 @@ impl ControlLoop {
             seq: Sequencer::default(),
             decimation,
             tick: 0,
+            rejected: 0,
         })
     }
 
@@ -101,6 +103,12 @@ impl ControlLoop {
         self.tick
     }
 
+    /// Requests refused so far (a command before homing, a configuration
+    /// with another control rate).
+    pub fn rejected_requests(&self) -> u32 {
+        self.rejected
+    }
+
     /// The record the firmware logs once at boot.
     pub fn start_record(&self) -> StartRecord {
         StartRecord {
@@ -111,22 +119,37 @@ impl ControlLoop {
     }
 
     fn apply(&mut self, request: Request) {
-        match request {
-            Request::Program(p) => self.seq.start(&mut self.ctrl, p),
+        let accepted = match request {
+            Request::Program(p) => {
+                self.seq.start(&mut self.ctrl, p);
+                true
+            }
             Request::SetCommand(c) => {
-                if self.seq.phase() == Phase::Running {
+                let homed = self.seq.phase() == Phase::Running;
+                if homed {
                     self.ctrl.set_command(c);
                 }
+                homed
             }
             Request::SetConfig(c) => {
-                // Validated by the command task; a failure leaves the old one.
-                let _ = self.seq.set_config(&mut self.ctrl, c);
+                // The control timer's period is set at boot: another rate
+                // would make every filter wrong. Validated by the command
+                // task; a failure leaves the old configuration.
+                c.control_rate_hz == self.ctrl.config().control_rate_hz
+                    && self.seq.set_config(&mut self.ctrl, c).is_ok()
             }
             Request::ClearFault => {
                 self.ctrl.clear_fault();
                 self.seq.restart(&mut self.ctrl);
+                true
             }
-            Request::SetDecimation(n) => self.decimation = n.max(1),
+            Request::SetDecimation(n) => {
+                self.decimation = n.max(1);
+                true
+            }
+        };
+        if !accepted {
+            self.rejected = self.rejected.saturating_add(1);
         }
     }
 
@@ -333,5 +356,31 @@ mod tests {
             &mut NoCycles,
         );
         assert_eq!(o.output.mode, Mode::Idle, "not homed: refused");
+        assert_eq!(cl.rejected_requests(), 1);
+        let fast = Config {
+            control_rate_hz: 4000.0,
+            ..Config::default()
+        };
+        assert!(Request::SetConfig(fast).validate().is_ok());
+        cl.tick(
+            &mut fe,
+            &mut drive,
+            &Events::new(),
+            Some(Request::SetConfig(fast)),
+            &mut NoCycles,
+        );
+        assert_eq!(cl.controller().config().control_rate_hz, 2000.0);
+        assert_eq!(cl.rejected_requests(), 2, "the timer rate is fixed at boot");
+        let mut tuned = Config::default();
+        tuned.jae.offset_rad = 0.02;
+        cl.tick(
+            &mut fe,
+            &mut drive,
+            &Events::new(),
+            Some(Request::SetConfig(tuned)),
+            &mut NoCycles,
+        );
+        assert_eq!(cl.controller().config().jae.offset_rad, 0.02);
+        assert_eq!(cl.rejected_requests(), 2);
     }
 }

@@ -41,3 +41,16 @@ pub use trace::{Harness, ReplayFrontEnd, Trace, TraceSample};
 
 #[cfg(test)]
 pub(crate) mod mock;
+
+/// Control rate of the firmware, Hz: the TIM6 update rate, set once at boot
+/// (100 Hz to 20 kHz, as [`crate::Config::validate`] allows).
+pub const CONTROL_RATE_HZ: f32 = 2000.0;
+
+/// The configuration the firmware is built with: the core's defaults at
+/// [`CONTROL_RATE_HZ`]. The trace generator and the replay test use the same.
+pub fn firmware_config() -> crate::Config {
+    crate::Config {
+        control_rate_hz: CONTROL_RATE_HZ,
+        ..crate::Config::default()
+    }
+}

@@ -1,0 +1,194 @@
+//! The payload tool on the measured KUKA wrist data (tests/data/kuka-wrist,
+//! Zenodo 11096791, CC BY 4.0): orientation convention from the static
+//! poses, identification on one no-contact run, validation on another, the
+//! contact run, and error messages for bad input files.
+
+use std::path::{Path, PathBuf};
+
+use clap::Parser;
+use host_sim::payload::{
+    analyse, check_convention, fit_accel_calibration, load_run, load_static_poses, PayloadArgs,
+};
+
+fn data_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/kuka-wrist")
+}
+
+#[derive(Parser)]
+struct Cli {
+    #[command(flatten)]
+    args: PayloadArgs,
+}
+
+/// The CLI's defaults with the test data directory and extra flags.
+fn args(extra: &[&str]) -> PayloadArgs {
+    let dir = data_dir();
+    let mut v = vec!["payload", "--dir", dir.to_str().unwrap()];
+    v.extend_from_slice(extra);
+    Cli::parse_from(v).args
+}
+
+/// `0-calibration_fts-accel.csv` has gravity in the sensor frame and the
+/// rotation for each pose: exactly one convention reproduces it.
+#[test]
+fn orientation_convention_from_static_poses() {
+    let poses = load_static_poses(&data_dir().join("0-calibration_fts-accel.csv")).unwrap();
+    assert_eq!(poses.orient.len(), 24);
+    let c = check_convention(&poses).unwrap();
+    assert!(c.transpose, "g_s = R^T g_w expected");
+    assert!(c.world_gravity_m_s2[2] < -9.7 && c.world_gravity_m_s2[2] > -9.9);
+    assert!(c.max_err_m_s2 < 1e-3, "max error {}", c.max_err_m_s2);
+    assert!(
+        c.runner_up_max_err_m_s2 > 10.0,
+        "the alternatives must fail clearly: {}",
+        c.runner_up_max_err_m_s2
+    );
+    // The accelerometer maps into the sensor frame by a proper rotation
+    // scaled by about |g| (reading in g), with a small residual.
+    let cal = fit_accel_calibration(&poses).unwrap();
+    let r = nalgebra::Matrix3::from_fn(|i, j| cal.rotation[i][j]);
+    assert!((r.determinant() - 1.0).abs() < 1e-9);
+    assert!(cal.rms_m_s2 < 0.2, "accelerometer fit rms {}", cal.rms_m_s2);
+}
+
+/// Identify on 1-baseline, validate on 2-vibrations (no contact: the
+/// estimate is the error) and look at 3-vibrations-contact.
+#[test]
+fn identification_improves_validation_and_sees_contact() {
+    let (report, runs) = analyse(&args(&[])).unwrap();
+    let m = report
+        .params
+        .iter()
+        .find(|p| p.name == "m_kg")
+        .expect("mass in the report")
+        .value;
+    assert!(
+        m > 0.2 && m < 5.0,
+        "identified mass {m} kg outside a plausible range for a wrist payload"
+    );
+    let m_static = report
+        .static_params
+        .iter()
+        .find(|p| p.name == "m_kg")
+        .unwrap()
+        .value;
+    assert!(
+        (m - m_static).abs() < 0.05 * m_static,
+        "dynamic {m} kg and static-pose {m_static} kg masses disagree"
+    );
+
+    let val = report
+        .runs
+        .iter()
+        .find(|r| r.name == "2-vibrations")
+        .unwrap();
+    assert!(!val.contact);
+    for k in 0..6 {
+        assert!(
+            val.ident_tare[k] < val.raw[k],
+            "axis {k}: validation RMSE after identification {} not below raw {}",
+            val.ident_tare[k],
+            val.raw[k]
+        );
+        assert!(
+            val.comp_tare[k] <= val.ident_tare[k] * 1.05,
+            "axis {k}: the selected compensation {} is worse than none {} on the run that selected it",
+            val.comp_tare[k],
+            val.ident_tare[k]
+        );
+    }
+    // Forces swing by about 2 m g over the run; the estimate must remove most.
+    assert!(val.ident_tare[0] < 0.1 * val.raw[0]);
+
+    // The contact run: the estimated contact force is far above the
+    // no-contact error, and it is there only during part of the run.
+    let contact = report
+        .runs
+        .iter()
+        .find(|r| r.name == "3-vibrations-contact")
+        .unwrap();
+    assert!(contact.contact);
+    let peak_f = contact.peak[..3].iter().cloned().fold(0.0, f64::max);
+    let noise_f = val.comp_tare[..3].iter().cloned().fold(0.0, f64::max);
+    assert!(
+        peak_f > 20.0 * noise_f,
+        "contact peak {peak_f} N vs no-contact error {noise_f} N"
+    );
+    let (_, t0, t1) = report
+        .contact_intervals
+        .iter()
+        .find(|c| c.0 == "3-vibrations-contact")
+        .expect("contact detected");
+    let dur = runs[2].run.wrench.t_s.last().unwrap();
+    assert!(
+        *t0 > 0.3 && *t1 < dur - 0.3 && t1 > t0,
+        "contact interval {t0}..{t1} s should lie inside the run"
+    );
+}
+
+/// The orientation-only gravity (no linear acceleration) is worse than the
+/// accelerometer on the validation run: the linear acceleration matters.
+#[test]
+fn accelerometer_beats_orientation_only() {
+    let (acc, _) = analyse(&args(&[
+        "--accel-lag-ms",
+        "6.5",
+        "--validate",
+        "2-vibrations",
+    ]))
+    .unwrap();
+    let (ori, _) = analyse(&args(&[
+        "--gravity",
+        "orient",
+        "--validate",
+        "2-vibrations",
+    ]))
+    .unwrap();
+    let a = &acc.runs[1].ident_tare;
+    let o = &ori.runs[1].ident_tare;
+    assert!(
+        a[0] + a[2] < o[0] + o[2],
+        "accelerometer fx+fz {} vs orientation {}",
+        a[0] + a[2],
+        o[0] + o[2]
+    );
+}
+
+/// A corrupted cell is reported with the file, the line and the column.
+#[test]
+fn bad_input_names_file_line_column() {
+    let tmp = tempfile::tempdir().unwrap();
+    for f in std::fs::read_dir(data_dir()).unwrap() {
+        let f = f.unwrap();
+        std::fs::copy(f.path(), tmp.path().join(f.file_name())).unwrap();
+    }
+    let path = tmp.path().join("2-vibrations_wrench.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    // Line 6 of the file (header = line 1), column fz.
+    let mut cells: Vec<String> = lines[5].split(',').map(str::to_owned).collect();
+    cells[3] = "1.2.3".to_owned();
+    lines[5] = cells.join(",");
+    std::fs::write(&path, lines.join("\n")).unwrap();
+    let err = load_run(tmp.path(), "2-vibrations").unwrap_err();
+    let msg = format!("{err:#}");
+    assert!(msg.contains("2-vibrations_wrench.csv"), "{msg}");
+    assert!(msg.contains(":6"), "line number missing: {msg}");
+    assert!(msg.contains("fz"), "column missing: {msg}");
+
+    // A missing column is reported at the header (wrench file restored).
+    std::fs::write(&path, text).unwrap();
+    let path = tmp.path().join("2-vibrations_accel.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, text.replacen("t,ax,ay,az", "t,ax,ay,aq", 1)).unwrap();
+    let msg = format!("{:#}", load_run(tmp.path(), "2-vibrations").unwrap_err());
+    assert!(
+        msg.contains("2-vibrations_accel.csv:1") && msg.contains("az"),
+        "{msg}"
+    );
+    // Through the whole tool as well.
+    let mut a = args(&["--validate", "2-vibrations"]);
+    a.dir = tmp.path().to_path_buf();
+    let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
+    assert!(msg.contains("2-vibrations"), "{msg}");
+}

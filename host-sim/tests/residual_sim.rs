@@ -93,6 +93,7 @@ fn run(
         BuildOptions {
             holdout: 0.3,
             keep_added,
+            settle_s: 0.0,
         },
         options(max_terms),
     )

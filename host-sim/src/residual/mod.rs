@@ -100,6 +100,10 @@ pub struct ResidualArgs {
     /// Use only the first SECONDS of every log.
     #[arg(long = "t-max")]
     pub t_max_s: Option<f64>,
+    /// Leave the first SECONDS of every log out of fitting and validation
+    /// (the terms still run from the first sample).
+    #[arg(long = "settle", default_value_t = 0.0)]
+    pub settle_s: f64,
     /// jae/tension: keep the terms already in the configuration's `added`
     /// (refitted with the baseline) and add new ones after them.
     #[arg(long = "keep-added")]
@@ -130,6 +134,8 @@ pub struct Analysis {
     pub validate_logs: Vec<String>,
     /// Share held out when no validation log was given.
     pub holdout: Option<f64>,
+    /// How the problem was built.
+    pub build: BuildOptions,
 }
 
 /// Keep only the rows with `t_s <= t_max_s`.
@@ -205,6 +211,7 @@ pub fn analyse(
         fit_logs: fit.iter().map(|l| l.name.clone()).collect(),
         validate_logs: validate.iter().map(|l| l.name.clone()).collect(),
         holdout: validate.is_empty().then_some(build_opts.holdout),
+        build: build_opts,
     })
 }
 
@@ -321,6 +328,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     let build_opts = BuildOptions {
         holdout: args.holdout,
         keep_added: args.keep_added,
+        settle_s: args.settle_s,
     };
     let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
     print!("{}", report::table(&a));

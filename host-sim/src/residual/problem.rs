@@ -199,6 +199,9 @@ pub struct BuildOptions {
     /// join the baseline (their coefficients are refitted), so the loop
     /// continues from the model the estimator already runs.
     pub keep_added: bool,
+    /// Leave the first seconds of every run out of fitting and validation
+    /// (start-up transients of runs that begin at rest).
+    pub settle_s: f64,
 }
 
 impl Default for BuildOptions {
@@ -206,6 +209,7 @@ impl Default for BuildOptions {
         Self {
             holdout: 0.3,
             keep_added: false,
+            settle_s: 0.0,
         }
     }
 }
@@ -349,6 +353,11 @@ pub fn build(
         "holdout must be in [0, 1), got {}",
         opts.holdout
     );
+    ensure!(
+        opts.settle_s >= 0.0 && opts.settle_s.is_finite(),
+        "settle time must be >= 0, got {}",
+        opts.settle_s
+    );
     let mut runs = Vec::new();
     let mut problem = Problem {
         model: kind.name().to_owned(),
@@ -384,13 +393,17 @@ pub fn build(
                 run
             }
         };
+        // Rows before `settle_s` are computed (the terms' states run from
+        // the first sample) but neither fitted nor judged.
+        let t0 = run.t_s.first().copied().unwrap_or(0.0);
+        let start = run.t_s.partition_point(|t| *t < t0 + opts.settle_s).min(n);
         let (f, v) = if !is_fit {
-            (0..0, 0..n)
+            (0..0, start..n)
         } else if validate.is_empty() {
             let cut = ((1.0 - opts.holdout) * n as f64).round() as usize;
-            (0..cut, cut..n)
+            (start.min(cut)..cut, cut.max(start)..n)
         } else {
-            (0..n, 0..0)
+            (start..n, 0..0)
         };
         run.fit_rows = f;
         run.val_rows = v;

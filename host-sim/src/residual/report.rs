@@ -60,6 +60,16 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 fn baseline_label(a: &Analysis) -> String {
+    let kept = a.problem.kept.len();
+    let base = baseline_kind_label(a);
+    if kept > 0 {
+        format!("{base} + the {kept} terms already in the configuration")
+    } else {
+        base
+    }
+}
+
+fn baseline_kind_label(a: &Analysis) -> String {
     match a.kind {
         super::ModelKind::Jae => "seed Eq. 26 [x2'', x2', sgn x2', x2] + offset".into(),
         super::ModelKind::Tension => {
@@ -131,6 +141,8 @@ pub fn json(a: &Analysis) -> Value {
         "fit_logs": a.fit_logs,
         "validate_logs": a.validate_logs,
         "holdout": a.holdout,
+        "settle_s": a.build.settle_s,
+        "keep_added": a.build.keep_added,
         "decimate": a.options.decimate,
         "min_gain": a.options.min_gain,
         "n_fit": o.n_fit,
@@ -203,11 +215,16 @@ pub fn table(a: &Analysis) -> String {
     };
     let _ = writeln!(
         s,
-        "residual: model {}, target {}\n  fit on: {}\n  validate on: {}\n  {} fitting rows, {} validation rows (every {} sample), {} candidate effects",
+        "residual: model {}, target {}\n  fit on: {}\n  validate on: {}{}\n  {} fitting rows, {} validation rows (every {} sample), {} candidate effects",
         a.kind.name(),
         a.problem.target,
         a.fit_logs.join(" "),
         val,
+        if a.build.settle_s > 0.0 {
+            format!(" (first {} s of every log left out)", a.build.settle_s)
+        } else {
+            String::new()
+        },
         o.n_fit,
         o.n_val,
         a.options.decimate,

@@ -231,16 +231,14 @@ pub fn init(dp: pac::Peripherals, mut cp: cortex_m::Peripherals, rate_hz: f32) -
     pac::ADC1::enable(&mut rcc);
     pac::ADC1::reset(&mut rcc);
     let adc = &front_end.adc;
-    // SAFETY (all `bits` writes below): values from RM0090's register maps.
-    dp.ADC_COMMON
-        .ccr()
-        .modify(|_, w| unsafe { w.adcpre().bits(0b01) }); // PCLK2 / 4
-    adc.cr1().write(|w| unsafe { w.res().bits(0b00) });
+    dp.ADC_COMMON.ccr().modify(|_, w| w.adcpre().div4()); // 84 / 4 = 21 MHz
+    adc.cr1().write(|w| w.res().twelve_bit());
+    // SAFETY: L = 0 (one conversion) and SQ1 = 10 (IN10) are in range.
     adc.sqr1().write(|w| unsafe { w.l().bits(0) });
     adc.sqr3().write(|w| unsafe { w.sq1().bits(10) });
-    adc.smpr1().write(|w| unsafe { w.smp10().bits(0b001) });
+    adc.smpr1().write(|w| w.smp10().cycles15());
     adc.cr2()
-        .write(|w| unsafe { w.exten().bits(0b01).extsel().bits(0b1110).adon().set_bit() });
+        .write(|w| w.exten().rising_edge().extsel().tim8trgo().adon().set_bit());
 
     // DAC channel 1, output buffer on, no trigger (written by the control task).
     pac::DAC::enable(&mut rcc);
@@ -274,7 +272,7 @@ pub fn init(dp: pac::Peripherals, mut cp: cortex_m::Peripherals, rate_hz: f32) -
     tim8.arr().write(|w| w.arr().set(arr));
     tim8.ccr1()
         .write(|w| w.ccr().set(arr.saturating_sub(lead as u16)));
-    tim8.cr2().write(|w| unsafe { w.mms().bits(0b011) });
+    tim8.cr2().write(|w| w.mms().compare_pulse());
     tim8.egr().write(|w| w.ug().set_bit());
     tim6.psc().write(|w| w.psc().set(psc));
     tim6.arr().write(|w| w.arr().set(arr));

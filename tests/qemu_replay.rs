@@ -73,7 +73,10 @@ fn committed_trace_replays_through_the_firmware_sequence() {
     let homed = ticks
         .iter()
         .position(|t| t.phase == Phase::Running.code())
-        .expect("the replay homes");
+        .expect(
+            "the replay homes; if the core's behaviour changed, record the trace again: \
+             cargo run -p host-sim -- trace --out firmware/trace.bin",
+        );
     let edge = trace
         .iter()
         .enumerate()

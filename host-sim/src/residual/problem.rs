@@ -484,7 +484,7 @@ fn core_run(
             )
         })
     };
-    let (target, fixed, mut baseline, names) = match kind {
+    let (mut target, fixed, mut baseline, names) = match kind {
         ModelKind::Jae => {
             let target = need("theta_rad", "the magnetic encoder of a calibration run")?;
             let sign = held_sign(s(sig::X2_VEL_M_S), cfg.jae.sign_switch_m_s);
@@ -526,6 +526,14 @@ fn core_run(
         }
         ModelKind::Generic { .. } => bail!("internal: generic model in core_run"),
     };
+    // Ticks the replay flags as faulted are neither fitted nor judged.
+    if let Some(fault) = d.col("fault_code") {
+        for (y, f) in target.iter_mut().zip(fault) {
+            if *f != 0.0 {
+                *y = f64::NAN;
+            }
+        }
+    }
     problem.baseline_names = names
         .iter()
         .take(baseline.len())

@@ -546,6 +546,11 @@ impl Config {
         positive("stretch.cable1_n_m", self.stretch.cable1_n_m)?;
         positive("stretch.cable2_n_m", self.stretch.cable2_n_m)?;
 
+        self.validate_limits()
+    }
+
+    /// Check the fault limits alone (see `Controller::set_limits`).
+    pub fn validate_limits(&self) -> Result<(), ConfigError> {
         let l = &self.limits;
         positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
         positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;

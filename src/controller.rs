@@ -218,16 +218,7 @@ impl Derived {
         let period_s = c.period_s();
         let d = &c.differentiators;
         let m = &c.machine;
-        let s = &c.scales;
-        // Largest possible counter step per tick, plus two counts of jitter.
-        let grating = c.limits.max_grating_speed_m_s * period_s / s.grating_m_per_count;
-        let motor = c.limits.max_motor_speed_rad_s * period_s * s.motor_counts_per_rev as f32
-            / (2.0 * math::PI);
-        let joint_rad_s = c.limits.max_motor_speed_rad_s
-            / (m.gear_ratio * m.pulley_radius_m / m.rope_wheel_radius_m);
-        let magnetic =
-            4.0 * joint_rad_s * period_s * s.magnetic_counts_per_rev as f32 / (2.0 * math::PI);
-        Self {
+        let mut derived = Self {
             period_s,
             grating_obs: TrackingObserver::new(d.grating_bandwidth_hz, period_s),
             motor_obs: TrackingObserver::new(d.motor_bandwidth_hz, period_s),
@@ -236,10 +227,28 @@ impl Derived {
             blend: (c.cascade.jae_blend_hz > 0.0)
                 .then(|| LowPass1::new(2.0 * math::PI * c.cascade.jae_blend_hz, period_s)),
             motor_per_joint: m.gear_ratio * m.pulley_radius_m / m.rope_wheel_radius_m,
-            max_grating_step: grating as i32 + 2,
-            max_motor_step: motor as i32 + 2,
-            max_magnetic_step: magnetic as i32 + 2,
-        }
+            max_grating_step: 0,
+            max_motor_step: 0,
+            max_magnetic_step: 0,
+        };
+        derived.set_steps(c);
+        derived
+    }
+
+    /// Largest possible counter step per tick from the fault limits, plus two
+    /// counts of jitter (cheap: no filter redesign).
+    fn set_steps(&mut self, c: &Config) {
+        let (s, period_s) = (&c.scales, self.period_s);
+        let grating = c.limits.max_grating_speed_m_s * period_s / s.grating_m_per_count;
+        let motor = c.limits.max_motor_speed_rad_s * period_s * s.motor_counts_per_rev as f32
+            / (2.0 * math::PI);
+        let joint_rad_s =
+            c.limits.max_motor_speed_rad_s / self.motor_per_joint.max(f32::MIN_POSITIVE);
+        let magnetic =
+            4.0 * joint_rad_s * period_s * s.magnetic_counts_per_rev as f32 / (2.0 * math::PI);
+        self.max_grating_step = grating as i32 + 2;
+        self.max_motor_step = motor as i32 + 2;
+        self.max_magnetic_step = magnetic as i32 + 2;
     }
 }
 
@@ -317,6 +326,17 @@ impl Controller {
         config.validate()?;
         self.derived = Derived::new(&config);
         self.config = config;
+        Ok(())
+    }
+
+    /// Replace only the fault limits: cheap enough to call inside the control
+    /// tick (no filter redesign, unlike [`Controller::set_config`]).
+    pub fn set_limits(&mut self, limits: crate::config::FaultLimits) -> Result<(), ConfigError> {
+        let mut config = self.config;
+        config.limits = limits;
+        config.validate_limits()?;
+        self.config = config;
+        self.derived.set_steps(&self.config);
         Ok(())
     }
 

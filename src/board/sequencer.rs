@@ -23,7 +23,7 @@
 //! while leaving and homing the controller's joint-angle range check is
 //! widened by twice the search span and its slack check
 //! (`limits.max_stretch_rad`) by the span; the user's limits are restored on
-//! the edge (one `set_config` each time).
+//! the edge (one cheap `set_limits` each time).
 //! 4. **Running**: the program's command. From now on a rising origin edge
 //!    farther than [`HomingConfig::origin_tolerance_rad`] from zero (by the
 //!    joint estimate) is [`Fault::OriginDuringMotion`].
@@ -214,12 +214,12 @@ impl Sequencer {
         if self.user_limits.is_some() {
             return;
         }
-        let mut c = *ctrl.config();
-        let user = (c.limits.max_joint_angle_rad, c.limits.max_stretch_rad);
+        let mut l = ctrl.config().limits;
+        let user = (l.max_joint_angle_rad, l.max_stretch_rad);
         let span = math::abs(homing.search_rad);
-        c.limits.max_joint_angle_rad = user.0 + 2.0 * span;
-        c.limits.max_stretch_rad = user.1 + span;
-        if ctrl.set_config(c).is_ok() {
+        l.max_joint_angle_rad = user.0 + 2.0 * span;
+        l.max_stretch_rad = user.1 + span;
+        if ctrl.set_limits(l).is_ok() {
             self.user_limits = Some(user);
         }
     }
@@ -227,11 +227,11 @@ impl Sequencer {
     /// Put the user's limits back.
     fn restore_range(&mut self, ctrl: &mut Controller) {
         if let Some((range, stretch)) = self.user_limits.take() {
-            let mut c = *ctrl.config();
-            c.limits.max_joint_angle_rad = range;
-            c.limits.max_stretch_rad = stretch;
+            let mut l = ctrl.config().limits;
+            l.max_joint_angle_rad = range;
+            l.max_stretch_rad = stretch;
             // Both came from a validated configuration.
-            let _ = ctrl.set_config(c);
+            let _ = ctrl.set_limits(l);
         }
     }
 

@@ -67,7 +67,7 @@ fn synthetic_kinematics(n: usize, dt: f64) -> Vec<Kinematics<f64>> {
                 gravity_m_s2: g,
                 accel_m_s2: Vector3::new(
                     1.5 * (2.1 * t).sin(),
-                    -1.0 * (1.3 * t + 0.5).cos(),
+                    -(1.3 * t + 0.5).cos(),
                     0.8 * (3.7 * t).sin(),
                 ),
                 omega_rad_s: Vector3::new(

@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! host-sim payload --dir host-sim/tests/data/kuka-wrist --fit 1-baseline \
-//!     --validate 2-vibrations,3-vibrations-contact [--json OUT] [--plot OUT.svg]
+//!     --validate 2-vibrations,3-vibrations-contact [--json OUT] [--plot DIR] [--csv DIR]
 //! ```
 //!
 //! What it does, in order:
@@ -32,7 +32,10 @@
 //!    [`cable_joint::payload::OffsetTracker`] during the first `--tare-s`
 //!    (known no contact, "ident+tare"), and with the creep/drift terms chosen
 //!    by validation error ("comp+tare").
-//! 5. The contact run's estimated contact wrench (SVG with `--plot`).
+//! 5. The contact run's estimated contact wrench; `--plot DIR` writes
+//!    `payload_<run>.svg` and `.png` for every run, `--csv DIR` the samples.
+//!
+//! Method, results and the commands that reproduce them: `docs/payload.md`.
 //!
 //! Bad input files fail with one error naming the file, the line and the
 //! column.

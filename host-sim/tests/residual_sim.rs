@@ -256,3 +256,62 @@ fn without_an_effect_nothing_is_added() {
     );
     assert_eq!(a.outcome.final_fit.val_rmse, a.outcome.baseline.val_rmse);
 }
+
+#[test]
+fn force_terms_written_to_the_tension_model_run_in_the_core() {
+    // Loading at 30° (five weights, both directions), against the datasheet
+    // configuration; the force model's terms go into
+    // `tension.added` (coefficient -c l_e / r); replayed through the core,
+    // the DOB's force estimate has the error the tool reported.
+    let plant = PlantParams::default();
+    let opts = ScenarioOptions {
+        angle_deg: Some(30.0),
+        ..ScenarioOptions::default()
+    };
+    let mut rec = LogRecorder::new(true);
+    scenario::run(
+        "loading",
+        plant,
+        scenario::tuned_gains(&Config::default()),
+        None,
+        &opts,
+        &mut rec,
+    )
+    .expect("simulation runs");
+    let log = named("loading", rec.to_log().expect("log"));
+    let base = Config::default();
+    let a = analyse(
+        ModelKind::Force,
+        std::slice::from_ref(&log),
+        &[],
+        &base,
+        BuildOptions::default(),
+        options(8),
+    )
+    .expect("analysis runs");
+    let o = &a.outcome;
+    assert!(!o.accepted.is_empty(), "no force term found");
+    assert!(o.final_fit.val_rmse < o.baseline.val_rmse);
+    let cfg = config_with(&a, &base).expect("force config");
+    assert_eq!(cfg.tension.added.len as usize, o.accepted.len());
+    let replay = host_sim::derive::derive(&log.log, &cfg).expect("replay");
+    let f = log.log.col("f_ext_n").unwrap();
+    let hat = replay.col("f_ext_hat_n").unwrap();
+    let fault = replay.col("fault_code").unwrap();
+    // The validation rows the tool used: the last 30 %, every `decimate`-th,
+    // without the ticks the replay flags as faulted.
+    let n = f.len();
+    let cut = (0.7 * n as f64).round() as usize;
+    let rows: Vec<usize> = (cut..n)
+        .step_by(a.options.decimate)
+        .filter(|&k| fault[k] == 0.0)
+        .collect();
+    assert_eq!(rows.len(), o.n_val, "same validation rows");
+    let rmse =
+        (rows.iter().map(|&k| (f[k] - hat[k]).powi(2)).sum::<f64>() / rows.len() as f64).sqrt();
+    let after = o.final_fit.val_rmse;
+    assert!(
+        (rmse - after).abs() <= 0.01 * after,
+        "core's force estimate with the written config: RMSE {rmse:.5} N vs reported {after:.5} N"
+    );
+}

@@ -8,6 +8,7 @@ pub mod log;
 pub mod payload;
 pub mod plant;
 pub mod plot;
+pub mod report;
 pub mod residual;
 pub mod scenario;
 pub mod sim;

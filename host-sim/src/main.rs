@@ -42,15 +42,14 @@ enum Command {
     Identify(host_sim::ident::IdentifyArgs),
     /// Residual analysis: rank and add effect terms, judged on validation data.
     Residual(host_sim::residual::ResidualArgs),
+    /// The seed's experimental programme on the simulated prototype, with a report (default).
+    Report(host_sim::report::ReportArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
-        None => {
-            eprintln!("no subcommand yet");
-            Ok(())
-        }
+        None => host_sim::report::run(host_sim::report::ReportArgs::default()),
         Some(Command::Import(args)) => host_sim::import::run(args),
         Some(Command::Ingest(args)) => host_sim::ingest::run(args),
         Some(Command::Trace(args)) => host_sim::trace::run(args),
@@ -58,6 +57,7 @@ fn main() -> ExitCode {
         Some(Command::Payload(a)) => host_sim::payload::run(a),
         Some(Command::Identify(a)) => host_sim::ident::run(a),
         Some(Command::Residual(a)) => host_sim::residual::run(a),
+        Some(Command::Report(a)) => host_sim::report::run(a),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),
     };

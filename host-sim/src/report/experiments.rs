@@ -1,0 +1,442 @@
+//! The report's experiments: scenario runs with recorders that keep the
+//! statistics the seed reports and decimated traces for the figures.
+
+use cable_joint::{Config, Mode};
+use serde::Serialize;
+
+use crate::log::Log;
+use crate::plant::PlantParams;
+use crate::scenario::{self, Direction, Phase, ScenarioOptions};
+use crate::sim::{LogRecorder, Recorder, TickRecord};
+
+/// Degrees per radian.
+pub const DEG_PER_RAD: f64 = 180.0 / std::f64::consts::PI;
+
+/// Keep every `TRACE_EVERY`-th tick in the figure traces (500 Hz at 2 kHz).
+pub const TRACE_EVERY: u64 = 4;
+
+/// Running statistics of a signal.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Acc {
+    n: u64,
+    sum: f64,
+    sum_abs: f64,
+    sum_sq: f64,
+    max: f64,
+    min: f64,
+}
+
+impl Acc {
+    /// Add a value (non-finite values are skipped).
+    pub fn push(&mut self, v: f64) {
+        if !v.is_finite() {
+            return;
+        }
+        if self.n == 0 {
+            self.max = v;
+            self.min = v;
+        }
+        self.n += 1;
+        self.sum += v;
+        self.sum_abs += v.abs();
+        self.sum_sq += v * v;
+        self.max = self.max.max(v);
+        self.min = self.min.min(v);
+    }
+
+    /// Merge another accumulator into this one.
+    pub fn merge(&mut self, o: &Acc) {
+        if o.n == 0 {
+            return;
+        }
+        if self.n == 0 {
+            *self = *o;
+            return;
+        }
+        self.n += o.n;
+        self.sum += o.sum;
+        self.sum_abs += o.sum_abs;
+        self.sum_sq += o.sum_sq;
+        self.max = self.max.max(o.max);
+        self.min = self.min.min(o.min);
+    }
+
+    /// The statistics, each value multiplied by `scale` (NaN when empty).
+    pub fn summary(&self, scale: f64) -> Summary {
+        if self.n == 0 {
+            return Summary {
+                n: 0,
+                mean: f64::NAN,
+                mean_abs: f64::NAN,
+                rms: f64::NAN,
+                max: f64::NAN,
+                min: f64::NAN,
+            };
+        }
+        let n = self.n as f64;
+        Summary {
+            n: self.n,
+            mean: self.sum / n * scale,
+            mean_abs: self.sum_abs / n * scale.abs(),
+            rms: (self.sum_sq / n).sqrt() * scale.abs(),
+            max: if scale >= 0.0 { self.max } else { self.min } * scale,
+            min: if scale >= 0.0 { self.min } else { self.max } * scale,
+        }
+    }
+}
+
+/// Statistics of an error signal (`max`/`min` signed; NaN when `n == 0`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Samples.
+    pub n: u64,
+    /// Mean.
+    pub mean: f64,
+    /// Mean of the absolute value.
+    pub mean_abs: f64,
+    /// Root mean square.
+    pub rms: f64,
+    /// Largest value.
+    pub max: f64,
+    /// Smallest value.
+    pub min: f64,
+}
+
+impl Summary {
+    /// Largest absolute value.
+    pub fn max_abs(&self) -> f64 {
+        self.max.abs().max(self.min.abs())
+    }
+}
+
+fn fault_text(r: &TickRecord) -> Option<String> {
+    r.output.fault.map(|f| format!("{f} (t = {:.2} s)", r.t_s))
+}
+
+/// Whether the controller was running this tick.
+fn active(r: &TickRecord) -> bool {
+    r.output.drive_enable && r.output.mode != Mode::Idle && r.output.fault.is_none()
+}
+
+/// Decimated trace of a tracking run, degrees.
+#[derive(Clone, Debug, Default)]
+pub struct TrackTrace {
+    /// Time, s.
+    pub t_s: Vec<f64>,
+    /// Desired angle, °.
+    pub desired_deg: Vec<f64>,
+    /// Actual angle (magnetic encoder), °.
+    pub actual_deg: Vec<f64>,
+    /// Estimated angle (JAE), °.
+    pub estimated_deg: Vec<f64>,
+    /// Applied tip force, N.
+    pub f_ext_n: Vec<f64>,
+    /// Estimated tip force, N.
+    pub f_ext_hat_n: Vec<f64>,
+}
+
+/// Result of a tracking scenario (seed Figs. 10, 12, 13).
+#[derive(Clone, Debug)]
+pub struct TrackRun {
+    /// Scenario.
+    pub scenario: &'static str,
+    /// Noise seed.
+    pub seed: u64,
+    /// Desired − actual (magnetic encoder), °, over the tracking phase.
+    pub desired_minus_actual: Summary,
+    /// Actual − estimated (JAE), °, same ticks.
+    pub actual_minus_estimated: Summary,
+    /// Latched fault, if any.
+    pub fault: Option<String>,
+    /// Figure trace (every phase).
+    pub trace: TrackTrace,
+}
+
+#[derive(Default)]
+struct TrackRec {
+    da: Acc,
+    ae: Acc,
+    fault: Option<String>,
+    trace: TrackTrace,
+}
+
+impl Recorder for TrackRec {
+    fn record(&mut self, r: &TickRecord) {
+        if self.fault.is_none() {
+            self.fault = fault_text(r);
+        }
+        let e = &r.output.est;
+        if r.tick.is_multiple_of(TRACE_EVERY) {
+            let t = &mut self.trace;
+            t.t_s.push(r.t_s);
+            t.desired_deg.push(f64::from(e.theta_ref_rad) * DEG_PER_RAD);
+            t.actual_deg.push(f64::from(e.theta_mag_rad) * DEG_PER_RAD);
+            t.estimated_deg
+                .push(f64::from(e.theta_hat_rad) * DEG_PER_RAD);
+            t.f_ext_n.push(r.f_ext_n);
+            t.f_ext_hat_n.push(f64::from(e.f_ext_hat_n));
+        }
+        if active(r) && r.phase == Phase::Track.code() {
+            self.da.push(f64::from(e.theta_ref_rad - e.theta_mag_rad));
+            self.ae.push(f64::from(e.theta_mag_rad - e.theta_hat_rad));
+        }
+    }
+}
+
+/// Run a tracking scenario (`track-motor`, `track-jae`, `robust-2n5`).
+pub fn tracking(
+    name: &'static str,
+    plant: &PlantParams,
+    config: &Config,
+    seed: u64,
+    scale: f64,
+) -> anyhow::Result<TrackRun> {
+    let opts = ScenarioOptions {
+        duration_scale: scale,
+        ..ScenarioOptions::default()
+    };
+    let mut rec = TrackRec::default();
+    scenario::run(name, *plant, *config, Some(seed), &opts, &mut rec)?;
+    Ok(TrackRun {
+        scenario: name,
+        seed,
+        desired_minus_actual: rec.da.summary(DEG_PER_RAD),
+        actual_minus_estimated: rec.ae.summary(DEG_PER_RAD),
+        fault: rec.fault,
+        trace: rec.trace,
+    })
+}
+
+/// Run a scenario and keep its full CSV log (for the identifications).
+pub fn logged(
+    name: &str,
+    plant: &PlantParams,
+    config: &Config,
+    seed: u64,
+    scale: f64,
+) -> anyhow::Result<(Log, Option<String>)> {
+    let opts = ScenarioOptions {
+        duration_scale: scale,
+        ..ScenarioOptions::default()
+    };
+    let mut rec = LogRecorder::new(true);
+    let s = scenario::run(name, *plant, *config, Some(seed), &opts, &mut rec)?;
+    let fault = s.fault.map(|f| f.to_string());
+    Ok((rec.to_log()?, fault))
+}
+
+/// Decimated trace of one loading case.
+#[derive(Clone, Debug, Default)]
+pub struct CaseTrace {
+    /// Time, s.
+    pub t_s: Vec<f64>,
+    /// Applied tip force, N.
+    pub f_ext_n: Vec<f64>,
+    /// Estimated tip force, N.
+    pub f_ext_hat_n: Vec<f64>,
+    /// Desired − actual joint angle, °.
+    pub angle_err_deg: Vec<f64>,
+    /// Scenario phase code.
+    pub phase: Vec<u32>,
+}
+
+/// One case of the loading protocol (seed Sect. 4.3).
+#[derive(Clone, Debug, Serialize)]
+pub struct LoadCase {
+    /// Held joint angle, °.
+    pub angle_deg: f64,
+    /// Weight, g.
+    pub mass_g: f64,
+    /// `pos` or `neg`.
+    pub direction: &'static str,
+    /// Applied force in the stable region (signed), N.
+    pub force_n: f64,
+    /// Mean estimate in the stable region, N.
+    pub mean_estimate_n: f64,
+    /// `100 (1 - |mean estimate - force| / |force|)`, %.
+    pub accuracy_pct: f64,
+    /// Estimate − applied in the stable region, N.
+    pub stable_error_n: Summary,
+    /// Estimate in the no-load region before the load (static), N.
+    pub static_noload_n: Summary,
+    /// Estimate while moving to the angle and settling (dynamic no-load), N;
+    /// only for angles other than 0° (no motion there).
+    pub dynamic_noload_n: Option<Summary>,
+    /// Desired − actual joint angle while the load is on (loading, stable,
+    /// unloading), °.
+    pub angle_error_loaded_deg: Summary,
+    /// Latched fault, if any.
+    pub fault: Option<String>,
+    /// Noise seed.
+    pub seed: u64,
+    /// Figure trace.
+    #[serde(skip)]
+    pub trace: CaseTrace,
+}
+
+struct CaseRec {
+    moved: bool,
+    loaded: bool,
+    stable_est: Acc,
+    stable_err: Acc,
+    stable_force: Acc,
+    static_noload: Acc,
+    dynamic: Acc,
+    angle: Acc,
+    fault: Option<String>,
+    trace: CaseTrace,
+}
+
+impl Recorder for CaseRec {
+    fn record(&mut self, r: &TickRecord) {
+        if self.fault.is_none() {
+            self.fault = fault_text(r);
+        }
+        let e = &r.output.est;
+        let f_hat = f64::from(e.f_ext_hat_n);
+        let ang = f64::from(e.theta_ref_rad - e.theta_mag_rad) * DEG_PER_RAD;
+        if r.tick.is_multiple_of(TRACE_EVERY) {
+            let t = &mut self.trace;
+            t.t_s.push(r.t_s);
+            t.f_ext_n.push(r.f_ext_n);
+            t.f_ext_hat_n.push(f_hat);
+            t.angle_err_deg.push(ang);
+            t.phase.push(r.phase);
+        }
+        if !active(r) {
+            return;
+        }
+        let p = r.phase;
+        if p == Phase::Loading.code() {
+            self.loaded = true;
+        }
+        if p == Phase::Move.code() || p == Phase::Adjust.code() {
+            if self.moved {
+                self.dynamic.push(f_hat);
+            }
+        } else if p == Phase::NoLoad.code() && !self.loaded {
+            self.static_noload.push(f_hat);
+        } else if p == Phase::Stable.code() {
+            self.stable_est.push(f_hat);
+            self.stable_err.push(f_hat - r.f_ext_n);
+            self.stable_force.push(r.f_ext_n);
+        }
+        if p == Phase::Loading.code() || p == Phase::Stable.code() || p == Phase::Unloading.code() {
+            self.angle.push(ang);
+        }
+    }
+}
+
+/// Run one case of the loading protocol on its own (a fault ends only this
+/// case).
+pub fn loading_case(
+    plant: &PlantParams,
+    config: &Config,
+    seed: u64,
+    scale: f64,
+    angle_deg: f64,
+    mass_g: f64,
+    direction: Direction,
+) -> anyhow::Result<LoadCase> {
+    let opts = ScenarioOptions {
+        duration_scale: scale,
+        angle_deg: Some(angle_deg),
+        mass_g: Some(mass_g),
+        direction: Some(direction),
+        tip_inertia: false,
+    };
+    let mut rec = CaseRec {
+        moved: angle_deg != 0.0,
+        loaded: false,
+        stable_est: Acc::default(),
+        stable_err: Acc::default(),
+        stable_force: Acc::default(),
+        static_noload: Acc::default(),
+        dynamic: Acc::default(),
+        angle: Acc::default(),
+        fault: None,
+        trace: CaseTrace::default(),
+    };
+    scenario::run("loading", *plant, *config, Some(seed), &opts, &mut rec)?;
+    let force_n = direction.sign() * mass_g * 1e-3 * scenario::G_M_S2;
+    let est = rec.stable_est.summary(1.0);
+    let accuracy_pct = 100.0 * (1.0 - (est.mean - force_n).abs() / force_n.abs());
+    Ok(LoadCase {
+        angle_deg,
+        mass_g,
+        direction: match direction {
+            Direction::Pos => "pos",
+            Direction::Neg => "neg",
+        },
+        force_n,
+        mean_estimate_n: est.mean,
+        accuracy_pct,
+        stable_error_n: rec.stable_err.summary(1.0),
+        static_noload_n: rec.static_noload.summary(1.0),
+        dynamic_noload_n: rec.moved.then(|| rec.dynamic.summary(1.0)),
+        angle_error_loaded_deg: rec.angle.summary(1.0),
+        fault: rec.fault,
+        seed,
+        trace: rec.trace,
+    })
+}
+
+/// Accumulate the f_ext estimate of several cases' regions into one band.
+pub fn band<'a>(cases: impl IntoIterator<Item = &'a Summary>) -> Summary {
+    // Recombine from the summaries: n-weighted mean and rms, extremes.
+    let mut n = 0u64;
+    let (mut s, mut sa, mut sq) = (0.0, 0.0, 0.0);
+    let (mut max, mut min) = (f64::NEG_INFINITY, f64::INFINITY);
+    for c in cases {
+        if c.n == 0 {
+            continue;
+        }
+        let k = c.n as f64;
+        n += c.n;
+        s += c.mean * k;
+        sa += c.mean_abs * k;
+        sq += c.rms * c.rms * k;
+        max = max.max(c.max);
+        min = min.min(c.min);
+    }
+    if n == 0 {
+        return Acc::default().summary(1.0);
+    }
+    let k = n as f64;
+    Summary {
+        n,
+        mean: s / k,
+        mean_abs: sa / k,
+        rms: (sq / k).sqrt(),
+        max,
+        min,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_and_band_agree_with_direct_statistics() {
+        let a: Vec<f64> = vec![1.0, -2.0, 3.0];
+        let b: Vec<f64> = vec![0.5, 4.0];
+        let (mut x, mut y, mut all) = (Acc::default(), Acc::default(), Acc::default());
+        a.iter().for_each(|v| x.push(*v));
+        b.iter().for_each(|v| y.push(*v));
+        a.iter().chain(&b).for_each(|v| all.push(*v));
+        let direct = all.summary(1.0);
+        let merged = band([&x.summary(1.0), &y.summary(1.0)]);
+        assert_eq!(merged.n, 5);
+        assert!((merged.mean - direct.mean).abs() < 1e-12);
+        assert!((merged.rms - direct.rms).abs() < 1e-12);
+        assert_eq!((merged.max, merged.min), (4.0, -2.0));
+        // A negative scale swaps the extremes.
+        let neg = x.summary(-1.0);
+        assert_eq!((neg.max, neg.min), (2.0, -3.0));
+        let mut z = x;
+        z.merge(&y);
+        assert_eq!(z.summary(1.0), direct);
+        assert!(Acc::default().summary(1.0).mean.is_nan());
+    }
+}

@@ -1,0 +1,353 @@
+//! `host-sim report` (the default command): the seed's whole experimental
+//! programme (seed 000 Sect. 4) on the simulated prototype, through the core
+//! the firmware runs, with a report to put beside the paper.
+//!
+//! ```text
+//! cargo run --release -p host-sim                       # = host-sim report
+//! host-sim report --out report --seed 1 [--duration-scale 1] [--no-effects] [--effect creep,thermal]
+//! ```
+//!
+//! Steps, in the seed's order, each identification feeding the next step's
+//! configuration (nothing is taken from the plant's true parameters):
+//!
+//! 1. `bm-noload`: `B_m` with the motor unhooked ([`crate::ident::identify_bm_with`],
+//!    replayed with [`crate::ident::decoupled`]); verified on another run → the DOB.
+//! 2. `jae-ident`: the JAE (Eq. 25-26), motor closed loop, joint open loop,
+//!    magnetic encoder fitted → the joint closed loop.
+//! 3. `track-motor`, `track-jae`: tracking without and with the JAE (Figs. 10-12).
+//! 4. `robust-2n5`: the complex trajectory under 2.5 N (Fig. 13).
+//! 5. `tension-ident`: models A, B, C and the simplified model C by `%σ`
+//!    pruning (Figs. 16-18), verified on another run → the force estimator.
+//! 6. `loading`: 0°, 30°, −40° × 30-250 g × both directions, each case its own
+//!    run; no-load (static, dynamic), loading and stable regions; accuracy per
+//!    load (Figs. 19-26).
+//! 7. The programme again on the plant with the simulator's unmodelled effects
+//!    on: first with the seed's models, then after the residual loop
+//!    ([`crate::residual`]) added the effects it found to `config.jae.added`
+//!    and `config.tension.added`.
+//!
+//! Output: a table on stdout (the seed's figure, this project's, the ratio),
+//! progress lines on stderr, and in `--out` (default `report/`): `report.md`
+//! (tables, goals, embedded plots), `report.json` (every figure under
+//! `figures` with stable keys), the plots as SVG and PNG, and the identified
+//! configurations (`config_clean.toml`, `config_effects_*.toml`). Every file is
+//! written through a temporary file and renamed. Results depend only on
+//! `--seed` and `--duration-scale` (each run's noise seed is derived from
+//! `--seed` and the run's name); the clean and the effects programmes run on
+//! two threads.
+
+pub mod experiments;
+pub mod figures;
+pub mod programme;
+pub mod regressors;
+pub mod render;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{ensure, Context, Result};
+use cable_joint::Config;
+
+use crate::log::Log;
+use crate::plant::{Effects, PlantParams};
+use experiments::{Acc, Summary, DEG_PER_RAD};
+use figures::Written;
+use programme::{Evaluation, Identification, Progress, ResidualStep, Settings};
+
+/// Arguments of `host-sim report`.
+#[derive(clap::Args, Debug, Clone, PartialEq)]
+pub struct ReportArgs {
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "report")]
+    pub out: PathBuf,
+    /// Base seed of every run's noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Scale of every scenario's duration (1 = the full programme).
+    #[arg(long, default_value_t = 1.0)]
+    pub duration_scale: f64,
+    /// Skip step 7 (unmodelled effects and the residual loop).
+    #[arg(long)]
+    pub no_effects: bool,
+    /// Effects switched on in step 7, comma separated (default: all of
+    /// presliding, creep, thermal, spring, drift).
+    #[arg(long, value_delimiter = ',')]
+    pub effect: Vec<String>,
+    /// Run on one thread.
+    #[arg(long)]
+    pub serial: bool,
+    /// No progress lines on stderr.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl Default for ReportArgs {
+    fn default() -> Self {
+        Self {
+            out: PathBuf::from("report"),
+            seed: 1,
+            duration_scale: 1.0,
+            no_effects: false,
+            effect: Vec::new(),
+            serial: false,
+            quiet: false,
+        }
+    }
+}
+
+/// Step 7's results.
+pub struct EffectsPart {
+    /// Effects switched on.
+    pub names: Vec<&'static str>,
+    /// Steps 1, 2, 5 on the plant with effects.
+    pub id: Identification,
+    /// Steps 3, 4, 6 with the seed's models.
+    pub before: Evaluation,
+    /// The residual loop.
+    pub residual: ResidualStep,
+    /// Steps 3, 4, 6 after the residual loop.
+    pub after: Evaluation,
+    /// JAE error through the core on `jae-ident`, seed's model, °.
+    pub jae_error_before_deg: Summary,
+    /// The same after the residual loop, °.
+    pub jae_error_after_deg: Summary,
+}
+
+/// Everything the report shows.
+pub struct Report {
+    /// The arguments.
+    pub options: ReportArgs,
+    /// Wall-clock time of the whole run, s.
+    pub runtime_s: f64,
+    /// Steps 1-6 on the clean plant.
+    pub clean: (Identification, Evaluation),
+    /// JAE error through the core on the clean `jae-ident` run, °.
+    pub clean_jae_error_deg: Summary,
+    /// Step 7 (absent with `--no-effects`).
+    pub effects: Option<EffectsPart>,
+    /// Figures written.
+    pub figures: Vec<Written>,
+}
+
+/// The JAE of `config` on a log with the magnetic encoder, replayed through
+/// the core: `theta_hat - theta` in degrees after the first 0.2 s, on ticks
+/// without a fault.
+pub fn jae_error_deg(log: &Log, config: &Config) -> Result<Summary> {
+    let r = regressors::Replay::new(log, config)?;
+    let t = r.t_s()?.to_vec();
+    let hat = r.col("theta_hat_rad")?;
+    let fault = r.col("fault_code")?;
+    let mag = r.theta_rad();
+    let t0 = t.first().copied().unwrap_or(0.0) + 0.2;
+    let mut acc = Acc::default();
+    for k in 0..t.len() {
+        if t[k] >= t0 && fault[k] == 0.0 {
+            acc.push(hat[k] - mag[k]);
+        }
+    }
+    Ok(acc.summary(DEG_PER_RAD))
+}
+
+fn effects_plant(names: &[String]) -> Result<(PlantParams, Vec<&'static str>)> {
+    let mut plant = PlantParams::default();
+    let mut fx = Effects::default();
+    if names.is_empty() {
+        for n in Effects::NAMES {
+            fx.enable(n)?;
+        }
+    } else {
+        for n in names {
+            fx.enable(n)?;
+        }
+    }
+    plant.effects = fx;
+    plant.validate()?;
+    let on = plant.effects.enabled();
+    Ok((plant, on))
+}
+
+/// Step 7 on its own thread.
+fn effects_part(names: &[String], s: &Settings) -> Result<EffectsPart> {
+    let tag = "effects";
+    let (plant, on) = effects_plant(names)?;
+    s.progress.line(
+        tag,
+        &format!("plant with unmodelled effects: {}", on.join(", ")),
+    );
+    let (id, before) = programme::programme(&plant, &Config::default(), s, tag)?;
+    let jae_error_before_deg = jae_error_deg(&id.logs.jae, &id.config_jae)?;
+    let residual = programme::residual_loop(&id, s, tag)?;
+    s.progress.line(
+        tag,
+        &format!(
+            "residual loop added {} JAE and {} tension terms; evaluating again",
+            residual.jae.outcome.accepted.len(),
+            residual.tension.outcome.accepted.len()
+        ),
+    );
+    let jae_error_after_deg = jae_error_deg(&id.logs.jae, &residual.config)?;
+    let after = programme::evaluate(&plant, &residual.config, s, "effects+residual")?;
+    Ok(EffectsPart {
+        names: on,
+        id,
+        before,
+        residual,
+        after,
+        jae_error_before_deg,
+        jae_error_after_deg,
+    })
+}
+
+/// The clean programme and its figures.
+fn clean_part(
+    s: &Settings,
+    dir: &Path,
+) -> Result<((Identification, Evaluation), Summary, Vec<Written>)> {
+    let tag = "clean";
+    s.progress.line(tag, "plant without unmodelled effects");
+    let (id, ev) = programme::programme(&PlantParams::default(), &Config::default(), s, tag)?;
+    let jae = jae_error_deg(&id.logs.jae, &id.config_jae)?;
+    s.progress.line(tag, "figures");
+    let figs = figures::programme_figures(dir, &id, &ev)?;
+    Ok(((id, ev), jae, figs))
+}
+
+/// Run the programme and write the figures into `args.out`; returns the
+/// report (report.md and report.json are written by [`write`]).
+pub fn generate(args: &ReportArgs) -> Result<Report> {
+    ensure!(
+        args.duration_scale.is_finite() && args.duration_scale > 0.0,
+        "--duration-scale must be > 0, got {}",
+        args.duration_scale
+    );
+    let progress = Progress::new(args.quiet);
+    let s = Settings {
+        seed: args.seed,
+        scale: args.duration_scale,
+        progress,
+    };
+    let dir = &args.out;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if !args.no_effects {
+        // Check the effect names before an hour of work... or a minute.
+        effects_plant(&args.effect)?;
+    }
+    let (clean, fx) = if args.serial || args.no_effects {
+        let clean = clean_part(&s, dir)?;
+        let fx = if args.no_effects {
+            None
+        } else {
+            Some(effects_part(&args.effect, &s)?)
+        };
+        (clean, fx)
+    } else {
+        std::thread::scope(|scope| -> Result<_> {
+            let h = scope.spawn(|| effects_part(&args.effect, &s));
+            let clean = clean_part(&s, dir);
+            let fx = h
+                .join()
+                .map_err(|_| anyhow::anyhow!("the effects thread panicked"))?;
+            Ok((clean?, Some(fx?)))
+        })?
+    };
+    let ((id, ev), clean_jae, mut figs) = clean;
+    if let Some(fx) = &fx {
+        progress.line("report", "step 7 figures");
+        figs.extend(figures::accuracy_figure(
+            dir,
+            &[
+                ("clean", &ev),
+                ("effects, seed model", &fx.before),
+                ("effects + residual", &fx.after),
+            ],
+        )?);
+        for (name, a) in [("jae", &fx.residual.jae), ("tension", &fx.residual.tension)] {
+            let sub = format!("residual_{name}");
+            let d = dir.join(&sub);
+            std::fs::create_dir_all(&d).with_context(|| format!("creating {}", d.display()))?;
+            for p in crate::residual::report::plots(a, &d)? {
+                if p.extension().is_some_and(|e| e == "svg") {
+                    if let Some(stem) = p.file_stem() {
+                        figs.push(Written {
+                            stem: format!("{sub}/{}", stem.to_string_lossy()),
+                            caption: format!("residual loop, {name}"),
+                        });
+                    }
+                }
+            }
+        }
+    }
+    Ok(Report {
+        options: args.clone(),
+        runtime_s: progress.elapsed_s(),
+        clean: (id, ev),
+        clean_jae_error_deg: clean_jae,
+        effects: fx,
+        figures: figs,
+    })
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".report-")
+        .tempfile_in(dir)
+        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
+    std::io::Write::write_all(&mut tmp, bytes)
+        .with_context(|| format!("writing {}", path.display()))?;
+    tmp.persist(path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Write report.md and report.json into the output directory; returns the
+/// terminal text (comparison, goals, step 7).
+pub fn write(r: &Report) -> Result<String> {
+    let map = render::figure_map(r);
+    let rows = render::comparison(&map);
+    let dir = &r.options.out;
+    crate::ident::write_config(dir.join("config_clean.toml"), &r.clean.0.config)?;
+    if let Some(fx) = &r.effects {
+        crate::ident::write_config(dir.join("config_effects_seed_model.toml"), &fx.id.config)?;
+        crate::ident::write_config(
+            dir.join("config_effects_residual.toml"),
+            &fx.residual.config,
+        )?;
+    }
+    let md = render::markdown(r, &map, &rows);
+    write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    let json = serde_json::to_string_pretty(&render::json(r, &map, &rows))?;
+    write_atomic(&dir.join("report.json"), json.as_bytes())?;
+    let mut text = render::terminal_table(&rows);
+    text.push_str("\nWhere we stand\n");
+    text.push_str(&render::goals_table(r, &map));
+    if r.effects.is_some() {
+        text.push_str("\nStep 7: unmodelled effects on, before and after the residual loop\n");
+        text.push_str(&render::step7_table(r, &map));
+    }
+    let faults = render::fault_lines(r);
+    if !faults.is_empty() {
+        text.push_str("\nFaults latched (statistics of those runs stop there)\n");
+        for f in faults {
+            text.push_str(&format!("  {f}\n"));
+        }
+    }
+    text.push_str(&format!(
+        "\nwrote {} and {} ({} figures) in {:.1} s\n",
+        dir.join("report.md").display(),
+        dir.join("report.json").display(),
+        r.figures.len(),
+        r.runtime_s
+    ));
+    Ok(text)
+}
+
+/// Run the subcommand.
+pub fn run(args: ReportArgs) -> Result<()> {
+    let r = generate(&args)?;
+    let text = write(&r)?;
+    print!("{text}");
+    Ok(())
+}

@@ -1,0 +1,1355 @@
+//! The report's text: the flat figure map of report.json, the comparison
+//! with the seed, the goals, the terminal table and report.md.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use serde_json::{json, Value};
+
+use super::experiments::{LoadCase, Summary, TrackRun};
+use super::programme::{AccuracyStats, Evaluation, Identification, LoadingSummary};
+use super::{EffectsPart, Report};
+use crate::ident::Regressor;
+use crate::residual::Analysis;
+
+// --- The flat figure map ---------------------------------------------------
+
+struct Keys<'a> {
+    map: &'a mut BTreeMap<String, f64>,
+    prefix: String,
+}
+
+impl Keys<'_> {
+    fn put(&mut self, key: &str, v: f64) {
+        self.map.insert(format!("{}.{key}", self.prefix), v);
+    }
+
+    fn summary(&mut self, key: &str, s: &Summary, unit: &str) {
+        self.put(&format!("{key}.mean_{unit}"), s.mean);
+        self.put(&format!("{key}.mean_abs_{unit}"), s.mean_abs);
+        self.put(&format!("{key}.rms_{unit}"), s.rms);
+        self.put(&format!("{key}.max_{unit}"), s.max);
+        self.put(&format!("{key}.min_{unit}"), s.min);
+        self.put(&format!("{key}.max_abs_{unit}"), s.max_abs());
+    }
+
+    fn accuracy(&mut self, key: &str, a: &AccuracyStats) {
+        self.put(&format!("{key}.min_pct"), a.min_pct);
+        self.put(&format!("{key}.mean_pct"), a.mean_pct);
+        self.put(&format!("{key}.cases"), a.cases as f64);
+    }
+
+    fn tracking(&mut self, key: &str, t: &TrackRun) {
+        self.summary(
+            &format!("{key}.desired_minus_actual"),
+            &t.desired_minus_actual,
+            "deg",
+        );
+        self.summary(
+            &format!("{key}.actual_minus_estimated"),
+            &t.actual_minus_estimated,
+            "deg",
+        );
+        self.put(
+            &format!("{key}.faulted"),
+            f64::from(u8::from(t.fault.is_some())),
+        );
+    }
+
+    fn evaluation(&mut self, ev: &Evaluation, jae_error_deg: &Summary) {
+        self.summary("jae.error", jae_error_deg, "deg");
+        self.tracking("track_motor", &ev.track_motor);
+        self.tracking("track_jae", &ev.track_jae);
+        self.tracking("robust_2n5", &ev.robust);
+        let l: &LoadingSummary = &ev.loading_summary;
+        self.put("loading.cases", l.cases as f64);
+        self.put("loading.faulted_cases", l.faulted as f64);
+        self.summary("loading.static_noload", &l.static_noload_n, "n");
+        self.summary("loading.static_noload_0", &l.static_noload_0_n, "n");
+        self.summary(
+            "loading.static_noload_30_m40",
+            &l.static_noload_30_m40_n,
+            "n",
+        );
+        self.summary("loading.dynamic_noload_pos", &l.dynamic_noload_pos_n, "n");
+        self.summary("loading.dynamic_noload_neg", &l.dynamic_noload_neg_n, "n");
+        self.accuracy("loading.accuracy.above_1n", &l.above_1n);
+        self.accuracy("loading.accuracy.at_0n3", &l.at_0n3);
+        self.accuracy("loading.accuracy.above_1n_0", &l.above_1n_0);
+        self.accuracy("loading.accuracy.at_0n3_0", &l.at_0n3_0);
+        self.accuracy("loading.accuracy.above_1n_30_m40", &l.above_1n_30_m40);
+        self.accuracy("loading.accuracy.at_0n3_30_m40", &l.at_0n3_30_m40);
+        self.put("loading.max_angle_error_0_deg", l.max_angle_error_0_deg);
+        self.put(
+            "loading.max_angle_error_30_m40_deg",
+            l.max_angle_error_30_m40_deg,
+        );
+    }
+
+    fn identification(&mut self, id: &Identification) {
+        let bm = &id.bm;
+        self.put("bm.b_m_nm_s_rad", bm.b_m_nm_s_rad);
+        self.put("bm.coulomb_nm", bm.coulomb_nm.unwrap_or(0.0));
+        self.put(
+            "bm.b_m_pct_sigma",
+            bm.fit
+                .param(Regressor::PhiVel)
+                .map_or(f64::NAN, |p| p.pct_sigma),
+        );
+        self.put("bm.verification_rmse_nm", id.bm_validation.rmse);
+        self.put("bm.verification_mean_nm", id.bm_validation.mean);
+        let j = &id.jae;
+        for (k, c) in j.chi_s.iter().enumerate() {
+            self.put(&format!("jae.c{}", k + 1), *c);
+        }
+        self.put("jae.offset_rad", j.offset_rad);
+        let e = &j.error_deg;
+        self.put("jae.ident.mean_deg", e.mean);
+        self.put("jae.ident.mean_abs_deg", e.mean_abs);
+        self.put("jae.ident.max_deg", e.max);
+        self.put("jae.ident.min_deg", e.min);
+        self.put("jae.ident.rmse_deg", e.rmse);
+        let t = &id.tension;
+        for (name, m) in [
+            ("model_a", t.model_a.as_ref().ok()),
+            ("model_b", t.model_b.as_ref().ok()),
+            ("model_c", Some(&t.model_c)),
+            ("simplified", Some(&t.simplified)),
+        ] {
+            self.put(
+                &format!("tension.{name}.mean_error_n"),
+                m.map_or(f64::NAN, |m| m.errors.mean),
+            );
+            self.put(
+                &format!("tension.{name}.rmse_n"),
+                m.map_or(f64::NAN, |m| m.errors.rmse),
+            );
+        }
+        for (name, v) in ["f_sc1_n", "f_cp2_n", "k_s_n_m", "f_0_n"]
+            .iter()
+            .zip(t.chi_p)
+        {
+            self.put(&format!("tension.chi_p.{name}"), v);
+        }
+        self.put("tension.dropped_terms", t.dropped.len() as f64);
+        if let Some((_, e)) = id.tension_validation.last() {
+            self.put("tension.verification.mean_error_n", e.mean);
+            self.put("tension.verification.rmse_n", e.rmse);
+            self.put("tension.verification.max_abs_n", e.max_abs());
+        }
+        self.put("identification_faults", id.faults.len() as f64);
+    }
+
+    fn residual(&mut self, name: &str, a: &Analysis) {
+        let o = &a.outcome;
+        self.put(&format!("residual.{name}.before_rmse"), o.baseline.val_rmse);
+        self.put(&format!("residual.{name}.after_rmse"), o.final_fit.val_rmse);
+        self.put(
+            &format!("residual.{name}.terms_added"),
+            o.accepted.len() as f64,
+        );
+    }
+}
+
+/// Every figure of the report under a stable key (`clean.`,
+/// `effects_seed_model.`, `effects_residual.` prefixes).
+pub fn figure_map(r: &Report) -> BTreeMap<String, f64> {
+    let mut map = BTreeMap::new();
+    {
+        let mut k = Keys {
+            map: &mut map,
+            prefix: "clean".into(),
+        };
+        k.identification(&r.clean.0);
+        k.evaluation(&r.clean.1, &r.clean_jae_error_deg);
+    }
+    if let Some(fx) = &r.effects {
+        let mut k = Keys {
+            map: &mut map,
+            prefix: "effects_seed_model".into(),
+        };
+        k.identification(&fx.id);
+        k.evaluation(&fx.before, &fx.jae_error_before_deg);
+        let mut k = Keys {
+            map: &mut map,
+            prefix: "effects_residual".into(),
+        };
+        k.evaluation(&fx.after, &fx.jae_error_after_deg);
+        k.residual("jae", &fx.residual.jae);
+        k.residual("tension", &fx.residual.tension);
+    }
+    map.insert("runtime_s".into(), r.runtime_s);
+    map
+}
+
+// --- Comparison with the seed ---------------------------------------------
+
+/// How a row compares.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Better {
+    /// An error: smaller magnitude is better (ratio = |ours| / |seed|).
+    Lower,
+    /// An accuracy: higher is better (ratio = ours / seed).
+    Higher,
+    /// An identified parameter (ratio = ours / seed, no verdict).
+    Info,
+}
+
+/// One row of the comparison table.
+#[derive(Clone, Debug)]
+pub struct Row {
+    /// Key in the figure map (without the `clean.` prefix).
+    pub key: String,
+    /// What it is.
+    pub quantity: String,
+    /// Unit.
+    pub unit: &'static str,
+    /// The seed's figure.
+    pub seed: f64,
+    /// This project's figure.
+    pub ours: f64,
+    /// Comparison kind.
+    pub better: Better,
+    /// Where the seed states it.
+    pub source: &'static str,
+}
+
+impl Row {
+    /// The ratio (see [`Better`]).
+    pub fn ratio(&self) -> f64 {
+        match self.better {
+            Better::Lower => self.ours.abs() / self.seed.abs(),
+            Better::Higher | Better::Info => self.ours / self.seed,
+        }
+    }
+
+    /// `better`, `worse`, or `-`.
+    pub fn verdict(&self) -> &'static str {
+        let r = self.ratio();
+        match self.better {
+            _ if !r.is_finite() => "n/a",
+            Better::Lower if r <= 1.0 => "better",
+            Better::Higher if r >= 1.0 => "better",
+            Better::Info => "-",
+            _ => "worse",
+        }
+    }
+}
+
+/// The rows: every number of DESIGN.md's "results to beat" table, and the
+/// other figures the seed's text gives for the same experiments.
+pub fn comparison(map: &BTreeMap<String, f64>) -> Vec<Row> {
+    let get = |k: &str| map.get(&format!("clean.{k}")).copied().unwrap_or(f64::NAN);
+    let spec: [(&str, &str, &str, f64, Better, &str); 29] = [
+        (
+            "jae.error.mean_abs_deg",
+            "JAE identification error, mean |e|",
+            "°",
+            0.2750,
+            Better::Lower,
+            "Sect. 4.1, Fig. 9",
+        ),
+        (
+            "jae.error.max_deg",
+            "JAE identification error, max",
+            "°",
+            0.8355,
+            Better::Lower,
+            "Sect. 4.1, Fig. 9",
+        ),
+        (
+            "jae.error.min_deg",
+            "JAE identification error, min",
+            "°",
+            -0.8321,
+            Better::Lower,
+            "Sect. 4.1, Fig. 9",
+        ),
+        (
+            "track_motor.desired_minus_actual.mean_abs_deg",
+            "tracking without JAE, mean |desired − actual|",
+            "°",
+            1.912,
+            Better::Lower,
+            "Fig. 10",
+        ),
+        (
+            "track_motor.desired_minus_actual.max_abs_deg",
+            "tracking without JAE, max |desired − actual|",
+            "°",
+            4.134,
+            Better::Lower,
+            "Fig. 10",
+        ),
+        (
+            "track_jae.desired_minus_actual.mean_deg",
+            "tracking with JAE, desired − actual, mean",
+            "°",
+            -0.150,
+            Better::Lower,
+            "Fig. 12",
+        ),
+        (
+            "track_jae.desired_minus_actual.max_deg",
+            "tracking with JAE, desired − actual, max",
+            "°",
+            0.905,
+            Better::Lower,
+            "Fig. 12",
+        ),
+        (
+            "track_jae.desired_minus_actual.min_deg",
+            "tracking with JAE, desired − actual, min",
+            "°",
+            -0.974,
+            Better::Lower,
+            "Fig. 12",
+        ),
+        (
+            "track_jae.actual_minus_estimated.mean_deg",
+            "tracking with JAE, actual − estimated, mean",
+            "°",
+            0.170,
+            Better::Lower,
+            "Fig. 12 (text)",
+        ),
+        (
+            "track_jae.actual_minus_estimated.max_deg",
+            "tracking with JAE, actual − estimated, max",
+            "°",
+            0.715,
+            Better::Lower,
+            "Fig. 12 (text)",
+        ),
+        (
+            "track_jae.actual_minus_estimated.min_deg",
+            "tracking with JAE, actual − estimated, min",
+            "°",
+            -0.498,
+            Better::Lower,
+            "Fig. 12 (text)",
+        ),
+        (
+            "robust_2n5.desired_minus_actual.mean_deg",
+            "2.5 N on the tip, desired − actual, mean",
+            "°",
+            -0.105,
+            Better::Lower,
+            "Fig. 13",
+        ),
+        (
+            "robust_2n5.desired_minus_actual.max_deg",
+            "2.5 N on the tip, desired − actual, max",
+            "°",
+            1.202,
+            Better::Lower,
+            "Fig. 13",
+        ),
+        (
+            "robust_2n5.desired_minus_actual.min_deg",
+            "2.5 N on the tip, desired − actual, min",
+            "°",
+            -1.271,
+            Better::Lower,
+            "Fig. 13 (text)",
+        ),
+        (
+            "robust_2n5.actual_minus_estimated.mean_deg",
+            "2.5 N on the tip, actual − estimated, mean",
+            "°",
+            0.076,
+            Better::Lower,
+            "Fig. 13 (text)",
+        ),
+        (
+            "robust_2n5.actual_minus_estimated.max_deg",
+            "2.5 N on the tip, actual − estimated, max",
+            "°",
+            0.508,
+            Better::Lower,
+            "Fig. 13 (text)",
+        ),
+        (
+            "robust_2n5.actual_minus_estimated.min_deg",
+            "2.5 N on the tip, actual − estimated, min",
+            "°",
+            -0.454,
+            Better::Lower,
+            "Fig. 13 (text)",
+        ),
+        (
+            "tension.verification.mean_error_n",
+            "simplified model C, verification mean error",
+            "N",
+            0.011,
+            Better::Lower,
+            "Fig. 18",
+        ),
+        (
+            "loading.static_noload_0.max_abs_n",
+            "static no-load error at 0° (±)",
+            "N",
+            0.1,
+            Better::Lower,
+            "Sect. 4.3, Figs. 20-21",
+        ),
+        (
+            "loading.static_noload_30_m40.max_abs_n",
+            "static no-load error at 30°/-40° (±)",
+            "N",
+            0.15,
+            Better::Lower,
+            "Sect. 4.3, Figs. 23-26",
+        ),
+        (
+            "loading.dynamic_noload_pos.max_abs_n",
+            "dynamic no-load error, positive runs (±)",
+            "N",
+            0.15,
+            Better::Lower,
+            "Sect. 4.3",
+        ),
+        (
+            "loading.dynamic_noload_neg.max_abs_n",
+            "dynamic no-load error, negative runs (±)",
+            "N",
+            0.2,
+            Better::Lower,
+            "Sect. 4.3",
+        ),
+        (
+            "loading.accuracy.above_1n_0.min_pct",
+            "force accuracy ≥ 1 N at 0° (worst case)",
+            "%",
+            94.0,
+            Better::Higher,
+            "Sect. 4.3",
+        ),
+        (
+            "loading.accuracy.at_0n3_0.min_pct",
+            "force accuracy at 0.3 N at 0° (worst case)",
+            "%",
+            82.0,
+            Better::Higher,
+            "Sect. 4.3",
+        ),
+        (
+            "loading.accuracy.above_1n_30_m40.min_pct",
+            "force accuracy ≥ 1 N at 30°/-40° (worst case)",
+            "%",
+            95.0,
+            Better::Higher,
+            "Sect. 4.3",
+        ),
+        (
+            "loading.accuracy.at_0n3_30_m40.min_pct",
+            "force accuracy at 0.3 N at 30°/-40° (worst case)",
+            "%",
+            84.0,
+            Better::Higher,
+            "Sect. 4.3",
+        ),
+        (
+            "loading.max_angle_error_0_deg",
+            "largest angle error with a load on, 0°",
+            "°",
+            1.25,
+            Better::Lower,
+            "Sect. 4.3",
+        ),
+        (
+            "loading.max_angle_error_30_m40_deg",
+            "largest angle error with a load on, 30°/-40°",
+            "°",
+            1.4,
+            Better::Lower,
+            "Sect. 4.3",
+        ),
+        (
+            "bm.b_m_nm_s_rad",
+            "identified B_m (plausibility)",
+            "N·m·s/rad",
+            1.6934e-5,
+            Better::Info,
+            "Sect. 4.2",
+        ),
+    ];
+    spec.iter()
+        .map(|(key, q, unit, seed, better, source)| Row {
+            key: (*key).to_owned(),
+            quantity: (*q).to_owned(),
+            unit,
+            seed: *seed,
+            ours: get(key),
+            better: *better,
+            source,
+        })
+        .collect()
+}
+
+fn fmt_num(v: f64) -> String {
+    if !v.is_finite() {
+        return "n/a".into();
+    }
+    let a = v.abs();
+    if v.fract() == 0.0 && a < 1e5 {
+        format!("{v:.0}")
+    } else if !(1e-3..1e5).contains(&a) {
+        format!("{v:.4e}")
+    } else if a >= 10.0 {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+/// The terminal table: seed | this project | ratio.
+pub fn terminal_table(rows: &[Row]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<52} {:>11} {:>11} {:>7}  verdict",
+        "quantity (clean simulated prototype)", "seed", "this", "ratio"
+    );
+    let _ = writeln!(s, "{}", "-".repeat(92));
+    for r in rows {
+        let q = format!("{} [{}]", r.quantity, r.unit);
+        let _ = writeln!(
+            s,
+            "{:<52} {:>11} {:>11} {:>7.3}  {}",
+            q,
+            fmt_num(r.seed),
+            fmt_num(r.ours),
+            r.ratio(),
+            r.verdict()
+        );
+    }
+    let _ = writeln!(
+        s,
+        "ratio: |this| / |seed| for errors (< 1 is better), this / seed for accuracies (> 1 is better)"
+    );
+    s
+}
+
+// --- Goals -------------------------------------------------------------------
+
+/// One goal of the project.
+#[derive(Clone, Debug)]
+pub struct Goal {
+    /// Text.
+    pub goal: &'static str,
+    /// Figure key (without variant prefix).
+    pub key: &'static str,
+    /// Limit.
+    pub limit: f64,
+    /// `true`: the value must be at least the limit; `false`: at most.
+    pub at_least: bool,
+    /// A count of faults (figure key) that must be zero for the goal to be met
+    /// (the figure is computed only up to a fault).
+    pub faults_key: Option<&'static str>,
+}
+
+/// The goals stated for the project.
+pub const GOALS: [Goal; 7] = [
+    Goal {
+        goal: "force accuracy ≥ 98 % above 1 N (worst case, all angles and directions)",
+        key: "loading.accuracy.above_1n.min_pct",
+        limit: 98.0,
+        at_least: true,
+        faults_key: Some("loading.faulted_cases"),
+    },
+    Goal {
+        goal: "force accuracy ≥ 95 % at 0.3 N (worst case)",
+        key: "loading.accuracy.at_0n3.min_pct",
+        limit: 95.0,
+        at_least: true,
+        faults_key: Some("loading.faulted_cases"),
+    },
+    Goal {
+        goal: "static no-load error within ±0.03 N",
+        key: "loading.static_noload.max_abs_n",
+        limit: 0.03,
+        at_least: false,
+        faults_key: None,
+    },
+    Goal {
+        goal: "JAE max error ≤ 0.3° (identification run, through the core)",
+        key: "jae.error.max_abs_deg",
+        limit: 0.3,
+        at_least: false,
+        faults_key: None,
+    },
+    Goal {
+        goal: "JAE max error ≤ 0.3° in closed loop (track-jae, actual − estimated)",
+        key: "track_jae.actual_minus_estimated.max_abs_deg",
+        limit: 0.3,
+        at_least: false,
+        faults_key: Some("track_jae.faulted"),
+    },
+    Goal {
+        goal: "tracking max error ≤ 0.5° (track-jae, desired − actual)",
+        key: "track_jae.desired_minus_actual.max_abs_deg",
+        limit: 0.5,
+        at_least: false,
+        faults_key: Some("track_jae.faulted"),
+    },
+    Goal {
+        goal: "tracking max error ≤ 0.5° under 2.5 N (robust-2n5)",
+        key: "robust_2n5.desired_minus_actual.max_abs_deg",
+        limit: 0.5,
+        at_least: false,
+        faults_key: Some("robust_2n5.faulted"),
+    },
+];
+
+/// Whether a goal is met by a variant, and its value.
+pub fn goal_status(map: &BTreeMap<String, f64>, g: &Goal, variant: &str) -> Option<(f64, bool)> {
+    let v = *map.get(&format!("{variant}.{}", g.key))?;
+    let faults = g
+        .faults_key
+        .and_then(|k| map.get(&format!("{variant}.{k}")).copied())
+        .unwrap_or(0.0);
+    let ok = v.is_finite()
+        && faults == 0.0
+        && if g.at_least {
+            v >= g.limit
+        } else {
+            v <= g.limit
+        };
+    Some((v, ok))
+}
+
+/// The variants present, as `(key, title)`.
+pub fn variants(r: &Report) -> Vec<(&'static str, &'static str)> {
+    let mut v = vec![("clean", "clean plant")];
+    if r.effects.is_some() {
+        v.push(("effects_seed_model", "effects on, seed's model"));
+        v.push(("effects_residual", "effects on, after the residual loop"));
+    }
+    v
+}
+
+fn status_text(s: Option<(f64, bool)>) -> String {
+    match s {
+        Some((v, ok)) => format!("{} {}", fmt_num(v), if ok { "met" } else { "NOT met" }),
+        None => "n/a".into(),
+    }
+}
+
+/// Goals as a text table.
+pub fn goals_table(r: &Report, map: &BTreeMap<String, f64>) -> String {
+    let vs = variants(r);
+    let mut s = String::new();
+    let _ = write!(s, "{:<72}", "goal");
+    for (_, t) in &vs {
+        let _ = write!(s, " {:>22}", short(t));
+    }
+    let _ = writeln!(s);
+    for g in &GOALS {
+        let _ = write!(s, "{:<72}", g.goal);
+        for (k, _) in &vs {
+            let _ = write!(s, " {:>22}", status_text(goal_status(map, g, k)));
+        }
+        let _ = writeln!(s);
+    }
+    s
+}
+
+fn short(t: &str) -> &str {
+    match t {
+        "clean plant" => "clean",
+        "effects on, seed's model" => "effects, seed model",
+        "effects on, after the residual loop" => "effects + residual",
+        other => other,
+    }
+}
+
+/// Step 7 rows: `(key, quantity, unit)`.
+const STEP7_ROWS: [(&str, &str, &str); 17] = [
+    (
+        "jae.error.mean_abs_deg",
+        "JAE error on jae-ident, mean |e|",
+        "°",
+    ),
+    (
+        "jae.error.max_abs_deg",
+        "JAE error on jae-ident, max |e|",
+        "°",
+    ),
+    (
+        "track_motor.desired_minus_actual.max_abs_deg",
+        "track-motor, max |desired − actual|",
+        "°",
+    ),
+    (
+        "track_jae.desired_minus_actual.mean_abs_deg",
+        "track-jae, mean |desired − actual|",
+        "°",
+    ),
+    (
+        "track_jae.desired_minus_actual.max_abs_deg",
+        "track-jae, max |desired − actual|",
+        "°",
+    ),
+    (
+        "track_jae.actual_minus_estimated.max_abs_deg",
+        "track-jae, max |actual − estimated|",
+        "°",
+    ),
+    (
+        "robust_2n5.desired_minus_actual.max_abs_deg",
+        "2.5 N, max |desired − actual|",
+        "°",
+    ),
+    (
+        "robust_2n5.actual_minus_estimated.max_abs_deg",
+        "2.5 N, max |actual − estimated|",
+        "°",
+    ),
+    (
+        "loading.static_noload.max_abs_n",
+        "static no-load error (±)",
+        "N",
+    ),
+    (
+        "loading.static_noload.rms_n",
+        "static no-load error, RMS",
+        "N",
+    ),
+    (
+        "loading.dynamic_noload_pos.max_abs_n",
+        "dynamic no-load error, positive runs (±)",
+        "N",
+    ),
+    (
+        "loading.dynamic_noload_neg.max_abs_n",
+        "dynamic no-load error, negative runs (±)",
+        "N",
+    ),
+    (
+        "loading.accuracy.above_1n.min_pct",
+        "accuracy ≥ 1 N, worst case",
+        "%",
+    ),
+    (
+        "loading.accuracy.above_1n.mean_pct",
+        "accuracy ≥ 1 N, mean",
+        "%",
+    ),
+    (
+        "loading.accuracy.at_0n3.min_pct",
+        "accuracy at 0.3 N, worst case",
+        "%",
+    ),
+    (
+        "loading.accuracy.at_0n3.mean_pct",
+        "accuracy at 0.3 N, mean",
+        "%",
+    ),
+    (
+        "loading.faulted_cases",
+        "loading cases with a latched fault",
+        "",
+    ),
+];
+
+/// Step 7 as a text table.
+pub fn step7_table(r: &Report, map: &BTreeMap<String, f64>) -> String {
+    let vs = variants(r);
+    let mut s = String::new();
+    let _ = write!(s, "{:<50}", "quantity");
+    for (_, t) in &vs {
+        let _ = write!(s, " {:>20}", short(t));
+    }
+    let _ = writeln!(s);
+    for (key, q, unit) in STEP7_ROWS {
+        let _ = write!(
+            s,
+            "{:<50}",
+            if unit.is_empty() {
+                q.to_owned()
+            } else {
+                format!("{q} [{unit}]")
+            }
+        );
+        for (k, _) in &vs {
+            let v = map.get(&format!("{k}.{key}")).copied().unwrap_or(f64::NAN);
+            let _ = write!(s, " {:>20}", fmt_num(v));
+        }
+        let _ = writeln!(s);
+    }
+    s
+}
+
+/// Every fault latched in any run, as `variant: run: fault`.
+pub fn fault_lines(r: &Report) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut add = |variant: &str, id: Option<&Identification>, ev: &Evaluation| {
+        if let Some(id) = id {
+            for f in &id.faults {
+                out.push(format!("{variant}: {f}"));
+            }
+        }
+        for t in [&ev.track_motor, &ev.track_jae, &ev.robust] {
+            if let Some(f) = &t.fault {
+                out.push(format!("{variant}: {}: {f}", t.scenario));
+            }
+        }
+        for f in &ev.loading_summary.faults {
+            out.push(format!("{variant}: loading {f}"));
+        }
+    };
+    add("clean", Some(&r.clean.0), &r.clean.1);
+    if let Some(fx) = &r.effects {
+        add("effects, seed's model", Some(&fx.id), &fx.before);
+        add("effects + residual", None, &fx.after);
+    }
+    out
+}
+
+// --- report.md -----------------------------------------------------------------
+
+fn md_summary(s: &Summary, unit: &str) -> String {
+    format!(
+        "{} / {} / {} / {} / {} {unit}",
+        fmt_num(s.mean),
+        fmt_num(s.mean_abs),
+        fmt_num(s.max),
+        fmt_num(s.min),
+        fmt_num(s.rms)
+    )
+}
+
+fn md_figure(out: &mut String, r: &Report, stem: &str) {
+    if let Some(w) = r.figures.iter().find(|w| w.stem == stem) {
+        let _ = writeln!(
+            out,
+            "\n![{}]({stem}.png)\n\n*{}* ([SVG]({stem}.svg))\n",
+            w.caption, w.caption
+        );
+    }
+}
+
+fn md_tracking(out: &mut String, name: &str, t: &TrackRun, seed: &str) {
+    let _ = writeln!(
+        out,
+        "| {name} | {} | {} | {seed} |",
+        md_summary(&t.desired_minus_actual, "°"),
+        md_summary(&t.actual_minus_estimated, "°"),
+    );
+    if let Some(f) = &t.fault {
+        let _ = writeln!(out, "\n**{name} latched a fault:** {f}\n");
+    }
+}
+
+fn md_cases(out: &mut String, cases: &[LoadCase]) {
+    let _ = writeln!(
+        out,
+        "| angle | weight | dir | F [N] | mean estimate [N] | accuracy [%] | stable error RMS [N] | static no-load [min, max] [N] | dynamic no-load [min, max] [N] | max angle error loaded [°] | fault |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|");
+    for c in cases {
+        let dynamic = c
+            .dynamic_noload_n
+            .map(|d| format!("[{}, {}]", fmt_num(d.min), fmt_num(d.max)))
+            .unwrap_or_else(|| "-".into());
+        let _ = writeln!(
+            out,
+            "| {}° | {} g | {} | {:+.3} | {} | {} | {} | [{}, {}] | {dynamic} | {} | {} |",
+            c.angle_deg,
+            c.mass_g,
+            c.direction,
+            c.force_n,
+            fmt_num(c.mean_estimate_n),
+            fmt_num(c.accuracy_pct),
+            fmt_num(c.stable_error_n.rms),
+            fmt_num(c.static_noload_n.min),
+            fmt_num(c.static_noload_n.max),
+            fmt_num(c.angle_error_loaded_deg.max_abs()),
+            c.fault.as_deref().unwrap_or("")
+        );
+    }
+}
+
+fn md_residual(out: &mut String, name: &str, a: &Analysis, scale: f64, unit: &str) {
+    let o = &a.outcome;
+    let _ = writeln!(
+        out,
+        "**{name}** ({} candidates, fitted on the first 70 % of the run, judged on the last 30 %): validation RMSE {} → {} {unit}.\n",
+        o.n_candidates,
+        fmt_num(o.baseline.val_rmse * scale),
+        fmt_num(o.final_fit.val_rmse * scale),
+    );
+    if o.accepted.is_empty() {
+        let _ = writeln!(
+            out,
+            "No effect cut the validation error by 1 % or more: nothing added.\n"
+        );
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "| # | term | meaning | validation RMSE after [{unit}] | gain |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|");
+    for (k, s) in o.accepted.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            "| {} | `{}` | {} | {} | {:.1} % |",
+            k + 1,
+            s.label,
+            s.meaning,
+            fmt_num(s.fit.val_rmse * scale),
+            100.0 * s.gain
+        );
+    }
+    let _ = writeln!(out);
+}
+
+fn md_identification(out: &mut String, id: &Identification) {
+    let bm = &id.bm;
+    let p = bm.fit.param(Regressor::PhiVel);
+    let _ = writeln!(
+        out,
+        "* **B_m** = {} N·m·s/rad (%σ {}; seed 1.6934e-5), Coulomb torque {}; verification run (another seed): RMSE {} N·m, mean {} N·m.",
+        fmt_num(bm.b_m_nm_s_rad),
+        p.map_or("n/a".into(), |p| format!("{:.3} %", p.pct_sigma)),
+        bm.coulomb_nm
+            .map_or("dropped by the %σ rule".into(), |c| format!("{} N·m", fmt_num(c))),
+        fmt_num(id.bm_validation.rmse),
+        fmt_num(id.bm_validation.mean),
+    );
+    let j = &id.jae;
+    let _ = writeln!(
+        out,
+        "* **JAE** χ_s = [{}, {}, {}, {}], offset {} rad (seed [0.0805, 0.5225, 0.0025, 264.356]); least-squares residual on its run: mean {}°, mean |e| {}°, max {}°, min {}°.",
+        fmt_num(j.chi_s[0]),
+        fmt_num(j.chi_s[1]),
+        fmt_num(j.chi_s[2]),
+        fmt_num(j.chi_s[3]),
+        fmt_num(j.offset_rad),
+        fmt_num(j.error_deg.mean),
+        fmt_num(j.error_deg.mean_abs),
+        fmt_num(j.error_deg.max),
+        fmt_num(j.error_deg.min),
+    );
+    let t = &id.tension;
+    let model = |m: Result<&crate::ident::FitReport, &String>| match m {
+        Ok(m) => format!(
+            "mean {} N, RMSE {} N",
+            fmt_num(m.errors.mean),
+            fmt_num(m.errors.rmse)
+        ),
+        Err(e) => format!("not fitted ({e})"),
+    };
+    let _ = writeln!(
+        out,
+        "* **Tension models** on the identification run (seed: mean −0.0228, 0.0189, −0.0063 N; the mean of a least-squares residual with a constant term is zero by construction, so the RMSE is the informative figure): A {}; B {}; C {}.",
+        model(t.model_a.as_ref()),
+        model(t.model_b.as_ref()),
+        model(Ok(&t.model_c)),
+    );
+    let _ = writeln!(
+        out,
+        "* **Model C** (Eq. 27) parameters and %σ, and the pruning (limit 5 %):\n"
+    );
+    let _ = writeln!(out, "| term | parameter | value | %σ | kept |");
+    let _ = writeln!(out, "|---|---|---|---|---|");
+    for p in &t.model_c.params {
+        let kept = t.simplified.param(p.regressor).is_some();
+        let _ = writeln!(
+            out,
+            "| `{}` | {} [{}] | {} | {} | {} |",
+            p.symbol,
+            p.name,
+            p.unit,
+            fmt_num(p.value),
+            fmt_num(p.pct_sigma),
+            if kept { "yes" } else { "no" }
+        );
+    }
+    let _ = writeln!(
+        out,
+        "\n* **Simplified model C** written to the configuration: χ_p = [{}, {}, {}, {}] (f_sc1 N, f_cp2 N, K_s N/m, F_0 N; seed [3.879, 5.027, 707.7, 19.52]).",
+        fmt_num(t.chi_p[0]),
+        fmt_num(t.chi_p[1]),
+        fmt_num(t.chi_p[2]),
+        fmt_num(t.chi_p[3]),
+    );
+    for (name, e) in &id.tension_validation {
+        let _ = writeln!(
+            out,
+            "  * verification run, {name}: mean {} N, RMSE {} N, max |e| {} N",
+            fmt_num(e.mean),
+            fmt_num(e.rmse),
+            fmt_num(e.max_abs())
+        );
+    }
+    if !id.faults.is_empty() {
+        let _ = writeln!(
+            out,
+            "* **Faults in identification runs:** {}",
+            id.faults.join("; ")
+        );
+    }
+}
+
+/// report.md.
+pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String {
+    let mut o = String::new();
+    let (id, ev) = (&r.clean.0, &r.clean.1);
+    let _ = writeln!(
+        o,
+        "# The seed's experimental programme on the simulated prototype\n"
+    );
+    let _ = writeln!(
+        o,
+        "Generated by `cargo run --release -p host-sim -- report --seed {} --duration-scale {}` in {:.1} s. \
+         Everything below was identified from simulated logs, step by step in the seed's order \
+         (B_m → DOB; JAE → joint closed loop; tension model → force estimator), through the same \
+         core (`cable_joint::Controller`) the firmware runs; the plant's true parameters are never read. \
+         Seed: *Toward force detection of a cable-driven micromanipulator for a surgical robot based on \
+         disturbance observer* (seed 000), Sect. 4.\n",
+        r.options.seed, r.options.duration_scale, r.runtime_s
+    );
+    if r.options.duration_scale != 1.0 {
+        let _ = writeln!(
+            o,
+            "**Note:** every scenario ran at {} of its full duration: the figures are not the full programme's.\n",
+            r.options.duration_scale
+        );
+    }
+
+    let _ = writeln!(o, "## Results against the seed\n");
+    let _ = writeln!(
+        o,
+        "| quantity | seed | this project | ratio | verdict | seed source |"
+    );
+    let _ = writeln!(o, "|---|---|---|---|---|---|");
+    for row in rows {
+        let _ = writeln!(
+            o,
+            "| {} [{}] | {} | {} | {:.3} | {} | {} |",
+            row.quantity,
+            row.unit,
+            fmt_num(row.seed),
+            fmt_num(row.ours),
+            row.ratio(),
+            row.verdict(),
+            row.source
+        );
+    }
+    let _ = writeln!(
+        o,
+        "\nRatio: |this| / |seed| for errors (below 1 is better), this / seed for accuracies (above 1 is better). \
+         The seed reports the JAE's and the motor-feedback tracking's \"average\" error with a positive minimum \
+         (0.964°) or next to a symmetric max/min: these are compared with the mean |error|. The signed means \
+         and the extremes of the JAE-feedback runs are compared as signed values (ratio of magnitudes).\n"
+    );
+
+    let _ = writeln!(o, "## Where we stand\n");
+    let vs = variants(r);
+    let _ = write!(o, "| goal |");
+    for (_, t) in &vs {
+        let _ = write!(o, " {t} |");
+    }
+    let _ = writeln!(o);
+    let _ = writeln!(o, "|---|{}", "---|".repeat(vs.len()));
+    for g in &GOALS {
+        let _ = write!(o, "| {} |", g.goal);
+        for (k, _) in &vs {
+            let _ = write!(o, " {} |", status_text(goal_status(map, g, k)));
+        }
+        let _ = writeln!(o);
+    }
+    let _ = writeln!(
+        o,
+        "\n\"Above 1 N\" counts the 100 g (0.98 N), 200 g and 250 g weights; \"0.3 N\" is the 30 g weight (0.29 N). \
+         Accuracy = 100 (1 − |mean estimate − applied| / applied) over the stable region, worst case over angles and \
+         directions. A goal counts as met only if none of its runs latched a fault (statistics stop at a fault). The static no-load error is the \
+         per-tick force estimate in the no-load region before each load (no averaging).\n"
+    );
+
+    let faults = fault_lines(r);
+    if !faults.is_empty() {
+        let _ = writeln!(o, "Faults latched (the controller disabled the drive; that run's statistics stop there):\n");
+        for f in &faults {
+            let _ = writeln!(o, "* {f}");
+        }
+        let _ = writeln!(o);
+    }
+    let _ = writeln!(o, "## 1. B_m (seed Sect. 4.2, Figs. 14-15), 2. JAE (Sect. 4.1, Figs. 8-9), 5. tension models (Figs. 16-18)\n");
+    md_identification(&mut o, id);
+    md_figure(&mut o, r, "fig14_15_bm");
+    md_figure(&mut o, r, "fig09_jae");
+    md_figure(&mut o, r, "fig16_tension_models");
+    md_figure(&mut o, r, "fig17_model_c_simplified");
+    md_figure(&mut o, r, "fig18_model_c_verification");
+
+    let _ = writeln!(o, "## 3-4. Tracking (Figs. 10-13)\n");
+    let _ = writeln!(
+        o,
+        "Statistics over the tracking phase; each cell is mean / mean |e| / max / min / RMS.\n"
+    );
+    let _ = writeln!(o, "| run | desired − actual | actual − estimated | seed (desired − actual; actual − estimated) |");
+    let _ = writeln!(o, "|---|---|---|---|");
+    md_tracking(
+        &mut o,
+        "track-motor (motor-encoder feedback)",
+        &ev.track_motor,
+        "mean 1.912°, max 4.134°, min 0.964°",
+    );
+    md_tracking(
+        &mut o,
+        "track-jae (JAE feedback)",
+        &ev.track_jae,
+        "−0.150 / 0.905 / −0.974°; 0.170 / 0.715 / −0.498°",
+    );
+    md_tracking(
+        &mut o,
+        "robust-2n5 (2.5 N, complex)",
+        &ev.robust,
+        "−0.105 / 1.202 / −1.271°; 0.076 / 0.508 / −0.454°",
+    );
+    let _ = writeln!(o, "\nThe tracking runs use the configuration after B_m and the JAE (the tension model is identified after them, as in the seed).");
+    md_figure(&mut o, r, "fig10_track_motor");
+    md_figure(&mut o, r, "fig12_track_jae");
+    md_figure(&mut o, r, "fig13_robust");
+
+    let l = &ev.loading_summary;
+    let _ = writeln!(o, "## 6. Loading protocol (Figs. 19-26)\n");
+    let _ = writeln!(
+        o,
+        "Each case is its own run (hold, move to the angle, adjust, 2 s no-load, 0.5 s loading ramp, 3 s stable, unloading), so a fault ends only that case. {} cases, {} faulted.\n",
+        l.cases, l.faulted
+    );
+    for f in &l.faults {
+        let _ = writeln!(o, "* fault: {f}");
+    }
+    let _ = writeln!(
+        o,
+        "\n* static no-load error: all angles [{}, {}] N (RMS {} N); at 0° ±{} N (seed ±0.1 N); at 30°/−40° ±{} N (seed ±0.15 N)",
+        fmt_num(l.static_noload_n.min),
+        fmt_num(l.static_noload_n.max),
+        fmt_num(l.static_noload_n.rms),
+        fmt_num(l.static_noload_0_n.max_abs()),
+        fmt_num(l.static_noload_30_m40_n.max_abs()),
+    );
+    if l.static_noload_0_n.max_abs() < 1e-4 {
+        let _ = writeln!(
+            o,
+            "* note: at 0° the estimate in the no-load region is the model itself to within {} N. With the joint inside the \
+             hold dead band the current reference is the tension model's feed-forward alone, so the DOB sees exactly the \
+             model and reports no force: this figure says nothing about the estimator's resolution.",
+            fmt_num(l.static_noload_0_n.max_abs())
+        );
+    }
+    let _ = writeln!(
+        o,
+        "* dynamic no-load error (moving to 30°/−40° and back, settling): positive-direction runs [{}, {}] N (seed ±0.15 N), negative-direction runs [{}, {}] N (seed ±0.2 N)",
+        fmt_num(l.dynamic_noload_pos_n.min),
+        fmt_num(l.dynamic_noload_pos_n.max),
+        fmt_num(l.dynamic_noload_neg_n.min),
+        fmt_num(l.dynamic_noload_neg_n.max),
+    );
+    for (name, a) in [
+        ("≥ 1 N, all angles", &l.above_1n),
+        ("0.3 N, all angles", &l.at_0n3),
+        ("≥ 1 N at 0° (seed 94 %)", &l.above_1n_0),
+        ("0.3 N at 0° (seed 82 %)", &l.at_0n3_0),
+        ("≥ 1 N at 30°/−40° (seed 95 %)", &l.above_1n_30_m40),
+        ("0.3 N at 30°/−40° (seed 84 %)", &l.at_0n3_30_m40),
+    ] {
+        let _ = writeln!(
+            o,
+            "* accuracy {name}: worst {} %, mean {} % over {} cases ({} faulted)",
+            fmt_num(a.min_pct),
+            fmt_num(a.mean_pct),
+            a.cases,
+            a.faulted
+        );
+    }
+    let _ = writeln!(
+        o,
+        "* largest joint-angle error with a load on: {}° at 0° (seed 1.25°), {}° at 30°/−40° (seed 1.4°)\n",
+        fmt_num(l.max_angle_error_0_deg),
+        fmt_num(l.max_angle_error_30_m40_deg)
+    );
+    md_cases(&mut o, &ev.loading);
+    for stem in [
+        "fig20_loading_0deg_neg",
+        "fig21_loading_0deg_pos",
+        "fig22_partition",
+        "fig23_loading_30deg_neg",
+        "fig24_loading_30deg_pos",
+        "fig25_loading_m40deg_pos",
+        "fig26_loading_m40deg_neg",
+    ] {
+        md_figure(&mut o, r, stem);
+    }
+
+    if let Some(fx) = &r.effects {
+        md_effects(&mut o, r, fx, map);
+    }
+
+    let _ = writeln!(o, "## Definitions\n");
+    let _ = writeln!(
+        o,
+        "* Angles: desired = the trajectory reference, actual = the magnetic encoder (4096 counts/rev, quantised as on the prototype), estimated = the JAE.\n\
+         * Tracking statistics are over the tracking phase of each run (not the initial hold).\n\
+         * JAE error \"through the core\": the identification log replayed through `Controller::replay` with the identified configuration, estimate − encoder, after the first 0.2 s.\n\
+         * Force regions: no-load (before the load is hung, after the adjustment), loading (0.5 s ramp), stable (3 s, the load on), as in the seed's Fig. 22.\n\
+         * Every run has its own noise seed derived from `--seed` and the run's name; the same run gets the same noise on the clean and the effects plant, before and after the residual loop (paired comparison).\n\
+         * report.json holds every figure under `figures` with stable keys (`clean.…`, `effects_seed_model.…`, `effects_residual.…`).\n\
+         * The identified configurations are written beside this file: `config_clean.toml` (and with step 7 \
+         `config_effects_seed_model.toml`, `config_effects_residual.toml`); `host-sim simulate --config FILE` runs a \
+         scenario with one of them."
+    );
+    o
+}
+
+fn md_effects(o: &mut String, r: &Report, fx: &EffectsPart, map: &BTreeMap<String, f64>) {
+    let _ = writeln!(o, "## 7. Unmodelled effects and the residual loop\n");
+    let _ = writeln!(
+        o,
+        "The simulator's effects switched on (default magnitudes): {}. The whole programme ran again on that plant \
+         with the seed's models (every identification repeated), then the residual loop \
+         (`host_sim::residual`) ranked candidate effect terms on the `jae-ident` log (JAE) and the `tension-ident` log \
+         (tension model), kept those that cut the error on the held-out last 30 % of each run, and wrote them into \
+         `config.jae.added` and `config.tension.added`; steps 3, 4 and 6 then ran again with that configuration.\n",
+        fx.names.join(", ")
+    );
+    let _ = writeln!(
+        o,
+        "| quantity | clean | effects, seed's model | effects, after the residual loop |"
+    );
+    let _ = writeln!(o, "|---|---|---|---|");
+    for (key, q, unit) in STEP7_ROWS {
+        let get = |v: &str| fmt_num(map.get(&format!("{v}.{key}")).copied().unwrap_or(f64::NAN));
+        let _ = writeln!(
+            o,
+            "| {q}{} | {} | {} | {} |",
+            if unit.is_empty() {
+                String::new()
+            } else {
+                format!(" [{unit}]")
+            },
+            get("clean"),
+            get("effects_seed_model"),
+            get("effects_residual"),
+        );
+    }
+    let _ = writeln!(o);
+    md_residual(
+        o,
+        "JAE",
+        &fx.residual.jae,
+        super::experiments::DEG_PER_RAD,
+        "°",
+    );
+    md_residual(o, "Tension model", &fx.residual.tension, 1.0, "N");
+    let _ = writeln!(o, "Identification on the plant with effects:\n");
+    md_identification(o, &fx.id);
+    md_figure(o, r, "fig_accuracy_variants");
+    for (name, dir) in [
+        ("JAE", "residual_jae"),
+        ("tension model", "residual_tension"),
+    ] {
+        if r.figures
+            .iter()
+            .any(|w| w.stem == format!("{dir}/residual_time"))
+        {
+            let _ = writeln!(
+                o,
+                "\n![residual loop, {name}]({dir}/residual_time.png)\n\n*Residual loop, {name}: residual before and after on the held-out part.* ([SVG]({dir}/residual_time.svg))\n"
+            );
+        }
+    }
+    if let Some(l) =
+        (!fx.after.loading_summary.faults.is_empty()).then_some(&fx.after.loading_summary)
+    {
+        let _ = writeln!(
+            o,
+            "Faulted cases after the residual loop: {}\n",
+            l.faults.join("; ")
+        );
+    }
+    if !fx.before.loading_summary.faults.is_empty() {
+        let _ = writeln!(
+            o,
+            "Faulted cases with the seed's model on the effects plant: {}\n",
+            fx.before.loading_summary.faults.join("; ")
+        );
+    }
+}
+
+// --- report.json ---------------------------------------------------------------
+
+fn ident_json(id: &Identification) -> Value {
+    json!({
+        "bm": id.bm,
+        "bm_verification": id.bm_validation,
+        "jae": id.jae,
+        "tension": id.tension,
+        "tension_verification": id.tension_validation.iter()
+            .map(|(n, e)| json!({"model": n, "errors": e})).collect::<Vec<_>>(),
+        "faults": id.faults,
+    })
+}
+
+fn eval_json(ev: &Evaluation) -> Value {
+    json!({
+        "loading_summary": ev.loading_summary,
+        "loading_cases": ev.loading,
+        "faults": [
+            ev.track_motor.fault, ev.track_jae.fault, ev.robust.fault,
+        ],
+    })
+}
+
+/// report.json.
+pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
+    let mut goals = Vec::new();
+    for g in &GOALS {
+        let mut v = json!({"goal": g.goal, "key": g.key, "limit": g.limit, "at_least": g.at_least});
+        for (k, _) in variants(r) {
+            v[k] = match goal_status(map, g, k) {
+                Some((x, ok)) => json!({"value": x, "met": ok}),
+                None => Value::Null,
+            };
+        }
+        goals.push(v);
+    }
+    let mut out = json!({
+        "schema": 1,
+        "seed": r.options.seed,
+        "duration_scale": r.options.duration_scale,
+        "runtime_s": r.runtime_s,
+        "figures": map,
+        "seed_comparison": rows.iter().map(|row| json!({
+            "key": format!("clean.{}", row.key),
+            "quantity": row.quantity,
+            "unit": row.unit,
+            "seed": row.seed,
+            "ours": row.ours,
+            "ratio": row.ratio(),
+            "verdict": row.verdict(),
+            "source": row.source,
+        })).collect::<Vec<_>>(),
+        "goals": goals,
+        "identification": {"clean": ident_json(&r.clean.0)},
+        "evaluation": {"clean": eval_json(&r.clean.1)},
+        "plots": r.figures.iter().map(|w| json!({"stem": w.stem, "caption": w.caption})).collect::<Vec<_>>(),
+    });
+    if let Some(fx) = &r.effects {
+        out["effects"] = json!(fx.names);
+        out["identification"]["effects"] = ident_json(&fx.id);
+        out["evaluation"]["effects_seed_model"] = eval_json(&fx.before);
+        out["evaluation"]["effects_residual"] = eval_json(&fx.after);
+        out["residual"] = json!({
+            "jae": crate::residual::report::json(&fx.residual.jae),
+            "tension": crate::residual::report::json(&fx.residual.tension),
+        });
+    }
+    out
+}

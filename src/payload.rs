@@ -45,7 +45,7 @@
 //!   payload wrench `L = A phi` on axis `k` shows up with a first-order delay
 //!   `tau`: `F_u,k = -rho_k creep_tau(L_k)`, where `creep_tau(u) = u -
 //!   lag_tau(u)` is the part of a change still to come
-//!   ([`EffectKind::Creep`](crate::effects::EffectKind::Creep) of the
+//!   ([`crate::effects::EffectKind::Creep`] of the
 //!   project's effect library). After a load step `dL` the reading jumps by
 //!   `(1 - rho) dL` and creeps to `dL` (strain-gauge creep for `rho > 0`). The
 //!   column is driven by the *model's* payload load, not by the measured
@@ -54,7 +54,7 @@
 //!   parameters: the identifier takes them from a first fit without creep
 //!   ([`IdentConfig::creep_load`]); the estimator uses its own.
 //! * **drift**: `F_u,k = d_k t`, `t` the time since the state was reset
-//!   ([`EffectKind::Time`](crate::effects::EffectKind::Time)).
+//!   ([`crate::effects::EffectKind::Time`]).
 //!
 //! The same [`CompState`] code computes these columns during identification
 //! and in the estimator, so both see identical numbers.

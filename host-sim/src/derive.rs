@@ -15,7 +15,7 @@ use cable_joint::{Config, Controller, RawSample};
 
 use crate::log::Log;
 
-/// Columns [`derive`] adds beyond the run-time signals ([`SIGNAL_NAMES`]).
+/// Columns [`derive()`] adds beyond the run-time signals ([`SIGNAL_NAMES`]).
 pub const EXTRA_COLUMNS: [&str; 9] = [
     "x1_acc_m_s2",
     "phi_acc_rad_s2",

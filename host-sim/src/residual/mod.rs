@@ -15,7 +15,7 @@
 //! * Models ([`problem`]): `jae`, `tension`, `force`, or a generic
 //!   `--target`/`--inputs` fit. Reference columns (`theta_rad`, `f_ext_n`,
 //!   `tau_ext_nm`, `tau_in_nm`, simulator truth) are inputs only when named.
-//! * Selection ([`select`]): forward regression by error reduction ratio,
+//! * Selection ([`mod@select`]): forward regression by error reduction ratio,
 //!   stopped by the validation error (never by the training error).
 //! * Output: a table (baseline, each added effect with its meaning,
 //!   parameters and validation error, the final error, residual diagnostics

@@ -201,7 +201,9 @@ fn seed_comparison_and_goals_match_the_figures() {
         );
         let q = row["quantity"].as_str().expect("quantity");
         assert!(r.terminal.contains(q), "terminal table lacks `{q}`");
-        assert!(r.md.contains(q), "report.md lacks `{q}`");
+        // Markdown table cells escape `|`.
+        let md_q = q.replace('|', "\\|");
+        assert!(r.md.contains(&md_q), "report.md lacks `{md_q}`");
     }
     // The seed's own figures are quoted as published.
     let seed_of = |k: &str| {

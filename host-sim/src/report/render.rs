@@ -37,6 +37,7 @@ impl Keys<'_> {
         self.put(&format!("{key}.min_pct"), a.min_pct);
         self.put(&format!("{key}.mean_pct"), a.mean_pct);
         self.put(&format!("{key}.cases"), a.cases as f64);
+        self.put(&format!("{key}.faulted"), a.faulted as f64);
     }
 
     fn tracking(&mut self, key: &str, t: &TrackRun) {
@@ -212,6 +213,8 @@ pub struct Row {
     pub better: Better,
     /// Where the seed states it.
     pub source: &'static str,
+    /// A caveat on this project's figure (a fault, an artefact), or empty.
+    pub note: String,
 }
 
 impl Row {
@@ -223,11 +226,12 @@ impl Row {
         }
     }
 
-    /// `better`, `worse`, or `-`.
+    /// `better`, `worse`, `-` (no verdict), `fault` (the run faulted) or `n/a`.
     pub fn verdict(&self) -> &'static str {
         let r = self.ratio();
         match self.better {
             _ if !r.is_finite() => "n/a",
+            _ if self.note.starts_with("run faulted") => "fault",
             Better::Lower if r <= 1.0 => "better",
             Better::Higher if r >= 1.0 => "better",
             Better::Info => "-",
@@ -483,8 +487,28 @@ pub fn comparison(map: &BTreeMap<String, f64>) -> Vec<Row> {
             ours: get(key),
             better: *better,
             source,
+            note: note(map, key),
         })
         .collect()
+}
+
+/// The caveat of a comparison row, from the figure map.
+fn note(map: &BTreeMap<String, f64>, key: &str) -> String {
+    let get = |k: &str| map.get(&format!("clean.{k}")).copied();
+    for run in ["track_motor", "track_jae", "robust_2n5"] {
+        if key.starts_with(&format!("{run}.")) && get(&format!("{run}.faulted")) == Some(1.0) {
+            return "run faulted: statistics up to the fault".into();
+        }
+    }
+    if let Some(base) = key.strip_suffix(".min_pct") {
+        if let Some(n) = get(&format!("{base}.faulted")).filter(|n| *n > 0.0) {
+            return format!("{n} faulted case(s) not counted");
+        }
+    }
+    if key == "loading.static_noload_0.max_abs_n" && get(key).is_some_and(|v| v < 1e-4) {
+        return "estimate = model in the hold dead band".into();
+    }
+    String::new()
 }
 
 fn fmt_num(v: f64) -> String {
@@ -508,7 +532,7 @@ pub fn terminal_table(rows: &[Row]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<52} {:>11} {:>11} {:>7}  verdict",
+        "{:<52} {:>11} {:>11} {:>7}  verdict (note)",
         "quantity (clean simulated prototype)", "seed", "this", "ratio"
     );
     let _ = writeln!(s, "{}", "-".repeat(92));
@@ -516,12 +540,17 @@ pub fn terminal_table(rows: &[Row]) -> String {
         let q = format!("{} [{}]", r.quantity, r.unit);
         let _ = writeln!(
             s,
-            "{:<52} {:>11} {:>11} {:>7.3}  {}",
+            "{:<52} {:>11} {:>11} {:>7.3}  {}{}",
             q,
             fmt_num(r.seed),
             fmt_num(r.ours),
             r.ratio(),
-            r.verdict()
+            r.verdict(),
+            if r.note.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", r.note)
+            }
         );
     }
     let _ = writeln!(
@@ -807,6 +836,11 @@ pub fn fault_lines(r: &Report) -> Vec<String> {
     out
 }
 
+/// Text for a Markdown table cell (`|` escaped).
+fn cell(s: &str) -> String {
+    s.replace('|', "\\|")
+}
+
 // --- report.md -----------------------------------------------------------------
 
 fn md_summary(s: &Summary, unit: &str) -> String {
@@ -1023,19 +1057,20 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
     let _ = writeln!(o, "## Results against the seed\n");
     let _ = writeln!(
         o,
-        "| quantity | seed | this project | ratio | verdict | seed source |"
+        "| quantity | seed | this project | ratio | verdict | note | seed source |"
     );
-    let _ = writeln!(o, "|---|---|---|---|---|---|");
+    let _ = writeln!(o, "|---|---|---|---|---|---|---|");
     for row in rows {
         let _ = writeln!(
             o,
-            "| {} [{}] | {} | {} | {:.3} | {} | {} |",
-            row.quantity,
+            "| {} [{}] | {} | {} | {:.3} | {} | {} | {} |",
+            cell(&row.quantity),
             row.unit,
             fmt_num(row.seed),
             fmt_num(row.ours),
             row.ratio(),
             row.verdict(),
+            row.note,
             row.source
         );
     }
@@ -1056,7 +1091,7 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
     let _ = writeln!(o);
     let _ = writeln!(o, "|---|{}", "---|".repeat(vs.len()));
     for g in &GOALS {
-        let _ = write!(o, "| {} |", g.goal);
+        let _ = write!(o, "| {} |", cell(g.goal));
         for (k, _) in &vs {
             let _ = write!(o, " {} |", status_text(goal_status(map, g, k)));
         }
@@ -1169,6 +1204,19 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
             a.faulted
         );
     }
+    let f_sc1 = id.tension.chi_p[0];
+    let m = &id.config.machine;
+    let tip_per_tension = f64::from(m.pulley_radius_m / m.gripper_length_m);
+    let _ = writeln!(
+        o,
+        "* a likely cause of the force errors at standstill: the identified slider-1 Coulomb friction f_sc1 = {} N \
+         enters the model only through the held sign of x1'. While the joint holds still the friction can take any \
+         value within ±f_sc1 (the slider sticks), which is ±{} N at the tip (r / l_e = {}); the estimate \
+         jumps when the slider sticks or slips (Figs. 22-26).",
+        fmt_num(f_sc1),
+        fmt_num(f_sc1 * tip_per_tension),
+        fmt_num(tip_per_tension)
+    );
     let _ = writeln!(
         o,
         "* largest joint-angle error with a load on: {}° at 0° (seed 1.25°), {}° at 30°/−40° (seed 1.4°)\n",
@@ -1228,7 +1276,8 @@ fn md_effects(o: &mut String, r: &Report, fx: &EffectsPart, map: &BTreeMap<Strin
         let get = |v: &str| fmt_num(map.get(&format!("{v}.{key}")).copied().unwrap_or(f64::NAN));
         let _ = writeln!(
             o,
-            "| {q}{} | {} | {} | {} |",
+            "| {}{} | {} | {} | {} |",
+            cell(q),
             if unit.is_empty() {
                 String::new()
             } else {
@@ -1335,6 +1384,7 @@ pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
             "ratio": row.ratio(),
             "verdict": row.verdict(),
             "source": row.source,
+            "note": row.note,
         })).collect::<Vec<_>>(),
         "goals": goals,
         "identification": {"clean": ident_json(&r.clean.0)},

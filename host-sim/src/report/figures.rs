@@ -53,6 +53,10 @@ impl Writer<'_> {
 
 fn tracking_figure(run: &TrackRun, title: &str, with_estimate: bool) -> Figure {
     let t = &run.trace;
+    let title = match &run.fault {
+        Some(f) => format!("{title} — FAULT: {f}"),
+        None => title.to_owned(),
+    };
     let mut angles = Panel::new(title, "t [s]", "joint angle [°]")
         .with(Series::line(
             "desired",

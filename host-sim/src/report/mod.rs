@@ -212,7 +212,7 @@ fn clean_part(
 }
 
 /// Run the programme and write the figures into `args.out`; returns the
-/// report (report.md and report.json are written by [`write`]).
+/// report (report.md and report.json are written by [`write()`]).
 pub fn generate(args: &ReportArgs) -> Result<Report> {
     ensure!(
         args.duration_scale.is_finite() && args.duration_scale > 0.0,

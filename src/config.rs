@@ -299,8 +299,9 @@ pub struct FaultLimits {
     pub max_motor_speed_rad_s: f32,
     /// Joint-angle range, rad (|theta_hat| beyond it is a fault).
     pub max_joint_angle_rad: f32,
-    /// Largest `|theta_hat - theta_motor|` that cable stretch can explain, rad;
-    /// beyond it a cable is slack or broken.
+    /// How far the motor-implied angle may fall behind the estimated joint
+    /// angle, rad, before cable 1 counts as slack: its preload stretch is
+    /// `F_0 / (K_w1 r)`, about 0.43 rad on the prototype.
     pub max_stretch_rad: f32,
 }
 

@@ -476,7 +476,10 @@ impl Controller {
         if math::abs(theta_hat_rad) > cfg.limits.max_joint_angle_rad {
             fault = fault.or(Some(Fault::AngleRange));
         }
-        if st.primed && math::abs(theta_hat_rad - theta_motor_rad) > cfg.limits.max_stretch_rad {
+        // Cable 1 goes slack when the motor has paid out more than its
+        // preload stretch: the motor-implied angle falls behind the joint.
+        // (The other side is tension, bounded by the current limit.)
+        if st.primed && theta_motor_rad - theta_hat_rad < -cfg.limits.max_stretch_rad {
             fault = fault.or(Some(Fault::TransmissionSlack));
         }
         timer.mark(Stage::Jae);

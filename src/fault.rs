@@ -37,8 +37,8 @@ pub enum Fault {
     AngleRange,
     /// The motor's velocity exceeded its limit.
     Overspeed,
-    /// The motor-implied and the estimated joint angle disagree by more than
-    /// any cable stretch can explain: a cable went slack or broke.
+    /// The motor-implied angle fell behind the estimated joint angle by more
+    /// than cable 1's preload stretch: the cable went slack or broke.
     TransmissionSlack,
     /// The control task missed its deadline.
     Overrun,

@@ -225,6 +225,24 @@ pub fn logged(
     Ok((rec.to_log()?, fault))
 }
 
+/// Which tip-force estimate a loading case is judged on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ForceSource {
+    /// The disturbance observer (seed Fig. 6): `f_ext_hat_n`.
+    Dob,
+    /// The cable-stretch estimate from both gratings: `f_ext_stretch_n`.
+    Stretch,
+}
+
+impl ForceSource {
+    fn of(self, e: &cable_joint::Estimates) -> f64 {
+        f64::from(match self {
+            ForceSource::Dob => e.f_ext_hat_n,
+            ForceSource::Stretch => e.f_ext_stretch_n,
+        })
+    }
+}
+
 /// Decimated trace of one loading case.
 #[derive(Clone, Debug, Default)]
 pub struct CaseTrace {
@@ -275,6 +293,7 @@ pub struct LoadCase {
 }
 
 struct CaseRec {
+    source: ForceSource,
     moved: bool,
     loaded: bool,
     stable_est: Acc,
@@ -293,7 +312,7 @@ impl Recorder for CaseRec {
             self.fault = fault_text(r);
         }
         let e = &r.output.est;
-        let f_hat = f64::from(e.f_ext_hat_n);
+        let f_hat = self.source.of(e);
         let ang = f64::from(e.theta_ref_rad - e.theta_mag_rad) * DEG_PER_RAD;
         if r.tick.is_multiple_of(TRACE_EVERY) {
             let t = &mut self.trace;
@@ -337,6 +356,7 @@ pub fn loading_case(
     angle_deg: f64,
     mass_g: f64,
     direction: Direction,
+    source: ForceSource,
 ) -> anyhow::Result<LoadCase> {
     let opts = ScenarioOptions {
         duration_scale: scale,
@@ -346,6 +366,7 @@ pub fn loading_case(
         tip_inertia: false,
     };
     let mut rec = CaseRec {
+        source,
         moved: angle_deg != 0.0,
         loaded: false,
         stable_est: Acc::default(),

@@ -267,6 +267,10 @@ pub struct Evaluation {
     pub loading: Vec<LoadCase>,
     /// Their summary.
     pub loading_summary: LoadingSummary,
+    /// The same cases judged on the cable-stretch estimate.
+    pub loading_stretch: Vec<LoadCase>,
+    /// Their summary.
+    pub loading_stretch_summary: LoadingSummary,
 }
 
 fn note_fault(faults: &mut Vec<String>, what: &str, f: Option<String>) {
@@ -414,10 +418,16 @@ fn tracking(
 }
 
 /// Step 6: every case of the loading protocol, each as its own run.
-fn loading(plant: &PlantParams, config: &Config, s: &Settings, tag: &str) -> Result<Vec<LoadCase>> {
+fn loading(
+    plant: &PlantParams,
+    config: &Config,
+    s: &Settings,
+    tag: &str,
+    source: experiments::ForceSource,
+) -> Result<Vec<LoadCase>> {
     s.progress.line(
         tag,
-        "6/6 loading: 0°, 30°, -40° x 30-250 g x both directions (seed Fig. 19-26)",
+        &format!("6/6 loading: 0°, 30°, -40° x 30-250 g x both directions (seed Fig. 19-26), {source:?} estimate"),
     );
     let mut cases = Vec::new();
     for a in LOADING_ANGLES_DEG {
@@ -432,6 +442,7 @@ fn loading(plant: &PlantParams, config: &Config, s: &Settings, tag: &str) -> Res
                     a,
                     m,
                     d,
+                    source,
                 )?);
             }
         }
@@ -453,8 +464,10 @@ pub fn programme(
     let (track_motor, track_jae, robust) = tracking(plant, &config_jae, s, tag)?;
     let (tension, tension_validation, config, tension_log, tension_val_log) =
         identify_tension(plant, &config_jae, s, tag, &mut faults)?;
-    let loading = loading(plant, &config, s, tag)?;
-    let loading_summary = LoadingSummary::of(&loading);
+    let loading_cases = loading(plant, &config, s, tag, experiments::ForceSource::Dob)?;
+    let loading_summary = LoadingSummary::of(&loading_cases);
+    let loading_stretch = loading(plant, &config, s, tag, experiments::ForceSource::Stretch)?;
+    let loading_stretch_summary = LoadingSummary::of(&loading_stretch);
     Ok((
         Identification {
             bm,
@@ -477,8 +490,10 @@ pub fn programme(
             track_motor,
             track_jae,
             robust,
-            loading,
+            loading: loading_cases,
             loading_summary,
+            loading_stretch,
+            loading_stretch_summary,
         },
     ))
 }
@@ -491,14 +506,18 @@ pub fn evaluate(
     tag: &str,
 ) -> Result<Evaluation> {
     let (track_motor, track_jae, robust) = tracking(plant, config, s, tag)?;
-    let loading = loading(plant, config, s, tag)?;
-    let loading_summary = LoadingSummary::of(&loading);
+    let loading_cases = loading(plant, config, s, tag, experiments::ForceSource::Dob)?;
+    let loading_summary = LoadingSummary::of(&loading_cases);
+    let loading_stretch = loading(plant, config, s, tag, experiments::ForceSource::Stretch)?;
+    let loading_stretch_summary = LoadingSummary::of(&loading_stretch);
     Ok(Evaluation {
         track_motor,
         track_jae,
         robust,
-        loading,
+        loading: loading_cases,
         loading_summary,
+        loading_stretch,
+        loading_stretch_summary,
     })
 }
 

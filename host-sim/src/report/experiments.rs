@@ -347,15 +347,13 @@ impl Recorder for CaseRec {
 }
 
 /// Run one case of the loading protocol on its own (a fault ends only this
-/// case).
+/// case): `(angle_deg, mass_g, direction)`, judged on `source`.
 pub fn loading_case(
     plant: &PlantParams,
     config: &Config,
     seed: u64,
     scale: f64,
-    angle_deg: f64,
-    mass_g: f64,
-    direction: Direction,
+    (angle_deg, mass_g, direction): (f64, f64, Direction),
     source: ForceSource,
 ) -> anyhow::Result<LoadCase> {
     let opts = ScenarioOptions {

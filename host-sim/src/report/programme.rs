@@ -439,9 +439,7 @@ fn loading(
                     config,
                     run_seed(s.seed, &label),
                     s.scale,
-                    a,
-                    m,
-                    d,
+                    (a, m, d),
                     source,
                 )?);
             }

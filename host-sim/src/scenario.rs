@@ -521,12 +521,7 @@ pub fn run<R: Recorder + ?Sized>(
     let mut plant = plant;
     plan.apply(&mut plant);
     let seed = seed.unwrap_or(plan.seed);
-    let mut config = config;
-    if plan.motor_decoupled {
-        // The motor turns with no cable attached: the motor-implied joint
-        // angle means nothing, so the slack check must not trip.
-        config.limits.max_stretch_rad = f32::MAX;
-    }
+    // (A decoupled motor's slack check is switched off by `Sim::new`.)
     let mut sim = Sim::new(plant, config, seed)?;
     let has_track = plan.segments.iter().any(|s| s.phase == Phase::Track);
     let mut errors = ErrorStats::new(0.0);

@@ -943,6 +943,27 @@ fn md_tracking(out: &mut String, name: &str, t: &TrackRun, seed: &str) {
     }
 }
 
+/// The accuracy bullets of one loading summary (all angles, 0°, 30°/−40°).
+fn md_accuracies(o: &mut String, l: &LoadingSummary) {
+    for (name, a) in [
+        ("≥ 1 N, all angles", &l.above_1n),
+        ("0.3 N, all angles", &l.at_0n3),
+        ("≥ 1 N at 0° (seed 94 %)", &l.above_1n_0),
+        ("0.3 N at 0° (seed 82 %)", &l.at_0n3_0),
+        ("≥ 1 N at 30°/−40° (seed 95 %)", &l.above_1n_30_m40),
+        ("0.3 N at 30°/−40° (seed 84 %)", &l.at_0n3_30_m40),
+    ] {
+        let _ = writeln!(
+            o,
+            "* accuracy {name}: worst {} %, mean {} % over {} cases ({} faulted)",
+            fmt_num(a.min_pct),
+            fmt_num(a.mean_pct),
+            a.cases,
+            a.faulted
+        );
+    }
+}
+
 fn md_cases(out: &mut String, cases: &[LoadCase]) {
     let _ = writeln!(
         out,
@@ -1254,23 +1275,7 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
         fmt_num(l.dynamic_noload_neg_n.min),
         fmt_num(l.dynamic_noload_neg_n.max),
     );
-    for (name, a) in [
-        ("≥ 1 N, all angles", &l.above_1n),
-        ("0.3 N, all angles", &l.at_0n3),
-        ("≥ 1 N at 0° (seed 94 %)", &l.above_1n_0),
-        ("0.3 N at 0° (seed 82 %)", &l.at_0n3_0),
-        ("≥ 1 N at 30°/−40° (seed 95 %)", &l.above_1n_30_m40),
-        ("0.3 N at 30°/−40° (seed 84 %)", &l.at_0n3_30_m40),
-    ] {
-        let _ = writeln!(
-            o,
-            "* accuracy {name}: worst {} %, mean {} % over {} cases ({} faulted)",
-            fmt_num(a.min_pct),
-            fmt_num(a.mean_pct),
-            a.cases,
-            a.faulted
-        );
-    }
+    md_accuracies(&mut o, l);
     let f_sc1 = id.tension.chi_p[0];
     let m = &id.config.machine;
     let tip_per_tension = f64::from(m.pulley_radius_m / m.gripper_length_m);
@@ -1309,21 +1314,7 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
         fmt_num(ls.dynamic_noload_neg_n.min),
         fmt_num(ls.dynamic_noload_neg_n.max),
     );
-    for (name, a) in [
-        ("≥ 1 N at 0° (seed 94 %)", &ls.above_1n_0),
-        ("0.3 N at 0° (seed 82 %)", &ls.at_0n3_0),
-        ("≥ 1 N at 30°/−40° (seed 95 %)", &ls.above_1n_30_m40),
-        ("0.3 N at 30°/−40° (seed 84 %)", &ls.at_0n3_30_m40),
-    ] {
-        let _ = writeln!(
-            o,
-            "* accuracy {name}: worst {} %, mean {} % over {} cases ({} faulted)",
-            fmt_num(a.min_pct),
-            fmt_num(a.mean_pct),
-            a.cases,
-            a.faulted
-        );
-    }
+    md_accuracies(&mut o, ls);
     let _ = writeln!(o);
     md_cases(&mut o, &ev.loading_stretch);
     for stem in [

@@ -24,6 +24,8 @@
 
 use std::path::Path;
 
+use serde::Serialize;
+
 use cable_joint::{Command, Config, Controller, Fault, Mode, Output, RawSample};
 
 use crate::log::Log;
@@ -699,8 +701,9 @@ impl Stats {
     }
 }
 
+/// Running statistics of a signal.
 #[derive(Clone, Copy, Debug, Default)]
-struct Acc {
+pub struct Acc {
     n: u64,
     sum: f64,
     sum_abs: f64,
@@ -710,7 +713,8 @@ struct Acc {
 }
 
 impl Acc {
-    fn push(&mut self, v: f64) {
+    /// Add a value (non-finite values are skipped).
+    pub fn push(&mut self, v: f64) {
         if !v.is_finite() {
             return;
         }
@@ -726,17 +730,83 @@ impl Acc {
         self.min = self.min.min(v);
     }
 
+    /// Merge another accumulator into this one.
+    pub fn merge(&mut self, o: &Acc) {
+        if o.n == 0 {
+            return;
+        }
+        if self.n == 0 {
+            *self = *o;
+            return;
+        }
+        self.n += o.n;
+        self.sum += o.sum;
+        self.sum_abs += o.sum_abs;
+        self.sum_sq += o.sum_sq;
+        self.max = self.max.max(o.max);
+        self.min = self.min.min(o.min);
+    }
+
+    /// The statistics, each value multiplied by `scale` (NaN when empty).
+    pub fn summary(&self, scale: f64) -> Summary {
+        if self.n == 0 {
+            return Summary {
+                n: 0,
+                mean: f64::NAN,
+                mean_abs: f64::NAN,
+                rms: f64::NAN,
+                max: f64::NAN,
+                min: f64::NAN,
+            };
+        }
+        let n = self.n as f64;
+        Summary {
+            n: self.n,
+            mean: self.sum / n * scale,
+            mean_abs: self.sum_abs / n * scale.abs(),
+            rms: (self.sum_sq / n).sqrt() * scale.abs(),
+            max: if scale >= 0.0 { self.max } else { self.min } * scale,
+            min: if scale >= 0.0 { self.min } else { self.max } * scale,
+        }
+    }
+}
+
+/// Statistics of an error signal (`max`/`min` signed; NaN when `n == 0`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Samples.
+    pub n: u64,
+    /// Mean.
+    pub mean: f64,
+    /// Mean of the absolute value.
+    pub mean_abs: f64,
+    /// Root mean square.
+    pub rms: f64,
+    /// Largest value.
+    pub max: f64,
+    /// Smallest value.
+    pub min: f64,
+}
+
+impl Summary {
+    /// Largest absolute value.
+    pub fn max_abs(&self) -> f64 {
+        self.max.abs().max(self.min.abs())
+    }
+}
+
+impl Acc {
+    /// The statistics in degrees of a signal in radians, if any sample.
     fn stats(&self) -> Option<Stats> {
         (self.n > 0).then(|| {
-            let n = self.n as f64;
-            let d = 180.0 / std::f64::consts::PI;
+            let s = self.summary(180.0 / std::f64::consts::PI);
             Stats {
-                n: self.n,
-                mean_deg: self.sum / n * d,
-                mean_abs_deg: self.sum_abs / n * d,
-                rms_deg: (self.sum_sq / n).sqrt() * d,
-                max_deg: self.max * d,
-                min_deg: self.min * d,
+                n: s.n,
+                mean_deg: s.mean,
+                mean_abs_deg: s.mean_abs,
+                rms_deg: s.rms,
+                max_deg: s.max,
+                min_deg: s.min,
             }
         })
     }

@@ -7,6 +7,7 @@ use serde::Serialize;
 use crate::log::Log;
 use crate::plant::PlantParams;
 use crate::scenario::{self, Direction, Phase, ScenarioOptions};
+pub use crate::sim::{Acc, Summary};
 use crate::sim::{LogRecorder, Recorder, TickRecord};
 
 /// Degrees per radian.
@@ -14,100 +15,6 @@ pub const DEG_PER_RAD: f64 = 180.0 / std::f64::consts::PI;
 
 /// Keep every `TRACE_EVERY`-th tick in the figure traces (500 Hz at 2 kHz).
 pub const TRACE_EVERY: u64 = 4;
-
-/// Running statistics of a signal.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Acc {
-    n: u64,
-    sum: f64,
-    sum_abs: f64,
-    sum_sq: f64,
-    max: f64,
-    min: f64,
-}
-
-impl Acc {
-    /// Add a value (non-finite values are skipped).
-    pub fn push(&mut self, v: f64) {
-        if !v.is_finite() {
-            return;
-        }
-        if self.n == 0 {
-            self.max = v;
-            self.min = v;
-        }
-        self.n += 1;
-        self.sum += v;
-        self.sum_abs += v.abs();
-        self.sum_sq += v * v;
-        self.max = self.max.max(v);
-        self.min = self.min.min(v);
-    }
-
-    /// Merge another accumulator into this one.
-    pub fn merge(&mut self, o: &Acc) {
-        if o.n == 0 {
-            return;
-        }
-        if self.n == 0 {
-            *self = *o;
-            return;
-        }
-        self.n += o.n;
-        self.sum += o.sum;
-        self.sum_abs += o.sum_abs;
-        self.sum_sq += o.sum_sq;
-        self.max = self.max.max(o.max);
-        self.min = self.min.min(o.min);
-    }
-
-    /// The statistics, each value multiplied by `scale` (NaN when empty).
-    pub fn summary(&self, scale: f64) -> Summary {
-        if self.n == 0 {
-            return Summary {
-                n: 0,
-                mean: f64::NAN,
-                mean_abs: f64::NAN,
-                rms: f64::NAN,
-                max: f64::NAN,
-                min: f64::NAN,
-            };
-        }
-        let n = self.n as f64;
-        Summary {
-            n: self.n,
-            mean: self.sum / n * scale,
-            mean_abs: self.sum_abs / n * scale.abs(),
-            rms: (self.sum_sq / n).sqrt() * scale.abs(),
-            max: if scale >= 0.0 { self.max } else { self.min } * scale,
-            min: if scale >= 0.0 { self.min } else { self.max } * scale,
-        }
-    }
-}
-
-/// Statistics of an error signal (`max`/`min` signed; NaN when `n == 0`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Summary {
-    /// Samples.
-    pub n: u64,
-    /// Mean.
-    pub mean: f64,
-    /// Mean of the absolute value.
-    pub mean_abs: f64,
-    /// Root mean square.
-    pub rms: f64,
-    /// Largest value.
-    pub max: f64,
-    /// Smallest value.
-    pub min: f64,
-}
-
-impl Summary {
-    /// Largest absolute value.
-    pub fn max_abs(&self) -> f64 {
-        self.max.abs().max(self.min.abs())
-    }
-}
 
 fn fault_text(r: &TickRecord) -> Option<String> {
     r.output.fault.map(|f| format!("{f} (t = {:.2} s)", r.t_s))

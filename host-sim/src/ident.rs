@@ -485,8 +485,9 @@ fn to_anyhow(e: cable_joint::lsq::LsqError) -> anyhow::Error {
     anyhow!("{e}")
 }
 
-/// A log replayed through the core, with the columns the models need.
-struct Prepared {
+/// A log replayed through the core, with the columns the models need (the
+/// report draws the identified models on the same columns).
+pub struct Prepared {
     label: String,
     derived: Log,
     cfg: Config,
@@ -507,7 +508,8 @@ enum X2Switch {
 }
 
 impl Prepared {
-    fn new(label: &str, log: &Log, config: &Config, opts: &IdentOptions) -> Result<Self> {
+    /// Replay `log` (named `label` in errors) through the core with `config`.
+    pub fn new(label: &str, log: &Log, config: &Config, opts: &IdentOptions) -> Result<Self> {
         let cfg = config_for_log(log, config).with_context(|| label.to_owned())?;
         let derived = derive(log, config).with_context(|| format!("replaying {label}"))?;
         let t = derived.time_s()?.to_vec();
@@ -562,7 +564,8 @@ impl Prepared {
         self.derived.len()
     }
 
-    fn col(&self, name: &str) -> Result<Vec<f64>> {
+    /// A column of the replay.
+    pub fn col(&self, name: &str) -> Result<Vec<f64>> {
         Ok(self
             .derived
             .col(name)
@@ -570,7 +573,8 @@ impl Prepared {
             .to_vec())
     }
 
-    fn theta(&self) -> Result<&Vec<f64>> {
+    /// The magnetic encoder when measured on every row, else the JAE, rad.
+    pub fn theta(&self) -> Result<&Vec<f64>> {
         self.theta.as_ref().ok_or_else(|| {
             anyhow!(
                 "{}: no joint angle (theta_rad or theta_hat_rad)",
@@ -579,7 +583,9 @@ impl Prepared {
         })
     }
 
-    fn theta_kin(&self) -> Result<&(Vec<f64>, Vec<f64>)> {
+    /// Joint speed and acceleration of [`Prepared::theta`] through the
+    /// core's tracking observer.
+    pub fn theta_kin(&self) -> Result<&(Vec<f64>, Vec<f64>)> {
         self.theta_kin.as_ref().ok_or_else(|| {
             anyhow!(
                 "{}: no joint angle (theta_rad or theta_hat_rad)",
@@ -594,6 +600,29 @@ impl Prepared {
         vel.iter()
             .map(|v| f64::from(sm.update(&mut s, *v as f32)))
             .collect()
+    }
+
+    /// Time, s.
+    pub fn t_s(&self) -> Result<&[f64]> {
+        Ok(self.derived.time_s()?)
+    }
+
+    /// The configuration the log was replayed with (its own control rate).
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    /// The unfiltered column of `r`; `jae`: `sgn(x2')` with the JAE's
+    /// switching speed (else the tension model's).
+    pub fn regressor_column(&self, r: Regressor, jae: bool) -> Result<Vec<f64>> {
+        self.column(
+            r,
+            if jae {
+                X2Switch::Jae
+            } else {
+                X2Switch::Tension
+            },
+        )
     }
 
     /// The unfiltered column of `r`.
@@ -648,7 +677,7 @@ impl Prepared {
 
     /// The DOB's low-pass `Q` over a whole column (state starts at the first
     /// value: the log starts at rest).
-    fn dob_filter(&self, col: &[f64]) -> Vec<f64> {
+    pub fn dob_filter(&self, col: &[f64]) -> Vec<f64> {
         let lp = LowPass1::new(self.cfg.dob.cutoff_rad_s, self.cfg.period_s());
         let mut y = col.first().copied().unwrap_or(0.0) as f32;
         col.iter()

@@ -288,6 +288,69 @@ impl StretchConfig {
     }
 }
 
+/// Fused force estimate and its bound ([`crate::fusion`]): the friction bands
+/// that the DOB and the stretch estimate cannot see through at standstill.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct FusionConfig {
+    /// Joint-pin Coulomb friction `f_efc`, N·m. `identify` fits it on the
+    /// calibration run (joint torque from both cables against the magnetic
+    /// encoder). The default is the seed's upper bound: all of model C's
+    /// `f_cp2` beyond slider 2's own friction placed on the pin,
+    /// `(5.027 N - c3 K_w2 r) r` = 19.7 mN·m, which makes the bound wide
+    /// (about ±1.5 N at the tip) but true.
+    pub pin_coulomb_nm: f32,
+    /// Largest ratio of static (breakaway) to kinetic friction the bound
+    /// allows for a stuck element (1.5: the upper end of lubricated
+    /// steel-on-steel and miniature linear guides).
+    pub static_over_kinetic: f32,
+    /// Relative uncertainty of an identified Coulomb level while its element
+    /// slips (0.25 = ±25 %).
+    pub kinetic_tolerance: f32,
+    /// JAE error that is not slider 2's friction (model error), rad. The
+    /// default is the seed's mean JAE identification error, 0.275°;
+    /// `identify` writes the 95th percentile of its own residual.
+    pub jae_error_rad: f32,
+    /// Window over which a net displacement counts as a slow slip (creep), s.
+    pub creep_window_s: f32,
+    /// Net displacement within the window that counts as creep, m (three
+    /// grating counts: above one count of quantisation either way).
+    pub creep_distance_m: f32,
+}
+
+impl Default for FusionConfig {
+    fn default() -> Self {
+        let m = Machine::default();
+        let k_w2 = StretchConfig::default().cable2_n_m;
+        let c3 = JaeConfig::default().c_sign_rad;
+        let f_cp2 = TensionConfig::default().f_cp2_n;
+        Self {
+            pin_coulomb_nm: (f_cp2 - c3 * k_w2 * m.pulley_radius_m) * m.pulley_radius_m,
+            static_over_kinetic: 1.5,
+            kinetic_tolerance: 0.25,
+            jae_error_rad: 0.275 * crate::math::PI / 180.0,
+            creep_window_s: 0.1,
+            creep_distance_m: 3e-6,
+        }
+    }
+}
+
+impl FusionConfig {
+    /// The upper bound of the pin friction that model C and the JAE leave
+    /// room for: `(|f_cp2| - |c3| K_w2 r) r`, N·m (at least 0).
+    pub fn pin_upper_bound_nm(config: &Config) -> f32 {
+        let r = config.machine.pulley_radius_m;
+        let slider2_n = crate::math::abs(config.jae.c_sign_rad) * config.stretch.cable2_n_m * r;
+        let v = (crate::math::abs(config.tension.f_cp2_n) - slider2_n) * r;
+        if v > 0.0 {
+            v
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Limits beyond which a reading is impossible (a fault).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -299,10 +362,12 @@ pub struct FaultLimits {
     pub max_motor_speed_rad_s: f32,
     /// Joint-angle range, rad (|theta_hat| beyond it is a fault).
     pub max_joint_angle_rad: f32,
-    /// How far the motor-implied angle may fall behind the estimated joint
-    /// angle, rad, before cable 1 counts as slack: its preload stretch is
-    /// `F_0 / (K_w1 r)`, about 0.43 rad on the prototype.
-    pub max_stretch_rad: f32,
+    /// Cable 1 counts as slack (a fault) when its estimated tension,
+    /// `K_w1 (x1 - r theta_hat) + F_0`, falls below this fraction of the
+    /// preload `F_0`. A physical threshold: with cable 1 near slack the joint
+    /// loses its stiffness on that side and the JAE's cable model no longer
+    /// holds. 0 switches the check off (a decoupled motor, homing).
+    pub min_tension_fraction: f32,
 }
 
 impl Default for FaultLimits {
@@ -311,7 +376,7 @@ impl Default for FaultLimits {
             max_grating_speed_m_s: 0.5,
             max_motor_speed_rad_s: 1200.0,
             max_joint_angle_rad: 1.6,
-            max_stretch_rad: 0.35,
+            min_tension_fraction: 0.2,
         }
     }
 }
@@ -339,6 +404,8 @@ pub struct Config {
     pub tension: TensionConfig,
     /// Cable-stretch force estimator.
     pub stretch: StretchConfig,
+    /// Fused force estimate and its bound.
+    pub fusion: FusionConfig,
     /// Fault limits.
     pub limits: FaultLimits,
 }
@@ -355,9 +422,21 @@ impl Default for Config {
             dob: DobConfig::default(),
             tension: TensionConfig::default(),
             stretch: StretchConfig::default(),
+            fusion: FusionConfig::default(),
             limits: FaultLimits::default(),
         }
     }
+}
+
+/// A setting [`Config::at_rate`] derived from the control rate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RateAdjustment {
+    /// Dotted path of the setting.
+    pub field: &'static str,
+    /// Value before, in the setting's unit.
+    pub from: f32,
+    /// Value derived from the rate.
+    pub to: f32,
 }
 
 /// Why a configuration was rejected: the field and what is wrong with it.
@@ -417,6 +496,42 @@ impl Config {
     #[inline]
     pub fn period_s(&self) -> f32 {
         1.0 / self.control_rate_hz
+    }
+
+    /// This configuration at another control rate, with every rate-dependent
+    /// setting that the new rate cannot support derived from it: a
+    /// differentiator bandwidth above a quarter of the Nyquist rate (what
+    /// [`Config::validate`] allows) becomes a fifth of it (`rate / 10`). The
+    /// settings in seconds or hertz that the rate can support are kept, so a
+    /// user's choice survives. Returns the changes made, for the caller to
+    /// say what it derived.
+    pub fn at_rate(&self, rate_hz: f32) -> (Config, heapless::Vec<RateAdjustment, 4>) {
+        let mut c = *self;
+        let mut changes = heapless::Vec::new();
+        c.control_rate_hz = rate_hz;
+        let limit_hz = 0.125 * rate_hz;
+        let derived_hz = 0.1 * rate_hz;
+        let d = &mut c.differentiators;
+        for (field, bw) in [
+            (
+                "differentiators.grating_bandwidth_hz",
+                &mut d.grating_bandwidth_hz,
+            ),
+            (
+                "differentiators.motor_bandwidth_hz",
+                &mut d.motor_bandwidth_hz,
+            ),
+        ] {
+            if *bw > limit_hz && derived_hz.is_finite() && derived_hz > 0.0 {
+                let _ = changes.push(RateAdjustment {
+                    field,
+                    from: *bw,
+                    to: derived_hz,
+                });
+                *bw = derived_hz;
+            }
+        }
+        (c, changes)
     }
 
     /// Check every field; the first impossible one is returned.
@@ -547,6 +662,32 @@ impl Config {
         positive("stretch.cable1_n_m", self.stretch.cable1_n_m)?;
         positive("stretch.cable2_n_m", self.stretch.cable2_n_m)?;
 
+        let f = &self.fusion;
+        non_negative("fusion.pin_coulomb_nm", f.pin_coulomb_nm)?;
+        if !(f.static_over_kinetic.is_finite() && (1.0..=10.0).contains(&f.static_over_kinetic)) {
+            return Err(ConfigError {
+                field: "fusion.static_over_kinetic",
+                expected: "within 1..=10",
+            });
+        }
+        if !(f.kinetic_tolerance.is_finite() && (0.0..=1.0).contains(&f.kinetic_tolerance)) {
+            return Err(ConfigError {
+                field: "fusion.kinetic_tolerance",
+                expected: "within 0..=1",
+            });
+        }
+        non_negative("fusion.jae_error_rad", f.jae_error_rad)?;
+        if !(f.creep_window_s.is_finite()
+            && f.creep_window_s >= self.period_s()
+            && f.creep_window_s <= 10.0)
+        {
+            return Err(ConfigError {
+                field: "fusion.creep_window_s",
+                expected: "between one control period and 10 s",
+            });
+        }
+        positive("fusion.creep_distance_m", f.creep_distance_m)?;
+
         self.validate_limits()
     }
 
@@ -556,7 +697,12 @@ impl Config {
         positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
         positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;
         positive("limits.max_joint_angle_rad", l.max_joint_angle_rad)?;
-        positive("limits.max_stretch_rad", l.max_stretch_rad)?;
+        if !(l.min_tension_fraction.is_finite() && (0.0..1.0).contains(&l.min_tension_fraction)) {
+            return Err(ConfigError {
+                field: "limits.min_tension_fraction",
+                expected: "within 0..1 (0 = off)",
+            });
+        }
         Ok(())
     }
 }
@@ -568,6 +714,39 @@ mod tests {
     #[test]
     fn defaults_are_valid() {
         Config::default().validate().unwrap();
+    }
+
+    #[test]
+    fn a_1_khz_rate_derives_the_motor_differentiator_and_validates() {
+        let c = Config::default();
+        assert!(
+            Config {
+                control_rate_hz: 1000.0,
+                ..c
+            }
+            .validate()
+            .is_err(),
+            "the 2 kHz defaults do not fit 1 kHz"
+        );
+        let (at, changes) = c.at_rate(1000.0);
+        at.validate().unwrap();
+        assert_eq!(changes.len(), 1);
+        assert_eq!(changes[0].field, "differentiators.motor_bandwidth_hz");
+        assert_eq!(at.differentiators.motor_bandwidth_hz, 100.0);
+        assert_eq!(
+            at.differentiators.grating_bandwidth_hz,
+            c.differentiators.grating_bandwidth_hz
+        );
+        let (same, none) = c.at_rate(2000.0);
+        assert_eq!((same, none.len()), (c, 0));
+    }
+
+    #[test]
+    fn fusion_default_pin_friction_is_model_cs_upper_bound() {
+        let c = Config::default();
+        let ub = FusionConfig::pin_upper_bound_nm(&c);
+        assert!((c.fusion.pin_coulomb_nm - ub).abs() < 1e-6 * ub, "{ub}");
+        assert!((ub - 19.65e-3).abs() < 0.1e-3, "{ub}");
     }
 
     #[test]

@@ -15,6 +15,7 @@ use crate::config::{Config, ConfigError};
 use crate::dob::{self, Dob, DobOut, DobState, TensionState};
 use crate::fault::{Fault, Sensor};
 use crate::filter::{Kinematics, LowPass1, TrackingObserver};
+use crate::fusion::{Fusion, FusionIn, FusionState};
 use crate::jae::{self, JaeState};
 use crate::math;
 use crate::model::{sig, AddedState, Signals};
@@ -139,6 +140,20 @@ pub struct Estimates {
     /// Estimated external tip force from the cables' stretch, through the
     /// same low-pass as the DOB, N.
     pub f_ext_stretch_n: f32,
+    /// Fused tip-force estimate (DOB and stretch intervals intersected,
+    /// [`crate::fusion`]), N.
+    pub f_ext_fused_n: f32,
+    /// Lower end of the fused estimate's bound, N: every tip force the
+    /// measurements and the friction bands allow lies in `[lo, hi]`.
+    pub f_ext_lo_n: f32,
+    /// Upper end of the fused estimate's bound, N.
+    pub f_ext_hi_n: f32,
+    /// [`crate::fusion::flags`] bits: which elements stick, whether the
+    /// estimates disagree.
+    pub fusion_flags: u8,
+    /// Cable-1 tension from its stretch, `K_w1 (x1 - r theta_hat) + F_0`, N
+    /// (the slack check's input).
+    pub tension1_stretch_n: f32,
 }
 
 /// Result of one step.
@@ -205,6 +220,7 @@ struct Derived {
     grating_obs: TrackingObserver,
     motor_obs: TrackingObserver,
     dob: Dob,
+    fusion: Fusion,
     blend: Option<LowPass1>,
     force_lp: LowPass1,
     motor_per_joint: f32,
@@ -223,6 +239,7 @@ impl Derived {
             grating_obs: TrackingObserver::new(d.grating_bandwidth_hz, period_s),
             motor_obs: TrackingObserver::new(d.motor_bandwidth_hz, period_s),
             dob: Dob::new(&c.dob, m, period_s),
+            fusion: Fusion::new(c, period_s),
             force_lp: LowPass1::new(c.dob.cutoff_rad_s, period_s),
             blend: (c.cascade.jae_blend_hz > 0.0)
                 .then(|| LowPass1::new(2.0 * math::PI * c.cascade.jae_blend_hz, period_s)),
@@ -267,6 +284,9 @@ pub struct State {
     jae_terms: AddedState,
     tension_terms: AddedState,
     dob: DobState,
+    fusion: FusionState,
+    /// `Q[F_1']`'s Coulomb part (model C's sign terms), N.
+    tension_friction_n: f32,
     cascade: CascadeState,
     /// Low-passed stretch force estimate, N.
     stretch_force_n: f32,
@@ -476,12 +496,6 @@ impl Controller {
         if math::abs(theta_hat_rad) > cfg.limits.max_joint_angle_rad {
             fault = fault.or(Some(Fault::AngleRange));
         }
-        // Cable 1 goes slack when the motor has paid out more than its
-        // preload stretch: the motor-implied angle falls behind the joint.
-        // (The other side is tension, bounded by the current limit.)
-        if st.primed && theta_motor_rad - theta_hat_rad < -cfg.limits.max_stretch_rad {
-            fault = fault.or(Some(Fault::TransmissionSlack));
-        }
         timer.mark(Stage::Jae);
 
         // --- Tension model and DOB ---------------------------------------------
@@ -508,13 +522,41 @@ impl Controller {
         let joint_torque_nm = r
             * (cfg.stretch.cable1_n_m * (x1_m - r * theta_hat_rad)
                 - cfg.stretch.cable2_n_m * (r * theta_hat_rad - x2_m));
+        let friction_n =
+            cfg.tension.f_sc1_n * st.tension.sign_x1 + cfg.tension.f_cp2_n * st.tension.sign_x2;
         if !st.primed {
             st.stretch_force_n = joint_torque_nm / m.gripper_length_m;
+            st.tension_friction_n = friction_n;
         }
         let f_ext_stretch_n = d.force_lp.update(
             &mut st.stretch_force_n,
             joint_torque_nm / m.gripper_length_m,
         );
+        let tension_friction_n = d.force_lp.update(&mut st.tension_friction_n, friction_n);
+        let fused = d.fusion.update(
+            &mut st.fusion,
+            &FusionIn {
+                x1_m,
+                x1_vel_m_s: x1.vel,
+                x2_m,
+                x2_vel_m_s: x2.vel,
+                tension1_dob_n: dob_out.tension1_n,
+                tension1_model_n: dob_out.tension1_model_n,
+                tension1_friction_n: tension_friction_n,
+                joint_torque_nm: f_ext_stretch_n * m.gripper_length_m,
+            },
+        );
+        // Cable 1 is slack when its tension, read off its stretch, falls
+        // below a fraction of the preload (a physical threshold, not a
+        // motor/joint disagreement).
+        let tension1_stretch_n =
+            cfg.stretch.cable1_n_m * (x1_m - r * theta_hat_rad) + cfg.tension.f_0_n;
+        if st.primed
+            && cfg.limits.min_tension_fraction > 0.0
+            && tension1_stretch_n < cfg.limits.min_tension_fraction * cfg.tension.f_0_n
+        {
+            fault = fault.or(Some(Fault::TransmissionSlack));
+        }
         timer.mark(Stage::Dob);
 
         // --- Reference and cascade -------------------------------------------
@@ -580,11 +622,17 @@ impl Controller {
             tension1_model_n: dob_out.tension1_model_n,
             f_ext_hat_n: dob_out.f_ext_n,
             f_ext_stretch_n,
+            f_ext_fused_n: fused.f_ext_n,
+            f_ext_lo_n: fused.lo_n,
+            f_ext_hi_n: fused.hi_n,
+            fusion_flags: fused.flags,
+            tension1_stretch_n,
         };
         let finite = casc.current_a.is_finite()
             && theta_hat_rad.is_finite()
             && dob_out.f_ext_n.is_finite()
             && f_ext_stretch_n.is_finite()
+            && fused.f_ext_n.is_finite()
             && dob_out.tension1_n.is_finite()
             && x1.acc.is_finite()
             && phi.acc.is_finite();
@@ -691,28 +739,44 @@ mod tests {
         );
     }
 
+    /// Cable 1's tension read off its stretch: the joint turning positive
+    /// (slider 2 moves out) while slider 1 stays put unloads cable 1; below
+    /// the configured fraction of the preload it is slack, above it not.
     #[test]
-    fn slack_cable_is_a_fault() {
-        let mut c = Controller::new(Config::default()).unwrap();
-        c.set_command(Command {
-            mode: Mode::MotorPosition,
-            trajectory: Trajectory::Hold { angle_rad: 0.0 },
-        });
-        let mut raw = at_rest();
-        c.step(&raw);
-        // The motor unwinds 30° of joint angle while slider 2 stays put.
-        let counts_per_joint_rad = 4000.0 / (2.0 * math::PI) * c.derived.motor_per_joint;
-        let target = (0.52 * counts_per_joint_rad) as i32;
-        let mut out = c.step(&raw);
-        for k in 1..=200 {
-            raw.motor = MotorCount((-(target * k / 200)) as i16 as u16);
-            out = c.step(&raw);
-            if out.fault.is_some() {
-                break;
+    fn slack_cable_is_a_fault_by_its_tension_not_by_an_angle() {
+        let cfg = Config::default();
+        let per_count = cfg.jae.c_pos_rad_m * cfg.scales.grating_m_per_count;
+        let r = cfg.machine.pulley_radius_m;
+        // Counts of x2 at which cable 1's tension is a fraction `f` of F_0.
+        let counts_at = |f: f32| {
+            ((1.0 - f) * cfg.tension.f_0_n / (cfg.stretch.cable1_n_m * r * per_count)) as i32
+        };
+        let run = |end_counts: i32| {
+            let mut c = Controller::new(cfg).unwrap();
+            c.set_command(Command {
+                mode: Mode::MotorPosition,
+                trajectory: Trajectory::Hold { angle_rad: 0.0 },
+            });
+            let mut raw = at_rest();
+            let mut out = c.step(&raw);
+            for k in 1..=400 {
+                raw.grating2 = GratingCount(end_counts * k / 400);
+                out = c.step(&raw);
+                if out.fault.is_some() {
+                    break;
+                }
             }
-        }
-        assert_eq!(out.fault, Some(Fault::TransmissionSlack));
-        assert!(!out.drive_enable);
+            for _ in 0..200 {
+                out = c.step(&raw);
+            }
+            out
+        };
+        let half = run(counts_at(0.5));
+        assert_eq!(half.fault, None, "half the preload left is not slack");
+        assert!((half.est.tension1_stretch_n - 0.5 * cfg.tension.f_0_n).abs() < 0.5);
+        let slack = run(counts_at(0.1));
+        assert_eq!(slack.fault, Some(Fault::TransmissionSlack));
+        assert!(!slack.drive_enable);
     }
 
     /// The stretch estimator reads the joint torque off the two cables:

@@ -37,8 +37,9 @@ pub enum Fault {
     AngleRange,
     /// The motor's velocity exceeded its limit.
     Overspeed,
-    /// The motor-implied angle fell behind the estimated joint angle by more
-    /// than cable 1's preload stretch: the cable went slack or broke.
+    /// Cable 1's tension, read off its stretch, fell below
+    /// `limits.min_tension_fraction` of the preload: the cable is going
+    /// slack or broke.
     TransmissionSlack,
     /// The control task missed its deadline.
     Overrun,
@@ -114,7 +115,7 @@ impl fmt::Display for Fault {
             Fault::NonFinite => f.write_str("non-finite value in a filter or estimator"),
             Fault::AngleRange => f.write_str("joint-angle estimate out of mechanical range"),
             Fault::Overspeed => f.write_str("motor overspeed"),
-            Fault::TransmissionSlack => f.write_str("cable slack: motor and joint angle disagree"),
+            Fault::TransmissionSlack => f.write_str("cable slack: cable-1 tension below its limit"),
             Fault::Overrun => f.write_str("control tick overran its deadline"),
             Fault::DriveFault => f.write_str("drive reported a fault"),
             Fault::OriginDuringMotion => f.write_str("origin switch hit during motion"),

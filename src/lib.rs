@@ -14,6 +14,7 @@ pub mod dob;
 pub mod effects;
 pub mod fault;
 pub mod filter;
+pub mod fusion;
 pub mod jae;
 pub mod lsq;
 pub mod math;

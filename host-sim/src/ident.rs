@@ -1042,10 +1042,10 @@ pub fn validate_bm(
 
 /// The configuration for replaying a no-load motor run: with the rope wheel
 /// unhooked the motor angle says nothing about the joint, so the
-/// transmission-slack check (`limits.max_stretch_rad`) is switched off.
+/// transmission-slack check (`limits.min_tension_fraction`) is switched off.
 pub fn decoupled(config: &Config) -> Config {
     let mut c = *config;
-    c.limits.max_stretch_rad = f32::MAX;
+    c.limits.min_tension_fraction = 0.0;
     c
 }
 

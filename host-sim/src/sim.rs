@@ -197,13 +197,13 @@ impl Sim {
     /// sample and idle. The plant's step is rounded up to a whole number of
     /// sub-steps per control period. `seed` drives all noise.
     ///
-    /// With the motor decoupled from the cable (`plant.motor_decoupled`) the
-    /// motor-implied joint angle means nothing, so the controller's slack
-    /// check is switched off.
+    /// With the motor decoupled from the cable (`plant.motor_decoupled`)
+    /// cable 1 is not held by the motor, so the controller's slack check is
+    /// switched off.
     pub fn new(plant: PlantParams, config: Config, seed: u64) -> anyhow::Result<Self> {
         let mut config = config;
         if plant.motor_decoupled {
-            config.limits.max_stretch_rad = f32::MAX;
+            config.limits.min_tension_fraction = 0.0;
         }
         let controller = Controller::new(config).map_err(|e| anyhow::anyhow!("controller: {e}"))?;
         let control_hz = config.control_rate_hz as f64;

@@ -22,7 +22,7 @@
 //! Before homing the joint angle is unknown and the cables may be slack, so
 //! while leaving and homing the controller's joint-angle range check is
 //! widened by twice the search span and its slack check
-//! (`limits.max_stretch_rad`) by the span; the user's limits are restored on
+//! (`limits.min_tension_fraction`) is off; the user's limits are restored on
 //! the edge (one cheap `set_limits` each time).
 //! 4. **Running**: the program's command. From now on a rising origin edge
 //!    farther than [`HomingConfig::origin_tolerance_rad`] from zero (by the
@@ -201,9 +201,9 @@ impl Sequencer {
         config.validate()?;
         if let Some(user) = self.user_limits.as_mut() {
             let l = &mut config.limits;
-            *user = (l.max_joint_angle_rad, l.max_stretch_rad);
+            *user = (l.max_joint_angle_rad, l.min_tension_fraction);
             l.max_joint_angle_rad = ctrl.config().limits.max_joint_angle_rad;
-            l.max_stretch_rad = ctrl.config().limits.max_stretch_rad;
+            l.min_tension_fraction = ctrl.config().limits.min_tension_fraction;
         }
         ctrl.set_config(config)
     }
@@ -215,10 +215,10 @@ impl Sequencer {
             return;
         }
         let mut l = ctrl.config().limits;
-        let user = (l.max_joint_angle_rad, l.max_stretch_rad);
+        let user = (l.max_joint_angle_rad, l.min_tension_fraction);
         let span = math::abs(homing.search_rad);
         l.max_joint_angle_rad = user.0 + 2.0 * span;
-        l.max_stretch_rad = user.1 + span;
+        l.min_tension_fraction = 0.0;
         if ctrl.set_limits(l).is_ok() {
             self.user_limits = Some(user);
         }
@@ -226,10 +226,10 @@ impl Sequencer {
 
     /// Put the user's limits back.
     fn restore_range(&mut self, ctrl: &mut Controller) {
-        if let Some((range, stretch)) = self.user_limits.take() {
+        if let Some((range, slack)) = self.user_limits.take() {
             let mut l = ctrl.config().limits;
             l.max_joint_angle_rad = range;
-            l.max_stretch_rad = stretch;
+            l.min_tension_fraction = slack;
             // Both came from a validated configuration.
             let _ = ctrl.set_limits(l);
         }
@@ -499,12 +499,16 @@ mod tests {
             widened.max_joint_angle_rad,
             user.max_joint_angle_rad + 2.0 * 2.5
         );
-        assert_eq!(widened.max_stretch_rad, user.max_stretch_rad + 2.5);
+        assert_eq!(
+            widened.min_tension_fraction, 0.0,
+            "slack check off while homing"
+        );
+        assert!(user.min_tension_fraction > 0.0);
         // A parameter update while homing keeps the widened range in force
         // and becomes the range restored afterwards.
         let mut c = Config::default();
         c.limits.max_joint_angle_rad = 1.2;
-        c.limits.max_stretch_rad = 0.2;
+        c.limits.min_tension_fraction = 0.3;
         c.jae.offset_rad = 0.01;
         seq.set_config(&mut ctrl, c).unwrap();
         assert_eq!(ctrl.config().limits, widened);
@@ -512,7 +516,7 @@ mod tests {
         run(&mut seq, &mut ctrl, &rest(), true, true, &events);
         assert_eq!(seq.phase(), Phase::Running);
         assert_eq!(ctrl.config().limits.max_joint_angle_rad, 1.2);
-        assert_eq!(ctrl.config().limits.max_stretch_rad, 0.2);
+        assert_eq!(ctrl.config().limits.min_tension_fraction, 0.3);
         let mut bad = Config::default();
         bad.limits.max_joint_angle_rad = -1.0;
         assert!(seq.set_config(&mut ctrl, bad).is_err());

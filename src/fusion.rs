@@ -1,0 +1,402 @@
+//! Fused tip-force estimate with a guaranteed-style bound (set membership).
+//!
+//! Two passive estimates of the tip force see the joint through different
+//! friction (DESIGN.md §4):
+//!
+//! * the **DOB** (seed Eq. 17-21) sees cable 1's tension at the motor, so the
+//!   friction of the motor/gearhead and of slider 1 (model C's `f_sc1` term)
+//!   and of slider 2 and the joint pin (its `f_cp2` term) sit between it and
+//!   the tip;
+//! * the **cable stretch** (`tau = r [K_w1 (x1 - r theta) - K_w2 (r theta -
+//!   x2)]`) sees the torque the two cables put on the joint, so only the
+//!   joint pin's friction and the JAE's error (slider 2's friction band
+//!   through `theta_hat`) sit between it and the tip.
+//!
+//! While an element slips its friction is its kinetic level with the sign of
+//! the slip; while it sticks, its friction can be anything inside its static
+//! band, and no passive sensor can tell which. So each estimate is an
+//! **interval** of tip forces consistent with the measurements and the
+//! friction bands:
+//!
+//! * element slipping (speed above the switching speed, or a net creep of
+//!   [`crate::config::FusionConfig::creep_distance_m`] within [`crate::config::FusionConfig::creep_window_s`]):
+//!   friction `s f_c (1 ± kappa)`, `kappa` = [`crate::config::FusionConfig::kinetic_tolerance`];
+//! * element stuck: friction in `[-rho f_c, +rho f_c]`, `rho` =
+//!   [`crate::config::FusionConfig::static_over_kinetic`].
+//!
+//! The fused estimate is the intersection of the DOB's and the stretch
+//! interval (the set of forces both agree on); its point estimate is the
+//! intersection's midpoint, the value that minimises the worst-case error
+//! over the set. When the two intervals do not overlap the models disagree
+//! (an unmodelled effect, a wrong parameter): the bound becomes the hull of
+//! both, the point the middle of the gap, and [`flags::INCONSISTENT`] is set,
+//! so the bound widens instead of hiding the disagreement.
+//!
+//! Why set membership rather than a Kalman filter: the dominant error at
+//! standstill is a bounded, *non-random*, slowly varying friction force
+//! whose distribution nobody knows; a Kalman filter would need it as a
+//! Gaussian with a variance and would report a covariance that is not a
+//! bound. The report measures the bound's coverage on plant variants the
+//! estimator was not tuned to.
+//!
+//! Every input is a quantity the core already has (grating positions and
+//! speeds, the JAE, the DOB), so the fusion adds a few dozen floating-point
+//! operations to the tick and no transcendental function.
+
+use crate::math;
+
+/// Bits of [`FusionOut::flags`].
+pub mod flags {
+    /// Slider 1 (with the motor side) is stuck: the DOB is blind to its
+    /// friction band.
+    pub const SLIDER1_STUCK: u8 = 1;
+    /// Slider 2 is stuck: the JAE carries its friction band.
+    pub const SLIDER2_STUCK: u8 = 2;
+    /// The joint is stuck: its pin friction is inside its static band.
+    pub const JOINT_STUCK: u8 = 4;
+    /// The DOB and stretch intervals do not overlap (models disagree).
+    pub const INCONSISTENT: u8 = 8;
+}
+
+/// Friction bands and model constants the fusion needs, precomputed from the
+/// configuration (see [`crate::config::FusionConfig`] and [`Fusion::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fusion {
+    /// `r / l_e`: tip force per N of cable tension.
+    tip_per_tension: f32,
+    /// `1 / l_e`, 1/m.
+    tip_per_torque: f32,
+    /// Model C's Coulomb terms, N (absolute values).
+    f_sc1_n: f32,
+    f_cp2_n: f32,
+    /// Joint-pin Coulomb friction, N·m.
+    pin_nm: f32,
+    /// Torque error per rad of JAE error: `r² (K_w1 + K_w2)`, N·m/rad.
+    torque_per_theta: f32,
+    /// JAE band from slider 2's friction: `|c3|`, rad.
+    c3_rad: f32,
+    /// JAE band independent of friction (model error + one grating count), rad.
+    theta_floor_rad: f32,
+    rho: f32,
+    kappa: f32,
+    v1_m_s: f32,
+    v2_m_s: f32,
+    creep_ticks: u32,
+    creep_m: f32,
+}
+
+/// Slip detector of one element: velocity above the switching speed, or a
+/// net creep over a window.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SlipState {
+    /// Position at the start of the current creep window, m.
+    anchor_m: f32,
+    /// Ticks since the window started.
+    ticks: u32,
+    /// Creep direction found over the last full window (±1, 0 = none).
+    creep_sign: f32,
+    /// Direction of the last slip (±1, 0 before any motion).
+    pub last_sign: f32,
+    primed: bool,
+}
+
+impl SlipState {
+    /// One tick: returns `true` while the element slips; `last_sign` holds the
+    /// direction of the last slip (the kinetic friction's sign).
+    #[inline]
+    fn update(
+        &mut self,
+        pos_m: f32,
+        vel_m_s: f32,
+        switch_m_s: f32,
+        ticks: u32,
+        creep_m: f32,
+    ) -> bool {
+        if !self.primed {
+            *self = Self {
+                anchor_m: pos_m,
+                primed: true,
+                ..Self::default()
+            };
+        }
+        self.ticks += 1;
+        if self.ticks >= ticks {
+            let d = pos_m - self.anchor_m;
+            self.creep_sign = math::sign_eps(d, creep_m);
+            self.anchor_m = pos_m;
+            self.ticks = 0;
+        }
+        let fast = math::sign_eps(vel_m_s, switch_m_s);
+        let s = if fast != 0.0 { fast } else { self.creep_sign };
+        if s != 0.0 {
+            self.last_sign = s;
+        }
+        s != 0.0
+    }
+}
+
+/// State of the fusion (snapshot-able with the controller's state).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FusionState {
+    /// Slider 1 (x1).
+    pub slider1: SlipState,
+    /// Slider 2 (x2), which also sets the joint's slip (the JAE's input).
+    pub slider2: SlipState,
+}
+
+/// What the fusion reads in one tick (all already computed by the step).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FusionIn {
+    /// Slider 1 position and speed, m, m/s.
+    pub x1_m: f32,
+    /// Slider 1 speed, m/s.
+    pub x1_vel_m_s: f32,
+    /// Slider 2 position, m.
+    pub x2_m: f32,
+    /// Slider 2 speed, m/s.
+    pub x2_vel_m_s: f32,
+    /// DOB's cable-1 tension `Q[F_1_hat]`, N.
+    pub tension1_dob_n: f32,
+    /// The model's no-load tension through the same filter, `Q[F_1']`, N.
+    pub tension1_model_n: f32,
+    /// The Coulomb part of `F_1'` (model C's sign terms) through the same
+    /// filter, N.
+    pub tension1_friction_n: f32,
+    /// Low-passed joint torque from the cables' stretch, N·m.
+    pub joint_torque_nm: f32,
+}
+
+/// The fused estimate.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FusionOut {
+    /// Point estimate (midpoint of the bound's core), N.
+    pub f_ext_n: f32,
+    /// Lower end of the bound, N.
+    pub lo_n: f32,
+    /// Upper end of the bound, N.
+    pub hi_n: f32,
+    /// [`flags`] bits.
+    pub flags: u8,
+}
+
+/// Friction interval `[lo, hi]` of one Coulomb element of level `f`.
+#[inline]
+fn band(slipping: bool, sign: f32, f: f32, rho: f32, kappa: f32) -> (f32, f32) {
+    if slipping {
+        let c = sign * f;
+        (c - kappa * f, c + kappa * f)
+    } else {
+        (-rho * f, rho * f)
+    }
+}
+
+impl Fusion {
+    /// Precompute from the configuration; `period_s` is the control period.
+    pub fn new(c: &crate::Config, period_s: f32) -> Self {
+        let m = &c.machine;
+        let f = &c.fusion;
+        let r = m.pulley_radius_m;
+        let ticks = (f.creep_window_s / period_s) as u32;
+        Self {
+            tip_per_tension: r / m.gripper_length_m,
+            tip_per_torque: 1.0 / m.gripper_length_m,
+            f_sc1_n: math::abs(c.tension.f_sc1_n),
+            f_cp2_n: math::abs(c.tension.f_cp2_n),
+            pin_nm: f.pin_coulomb_nm,
+            torque_per_theta: r * r * (c.stretch.cable1_n_m + c.stretch.cable2_n_m),
+            c3_rad: math::abs(c.jae.c_sign_rad),
+            theta_floor_rad: f.jae_error_rad + c.jae.c_pos_rad_m * c.scales.grating_m_per_count,
+            rho: f.static_over_kinetic,
+            kappa: f.kinetic_tolerance,
+            v1_m_s: c.tension.sign_switch_x1_m_s,
+            v2_m_s: c.jae.sign_switch_m_s,
+            creep_ticks: if ticks == 0 { 1 } else { ticks },
+            creep_m: f.creep_distance_m,
+        }
+    }
+
+    /// One tick.
+    #[inline]
+    pub fn update(&self, s: &mut FusionState, i: &FusionIn) -> FusionOut {
+        let slip1 = s.slider1.update(
+            i.x1_m,
+            i.x1_vel_m_s,
+            self.v1_m_s,
+            self.creep_ticks,
+            self.creep_m,
+        );
+        let slip2 = s.slider2.update(
+            i.x2_m,
+            i.x2_vel_m_s,
+            self.v2_m_s,
+            self.creep_ticks,
+            self.creep_m,
+        );
+        let (s1, s2) = (s.slider1.last_sign, s.slider2.last_sign);
+        let (rho, kappa) = (self.rho, self.kappa);
+
+        // DOB interval: F_ext = (F_1_hat - elastic - friction) r / l_e with the
+        // Coulomb terms of model C in their bands.
+        let elastic_n = i.tension1_model_n - i.tension1_friction_n;
+        let (a_lo, a_hi) = band(slip1, s1, self.f_sc1_n, rho, kappa);
+        let (b_lo, b_hi) = band(slip2, s2, self.f_cp2_n, rho, kappa);
+        let base_n = i.tension1_dob_n - elastic_n;
+        let dob_lo = (base_n - a_hi - b_hi) * self.tip_per_tension;
+        let dob_hi = (base_n - a_lo - b_lo) * self.tip_per_tension;
+
+        // Stretch interval: F_ext = (tau - pin friction) / l_e, with tau's own
+        // error from the JAE band (slider 2's friction and the model floor).
+        let theta_band = self.theta_floor_rad
+            + if slip2 {
+                kappa * self.c3_rad
+            } else {
+                (1.0 + rho) * self.c3_rad
+            };
+        let tau_err = self.torque_per_theta * theta_band;
+        let (p_lo, p_hi) = band(slip2, s2, self.pin_nm, rho, kappa);
+        let str_lo = (i.joint_torque_nm - tau_err - p_hi) * self.tip_per_torque;
+        let str_hi = (i.joint_torque_nm + tau_err - p_lo) * self.tip_per_torque;
+
+        let mut flags = 0;
+        if !slip1 {
+            flags |= flags::SLIDER1_STUCK;
+        }
+        if !slip2 {
+            flags |= flags::SLIDER2_STUCK | flags::JOINT_STUCK;
+        }
+        let lo = if dob_lo > str_lo { dob_lo } else { str_lo };
+        let hi = if dob_hi < str_hi { dob_hi } else { str_hi };
+        if lo <= hi {
+            FusionOut {
+                f_ext_n: 0.5 * (lo + hi),
+                lo_n: lo,
+                hi_n: hi,
+                flags,
+            }
+        } else {
+            // No overlap: the middle of the gap, the hull as the bound.
+            FusionOut {
+                f_ext_n: 0.5 * (lo + hi),
+                lo_n: if dob_lo < str_lo { dob_lo } else { str_lo },
+                hi_n: if dob_hi > str_hi { dob_hi } else { str_hi },
+                flags: flags | flags::INCONSISTENT,
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Config;
+
+    fn fusion() -> (Fusion, Config) {
+        let c = Config::default();
+        (Fusion::new(&c, c.period_s()), c)
+    }
+
+    /// At rest with no load, both intervals contain zero and the bound is
+    /// the narrower stretch band: pin friction and the JAE band.
+    #[test]
+    fn at_rest_the_bound_is_the_stretch_band() {
+        let (f, c) = fusion();
+        let mut s = FusionState::default();
+        let input = FusionIn {
+            tension1_dob_n: c.tension.f_0_n,
+            tension1_model_n: c.tension.f_0_n,
+            ..FusionIn::default()
+        };
+        let mut out = FusionOut::default();
+        for _ in 0..1000 {
+            out = f.update(&mut s, &input);
+        }
+        assert_eq!(
+            out.flags & (flags::SLIDER1_STUCK | flags::SLIDER2_STUCK),
+            flags::SLIDER1_STUCK | flags::SLIDER2_STUCK
+        );
+        assert!(out.lo_n < 0.0 && out.hi_n > 0.0, "{out:?}");
+        let rho = c.fusion.static_over_kinetic;
+        let r = c.machine.pulley_radius_m;
+        let theta = c.fusion.jae_error_rad
+            + c.jae.c_pos_rad_m * c.scales.grating_m_per_count
+            + (1.0 + rho) * c.jae.c_sign_rad;
+        let half = (rho * c.fusion.pin_coulomb_nm
+            + r * r * (c.stretch.cable1_n_m + c.stretch.cable2_n_m) * theta)
+            / c.machine.gripper_length_m;
+        assert!((out.hi_n - half).abs() < 1e-4 && (out.lo_n + half).abs() < 1e-4);
+        assert!(out.f_ext_n.abs() < 1e-5);
+    }
+
+    /// A load seen by both estimates: the bound contains it, and where the
+    /// DOB is narrow (slider 1 slipping) the intersection is tighter than
+    /// either interval alone.
+    #[test]
+    fn intersection_is_tighter_than_either_and_contains_a_consistent_load() {
+        let (f, c) = fusion();
+        let m = &c.machine;
+        let load_n = 1.0;
+        let tension = load_n * m.gripper_length_m / m.pulley_radius_m;
+        let fric = c.tension.f_sc1_n + c.tension.f_cp2_n;
+        let mut s = FusionState::default();
+        let mut input = FusionIn {
+            x1_vel_m_s: 1e-3,
+            x2_vel_m_s: 1e-3,
+            tension1_dob_n: c.tension.f_0_n + fric + tension,
+            tension1_model_n: c.tension.f_0_n + fric,
+            tension1_friction_n: fric,
+            joint_torque_nm: load_n * m.gripper_length_m + c.fusion.pin_coulomb_nm,
+            ..FusionIn::default()
+        };
+        let mut out = FusionOut::default();
+        for k in 0..100 {
+            input.x1_m = k as f32 * 1e-3 / c.control_rate_hz;
+            input.x2_m = input.x1_m;
+            out = f.update(&mut s, &input);
+        }
+        assert_eq!(out.flags, 0, "both sliders slip, consistent");
+        assert!(out.lo_n <= load_n && load_n <= out.hi_n, "{out:?}");
+        assert!((out.f_ext_n - load_n).abs() < 0.5 * (out.hi_n - out.lo_n) + 1e-6);
+    }
+
+    /// Two intervals that do not overlap: the bound is the hull and the flag
+    /// says so.
+    #[test]
+    fn disagreement_widens_the_bound_and_is_flagged() {
+        let (f, c) = fusion();
+        let mut s = FusionState::default();
+        let input = FusionIn {
+            tension1_dob_n: c.tension.f_0_n + 100.0,
+            tension1_model_n: c.tension.f_0_n,
+            ..FusionIn::default()
+        };
+        let out = f.update(&mut s, &input);
+        assert_ne!(out.flags & flags::INCONSISTENT, 0);
+        assert!(out.lo_n < 0.0 && out.hi_n > 15.0, "{out:?}");
+    }
+
+    /// A slow creep below the switching speed still counts as a slip after
+    /// one window, with its direction.
+    #[test]
+    fn slow_creep_is_detected_as_slip() {
+        let (f, c) = fusion();
+        let mut s = FusionState::default();
+        let rate = c.control_rate_hz;
+        let v = 0.2 * c.tension.sign_switch_x1_m_s; // 40 µm/s
+        let mut out = FusionOut::default();
+        for k in 0..(rate as usize) {
+            let x = -v * k as f32 / rate;
+            out = f.update(
+                &mut s,
+                &FusionIn {
+                    x1_m: x,
+                    x1_vel_m_s: -v,
+                    tension1_dob_n: c.tension.f_0_n,
+                    tension1_model_n: c.tension.f_0_n,
+                    ..FusionIn::default()
+                },
+            );
+        }
+        assert_eq!(out.flags & flags::SLIDER1_STUCK, 0);
+        assert_eq!(s.slider1.last_sign, -1.0);
+    }
+}

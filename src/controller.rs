@@ -544,6 +544,9 @@ impl Controller {
                 tension1_model_n: dob_out.tension1_model_n,
                 tension1_friction_n: tension_friction_n,
                 joint_torque_nm: f_ext_stretch_n * m.gripper_length_m,
+                drive_torque_nm: m.torque_constant_nm_a * drive_current
+                    - cfg.dob.viscous_nm_s_rad * phi.vel,
+                drive_torque_q_nm: st.dob.drive_nm,
             },
         );
         // Cable 1 is slack when its tension, read off its stretch, falls

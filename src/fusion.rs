@@ -25,9 +25,11 @@
 //!   [`crate::config::FusionConfig::static_over_kinetic`].
 //!
 //! The fused estimate is the intersection of the DOB's and the stretch
-//! interval (the set of forces both agree on); its point estimate is the
-//! intersection's midpoint, the value that minimises the worst-case error
-//! over the set. When the two intervals do not overlap the models disagree
+//! interval (the set of forces both agree on). Its point estimate is the
+//! stretch interval's centre projected onto the intersection: the stretch
+//! estimate (with the pin's kinetic friction while the chain slips) unless
+//! the DOB rules that value out. The report measures it against the
+//! intersection's midpoint (the minimax point) on every plant variant. When the two intervals do not overlap the models disagree
 //! (an unmodelled effect, a wrong parameter): the bound becomes the hull of
 //! both, the point the middle of the gap, and [`flags::INCONSISTENT`] is set,
 //! so the bound widens instead of hiding the disagreement.
@@ -43,6 +45,7 @@
 //! speeds, the JAE, the DOB), so the fusion adds a few dozen floating-point
 //! operations to the tick and no transcendental function.
 
+use crate::filter::LowPass1;
 use crate::math;
 
 /// Bits of [`FusionOut::flags`].
@@ -52,7 +55,8 @@ pub mod flags {
     pub const SLIDER1_STUCK: u8 = 1;
     /// Slider 2 is stuck: the JAE carries its friction band.
     pub const SLIDER2_STUCK: u8 = 2;
-    /// The joint is stuck: its pin friction is inside its static band.
+    /// The chain does not slip as one (sliders stuck or moving apart): every
+    /// friction sign is unknown and its static band applies.
     pub const JOINT_STUCK: u8 = 4;
     /// The DOB and stretch intervals do not overlap (models disagree).
     pub const INCONSISTENT: u8 = 8;
@@ -62,8 +66,12 @@ pub mod flags {
 /// configuration (see [`crate::config::FusionConfig`] and [`Fusion::new`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Fusion {
+    /// The DOB's `Q = g/(s+g)`: every band goes through it like the signals.
+    q: LowPass1,
     /// `r / l_e`: tip force per N of cable tension.
     tip_per_tension: f32,
+    /// `z_i / r_m`: N of cable tension per N·m at the motor.
+    tension_per_torque: f32,
     /// `1 / l_e`, 1/m.
     tip_per_torque: f32,
     /// Model C's Coulomb terms, N (absolute values).
@@ -86,23 +94,26 @@ pub struct Fusion {
 }
 
 /// Slip detector of one element: velocity above the switching speed, or a
-/// net creep over a window.
+/// slow creep, i.e. a net displacement over a whole window in which the
+/// element never moved fast (so the end of a fast motion is not taken for
+/// creep).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SlipState {
     /// Position at the start of the current creep window, m.
     anchor_m: f32,
     /// Ticks since the window started.
     ticks: u32,
+    /// Whether the element moved fast in the current window.
+    fast_in_window: bool,
     /// Creep direction found over the last full window (±1, 0 = none).
     creep_sign: f32,
-    /// Direction of the last slip (±1, 0 before any motion).
-    pub last_sign: f32,
+    /// Direction of the slip in this tick (±1, 0 = stuck).
+    pub sign: f32,
     primed: bool,
 }
 
 impl SlipState {
-    /// One tick: returns `true` while the element slips; `last_sign` holds the
-    /// direction of the last slip (the kinetic friction's sign).
+    /// One tick: returns the slip direction (±1, 0 while stuck).
     #[inline]
     fn update(
         &mut self,
@@ -111,7 +122,7 @@ impl SlipState {
         switch_m_s: f32,
         ticks: u32,
         creep_m: f32,
-    ) -> bool {
+    ) -> f32 {
         if !self.primed {
             *self = Self {
                 anchor_m: pos_m,
@@ -119,19 +130,25 @@ impl SlipState {
                 ..Self::default()
             };
         }
+        let fast = math::sign_eps(vel_m_s, switch_m_s);
+        self.fast_in_window |= fast != 0.0;
         self.ticks += 1;
         if self.ticks >= ticks {
-            let d = pos_m - self.anchor_m;
-            self.creep_sign = math::sign_eps(d, creep_m);
+            self.creep_sign = if self.fast_in_window {
+                0.0
+            } else {
+                math::sign_eps(pos_m - self.anchor_m, creep_m)
+            };
             self.anchor_m = pos_m;
             self.ticks = 0;
+            self.fast_in_window = false;
         }
-        let fast = math::sign_eps(vel_m_s, switch_m_s);
-        let s = if fast != 0.0 { fast } else { self.creep_sign };
-        if s != 0.0 {
-            self.last_sign = s;
+        // A fast motion against the creep direction ends the creep.
+        if fast != 0.0 && fast != self.creep_sign {
+            self.creep_sign = 0.0;
         }
-        s != 0.0
+        self.sign = if fast != 0.0 { fast } else { self.creep_sign };
+        self.sign
     }
 }
 
@@ -142,6 +159,16 @@ pub struct FusionState {
     pub slider1: SlipState,
     /// Slider 2 (x2), which also sets the joint's slip (the JAE's input).
     pub slider2: SlipState,
+    /// `Q` of the lower and upper friction bound in cable 1's tension (the
+    /// DOB's blind part), N.
+    dob_friction_n: (f32, f32),
+    /// `Q` of the lower and upper pin-friction bound, N·m.
+    pin_nm: (f32, f32),
+    /// `Q` of the stretch torque's error bound from the JAE, N·m.
+    tau_err_nm: f32,
+    /// `Q` of the drive torque's part above `Q`'s band, N·m.
+    ripple_nm: f32,
+    primed: bool,
 }
 
 /// What the fusion reads in one tick (all already computed by the step).
@@ -164,6 +191,10 @@ pub struct FusionIn {
     pub tension1_friction_n: f32,
     /// Low-passed joint torque from the cables' stretch, N·m.
     pub joint_torque_nm: f32,
+    /// Drive torque at the motor `K_m i - B_m phi'` in this tick, N·m.
+    pub drive_torque_nm: f32,
+    /// The same through `Q` (the DOB's state), N·m.
+    pub drive_torque_q_nm: f32,
 }
 
 /// The fused estimate.
@@ -198,7 +229,9 @@ impl Fusion {
         let r = m.pulley_radius_m;
         let ticks = (f.creep_window_s / period_s) as u32;
         Self {
+            q: LowPass1::new(c.dob.cutoff_rad_s, period_s),
             tip_per_tension: r / m.gripper_length_m,
+            tension_per_torque: m.gear_ratio / m.rope_wheel_radius_m,
             tip_per_torque: 1.0 / m.gripper_length_m,
             f_sc1_n: math::abs(c.tension.f_sc1_n),
             f_cp2_n: math::abs(c.tension.f_cp2_n),
@@ -218,34 +251,33 @@ impl Fusion {
     /// One tick.
     #[inline]
     pub fn update(&self, s: &mut FusionState, i: &FusionIn) -> FusionOut {
-        let slip1 = s.slider1.update(
+        let s1 = s.slider1.update(
             i.x1_m,
             i.x1_vel_m_s,
             self.v1_m_s,
             self.creep_ticks,
             self.creep_m,
         );
-        let slip2 = s.slider2.update(
+        let s2 = s.slider2.update(
             i.x2_m,
             i.x2_vel_m_s,
             self.v2_m_s,
             self.creep_ticks,
             self.creep_m,
         );
-        let (s1, s2) = (s.slider1.last_sign, s.slider2.last_sign);
         let (rho, kappa) = (self.rho, self.kappa);
+        // Model C lumps frictions whose elements may move apart (the motor's
+        // with slider 1's or slider 2's, depending on the machine), and the
+        // JAE does not see the pin directly: a friction sign is taken as
+        // known only while the whole chain slips one way.
+        let coherent = s1 != 0.0 && s1 == s2;
+        let (slip1, slip2) = (coherent, coherent);
 
-        // DOB interval: F_ext = (F_1_hat - elastic - friction) r / l_e with the
-        // Coulomb terms of model C in their bands.
-        let elastic_n = i.tension1_model_n - i.tension1_friction_n;
+        // Instantaneous friction bounds; `Q` (a positive filter) of a bound
+        // bounds `Q` of the friction, so they are filtered like the signals.
         let (a_lo, a_hi) = band(slip1, s1, self.f_sc1_n, rho, kappa);
         let (b_lo, b_hi) = band(slip2, s2, self.f_cp2_n, rho, kappa);
-        let base_n = i.tension1_dob_n - elastic_n;
-        let dob_lo = (base_n - a_hi - b_hi) * self.tip_per_tension;
-        let dob_hi = (base_n - a_lo - b_lo) * self.tip_per_tension;
-
-        // Stretch interval: F_ext = (tau - pin friction) / l_e, with tau's own
-        // error from the JAE band (slider 2's friction and the model floor).
+        let (p_lo, p_hi) = band(slip2, s2, self.pin_nm, rho, kappa);
         let theta_band = self.theta_floor_rad
             + if slip2 {
                 kappa * self.c3_rad
@@ -253,22 +285,58 @@ impl Fusion {
                 (1.0 + rho) * self.c3_rad
             };
         let tau_err = self.torque_per_theta * theta_band;
-        let (p_lo, p_hi) = band(slip2, s2, self.pin_nm, rho, kappa);
-        let str_lo = (i.joint_torque_nm - tau_err - p_hi) * self.tip_per_torque;
-        let str_hi = (i.joint_torque_nm + tau_err - p_lo) * self.tip_per_torque;
+        if !s.primed {
+            s.dob_friction_n = (a_lo + b_lo, a_hi + b_hi);
+            s.pin_nm = (p_lo, p_hi);
+            s.tau_err_nm = tau_err;
+            s.ripple_nm = 0.0;
+            s.primed = true;
+        }
+        let q = &self.q;
+        let f_lo = q.update(&mut s.dob_friction_n.0, a_lo + b_lo);
+        let f_hi = q.update(&mut s.dob_friction_n.1, a_hi + b_hi);
+        let pin_lo = q.update(&mut s.pin_nm.0, p_lo);
+        let pin_hi = q.update(&mut s.pin_nm.1, p_hi);
+        let tau_err = q.update(&mut s.tau_err_nm, tau_err);
+        // Drive torque above Q's band mostly accelerates the rotor, and the
+        // DOB's inertial term sees that through a differentiator: while the
+        // current chatters (a limit cycle, a fast move) the DOB's tension is
+        // no better than that ripple, so its interval widens by it.
+        let ripple_nm = q.update(
+            &mut s.ripple_nm,
+            math::abs(i.drive_torque_nm - i.drive_torque_q_nm),
+        );
+        let ripple_n = ripple_nm * self.tension_per_torque;
+
+        // DOB interval: F_ext = (F_1_hat - elastic - friction) r / l_e with the
+        // Coulomb terms of model C in their bands.
+        let base_n = i.tension1_dob_n - (i.tension1_model_n - i.tension1_friction_n);
+        let dob_lo = (base_n - f_hi - ripple_n) * self.tip_per_tension;
+        let dob_hi = (base_n - f_lo + ripple_n) * self.tip_per_tension;
+
+        // Stretch interval: F_ext = (tau - pin friction) / l_e, with tau's own
+        // error from the JAE band (slider 2's friction and the model floor).
+        let str_lo = (i.joint_torque_nm - tau_err - pin_hi) * self.tip_per_torque;
+        let str_hi = (i.joint_torque_nm + tau_err - pin_lo) * self.tip_per_torque;
 
         let mut flags = 0;
-        if !slip1 {
+        if s1 == 0.0 {
             flags |= flags::SLIDER1_STUCK;
         }
-        if !slip2 {
-            flags |= flags::SLIDER2_STUCK | flags::JOINT_STUCK;
+        if s2 == 0.0 {
+            flags |= flags::SLIDER2_STUCK;
+        }
+        if !coherent {
+            flags |= flags::JOINT_STUCK;
         }
         let lo = if dob_lo > str_lo { dob_lo } else { str_lo };
         let hi = if dob_hi < str_hi { dob_hi } else { str_hi };
         if lo <= hi {
+            // The stretch interval's centre (its kinetic pin friction in
+            // slip), moved into the bound when the DOB rules it out.
+            let stretch_n = 0.5 * (str_lo + str_hi);
             FusionOut {
-                f_ext_n: 0.5 * (lo + hi),
+                f_ext_n: math::clamp(stretch_n, lo, hi),
                 lo_n: lo,
                 hi_n: hi,
                 flags,
@@ -397,6 +465,6 @@ mod tests {
             );
         }
         assert_eq!(out.flags & flags::SLIDER1_STUCK, 0);
-        assert_eq!(s.slider1.last_sign, -1.0);
+        assert_eq!(s.slider1.sign, -1.0);
     }
 }

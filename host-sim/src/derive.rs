@@ -16,7 +16,7 @@ use cable_joint::{Config, Controller, RawSample};
 use crate::log::Log;
 
 /// Columns [`derive()`] adds beyond the run-time signals ([`SIGNAL_NAMES`]).
-pub const EXTRA_COLUMNS: [&str; 9] = [
+pub const EXTRA_COLUMNS: [&str; 14] = [
     "x1_acc_m_s2",
     "phi_acc_rad_s2",
     "theta_hat_rad",
@@ -25,6 +25,11 @@ pub const EXTRA_COLUMNS: [&str; 9] = [
     "load_torque_nm",
     "f_ext_hat_n",
     "f_ext_stretch_n",
+    "f_ext_fused_n",
+    "f_ext_lo_n",
+    "f_ext_hi_n",
+    "fusion_flags",
+    "tension1_stretch_n",
     "fault_code",
 ];
 
@@ -40,17 +45,31 @@ pub fn median_period_s(t_s: &[f64]) -> Option<f64> {
 
 /// The configuration with its control rate set to the log's rate.
 pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
+    config_for_log_noted(log, config).map(|(c, _)| c)
+}
+
+/// [`config_for_log`], with a line for every setting derived from the log's
+/// rate ([`Config::at_rate`]) for the caller to print.
+pub fn config_for_log_noted(log: &Log, config: &Config) -> Result<(Config, Vec<String>)> {
     let t = log.time_s()?;
     let dt = median_period_s(t).context("log has fewer than two rows")?;
-    if dt.is_nan() || dt <= 0.0 {
-        bail!("log time step is not positive");
+    if !(dt.is_finite() && dt > 0.0) {
+        bail!("log time step is not positive (median {dt} s)");
     }
-    let mut c = *config;
-    c.control_rate_hz = (1.0 / dt) as f32;
-    c.validate().map_err(|e| {
-        anyhow::anyhow!("{e} (control rate taken from the log: {:.1} Hz)", 1.0 / dt)
-    })?;
-    Ok(c)
+    let rate_hz = 1.0 / dt;
+    let (c, changes) = config.at_rate(rate_hz as f32);
+    c.validate()
+        .map_err(|e| anyhow::anyhow!("{e} (control rate taken from the log: {rate_hz:.1} Hz)"))?;
+    let mut notes = vec![format!(
+        "control rate {rate_hz:.1} Hz (from the log's median time step)"
+    )];
+    notes.extend(changes.iter().map(|a| {
+        format!(
+            "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
+            a.field, a.to, a.from
+        )
+    }));
+    Ok((c, notes))
 }
 
 /// Replay `log` (project schema) through the core; returns a log with `t_s`,
@@ -122,6 +141,11 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
             e.load_torque_nm as f64,
             e.f_ext_hat_n as f64,
             e.f_ext_stretch_n as f64,
+            e.f_ext_fused_n as f64,
+            e.f_ext_lo_n as f64,
+            e.f_ext_hi_n as f64,
+            f64::from(e.fusion_flags),
+            e.tension1_stretch_n as f64,
             cable_joint::Fault::code_of(o.fault) as f64,
         ];
         out.push_row(&row)?;

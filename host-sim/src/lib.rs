@@ -1,6 +1,7 @@
 //! Host-side simulator and tools for the cable-joint core.
 
 pub mod derive;
+pub mod estimate;
 pub mod ident;
 pub mod import;
 pub mod ingest;

@@ -9,6 +9,8 @@
 //! * `import`: convert a measured run (MRDLab) to the project's CSV schema.
 //! * `residual`: identification and the residual → effect → refit loop.
 //! * `ingest`: decoded defmt telemetry → CSV log.
+//! * `estimate`: replay any log through the core, write every estimate and
+//!   the fused force's bound.
 
 use std::process::ExitCode;
 
@@ -40,6 +42,8 @@ enum Command {
     Payload(host_sim::payload::PayloadArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
     Identify(host_sim::ident::IdentifyArgs),
+    /// Replay a log (any rate) through the core; write every estimate and the force bound.
+    Estimate(host_sim::estimate::EstimateArgs),
     /// Residual analysis: rank and add effect terms, judged on validation data.
     Residual(host_sim::residual::ResidualArgs),
     /// The seed's experimental programme on the simulated prototype, with a report (default).
@@ -57,6 +61,7 @@ fn main() -> ExitCode {
         Some(Command::Payload(a)) => host_sim::payload::run(a),
         Some(Command::Identify(a)) => host_sim::ident::run(a),
         Some(Command::Residual(a)) => host_sim::residual::run(a),
+        Some(Command::Estimate(a)) => host_sim::estimate::run(a),
         Some(Command::Report(a)) => host_sim::report::run(a),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),

@@ -373,7 +373,7 @@ impl Sim {
 ///   disabled); `i_true_a`: the winding current.
 /// * `mode`: [`Mode::code`]; `fault_code`: [`Fault::code_of`]; `phase`: the
 ///   scenario's phase tag.
-pub const LOG_COLUMNS: [&str; 38] = [
+pub const LOG_COLUMNS: [&str; 43] = [
     "t_s",
     "x1_m",
     "x2_m",
@@ -387,6 +387,11 @@ pub const LOG_COLUMNS: [&str; 38] = [
     "theta_motor_rad",
     "f_ext_hat_n",
     "f_ext_stretch_n",
+    "f_ext_fused_n",
+    "f_ext_lo_n",
+    "f_ext_hi_n",
+    "fusion_flags",
+    "tension1_stretch_n",
     "tension1_hat_n",
     "tension1_model_n",
     "load_torque_nm",
@@ -414,7 +419,7 @@ pub const LOG_COLUMNS: [&str; 38] = [
     "phase",
 ];
 
-fn log_row(r: &TickRecord, magnetic_fitted: bool) -> [f64; 38] {
+fn log_row(r: &TickRecord, magnetic_fitted: bool) -> [f64; 43] {
     let e = &r.output.est;
     let s = &r.state;
     let t = &r.tensions;
@@ -437,6 +442,11 @@ fn log_row(r: &TickRecord, magnetic_fitted: bool) -> [f64; 38] {
         f(e.theta_motor_rad),
         f(e.f_ext_hat_n),
         f(e.f_ext_stretch_n),
+        f(e.f_ext_fused_n),
+        f(e.f_ext_lo_n),
+        f(e.f_ext_hi_n),
+        f64::from(e.fusion_flags),
+        f(e.tension1_stretch_n),
         f(e.tension1_n),
         f(e.tension1_model_n),
         f(e.load_torque_nm),

@@ -1,0 +1,211 @@
+//! `host-sim estimate`: replay any log through the core and write every
+//! estimate, the fused tip force and its bound included.
+//!
+//! ```text
+//! host-sim estimate --log run.csv --config identified.toml --out est.csv
+//! ```
+//!
+//! The control rate is the log's (median time step); every rate-dependent
+//! setting the configuration cannot keep at that rate is derived from it
+//! ([`cable_joint::Config::at_rate`]) and printed, so a rig's 1 kHz log runs
+//! with the default configuration. The output has `t_s`, the run-time
+//! signals, the estimates ([`crate::derive::EXTRA_COLUMNS`]: DOB
+//! `f_ext_hat_n`, stretch `f_ext_stretch_n`, fused `f_ext_fused_n` with its
+//! bound `f_ext_lo_n`..`f_ext_hi_n`, `fusion_flags`, cable-1 tension,
+//! `fault_code`) and the log's `theta_rad`, `f_ext_n`, `theta_ref_rad` when
+//! present. With a reference force (`f_ext_n`) the summary gives each
+//! estimate's error and the bound's coverage.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use cable_joint::fusion::flags;
+use cable_joint::Config;
+
+use crate::derive::{config_for_log_noted, derive};
+use crate::log::{Log, Schema};
+use crate::sim::{Acc, Summary};
+
+/// Arguments of `host-sim estimate`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct EstimateArgs {
+    /// Input log (project CSV schema, any control rate).
+    #[arg(long)]
+    pub log: PathBuf,
+    /// Controller configuration (TOML; default: the datasheet values).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Output CSV with every estimate.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// What a replay found, for the terminal.
+#[derive(Clone, Debug)]
+pub struct EstimateSummary {
+    /// Rows replayed.
+    pub rows: usize,
+    /// Settings derived from the log (rate and what followed from it).
+    pub derived: Vec<String>,
+    /// First latched fault: (row, code, text).
+    pub first_fault: Option<(usize, u8, String)>,
+    /// Share of rows with slider 1 stuck (DOB blind to its band).
+    pub slider1_stuck_share: f64,
+    /// Share of rows whose DOB and stretch intervals disagree.
+    pub inconsistent_share: f64,
+    /// Mean width of the bound, N.
+    pub mean_bound_width_n: f64,
+    /// With a reference force: errors of the DOB, stretch and fused estimate
+    /// (estimate − reference), N, and the bound's coverage (share of rows
+    /// whose reference lies inside it).
+    pub against_reference: Option<ReferenceErrors>,
+}
+
+/// Errors against a logged reference force.
+#[derive(Clone, Copy, Debug)]
+pub struct ReferenceErrors {
+    /// DOB as published.
+    pub dob_n: Summary,
+    /// Cable stretch.
+    pub stretch_n: Summary,
+    /// Fused.
+    pub fused_n: Summary,
+    /// Share of rows with the reference inside `[lo, hi]`.
+    pub coverage: f64,
+}
+
+/// Replay `log` with `config` (rate derived from the log) and summarise.
+pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
+    let (cfg, derived) = config_for_log_noted(log, config)?;
+    let out = derive(log, &cfg)?;
+    let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);
+    let (fault, fl) = (col("fault_code")?, col("fusion_flags")?);
+    let (lo, hi, fused) = (
+        col("f_ext_lo_n")?,
+        col("f_ext_hi_n")?,
+        col("f_ext_fused_n")?,
+    );
+    let rows = out.len();
+    let first_fault = fault.iter().position(|c| *c != 0.0).map(|k| {
+        let code = fault[k] as u8;
+        let text = cable_joint::Fault::from_code(code)
+            .map(|f| f.to_string())
+            .unwrap_or_else(|| "unknown".into());
+        (k, code, text)
+    });
+    let share =
+        |bit: u8| fl.iter().filter(|f| (**f as u8) & bit != 0).count() as f64 / rows.max(1) as f64;
+    let mut width = Acc::default();
+    for k in 0..rows {
+        width.push(hi[k] - lo[k]);
+    }
+    let against_reference = match log.col("f_ext_n") {
+        Some(reference) => {
+            let (dob, stretch) = (col("f_ext_hat_n")?, col("f_ext_stretch_n")?);
+            let (mut ed, mut es, mut ef) = (Acc::default(), Acc::default(), Acc::default());
+            let (mut inside, mut n) = (0usize, 0usize);
+            for k in 0..rows {
+                let f = reference[k];
+                if !f.is_finite() || fault[k] != 0.0 {
+                    continue;
+                }
+                ed.push(dob[k] - f);
+                es.push(stretch[k] - f);
+                ef.push(fused[k] - f);
+                n += 1;
+                if lo[k] <= f && f <= hi[k] {
+                    inside += 1;
+                }
+            }
+            (n > 0).then(|| ReferenceErrors {
+                dob_n: ed.summary(1.0),
+                stretch_n: es.summary(1.0),
+                fused_n: ef.summary(1.0),
+                coverage: inside as f64 / n as f64,
+            })
+        }
+        None => None,
+    };
+    Ok((
+        out,
+        EstimateSummary {
+            rows,
+            derived,
+            first_fault,
+            slider1_stuck_share: share(flags::SLIDER1_STUCK),
+            inconsistent_share: share(flags::INCONSISTENT),
+            mean_bound_width_n: width.summary(1.0).mean,
+            against_reference,
+        },
+    ))
+}
+
+/// `host-sim estimate`.
+pub fn run(args: EstimateArgs) -> Result<()> {
+    let config = match &args.config {
+        Some(p) => crate::ident::load_config(p)?,
+        None => Config::default(),
+    };
+    let name = args.log.display().to_string();
+    let log = Log::read_with(&args.log, &Schema::project())?;
+    let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
+    for d in &s.derived {
+        eprintln!("estimate: {d}");
+    }
+    out.write(&args.out)?;
+    println!("{}", format_summary(&name, &s));
+    println!("wrote {} ({} rows)", args.out.display(), s.rows);
+    Ok(())
+}
+
+/// The terminal summary.
+pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
+    use std::fmt::Write as _;
+    let mut t = String::new();
+    let _ = writeln!(t, "{name}: {} rows replayed through the core", s.rows);
+    match &s.first_fault {
+        Some((k, code, text)) => {
+            let _ = writeln!(
+                t,
+                "  fault latched at row {} (code {code}: {text}); estimates after it are the idle replay's",
+                k + 2
+            );
+        }
+        None => {
+            let _ = writeln!(t, "  no fault");
+        }
+    }
+    let _ = writeln!(
+        t,
+        "  slider 1 stuck in {:.1} % of rows (DOB blind to its friction band there); DOB and stretch disagree in {:.1} %",
+        100.0 * s.slider1_stuck_share,
+        100.0 * s.inconsistent_share
+    );
+    let _ = writeln!(
+        t,
+        "  mean width of the force bound: {:.3} N",
+        s.mean_bound_width_n
+    );
+    if let Some(r) = &s.against_reference {
+        let _ = writeln!(t, "  against the logged f_ext_n (estimate − reference, N):");
+        for (label, e) in [
+            ("DOB (seed)", &r.dob_n),
+            ("stretch", &r.stretch_n),
+            ("fused", &r.fused_n),
+        ] {
+            let _ = writeln!(
+                t,
+                "    {label:<11} mean {:+.3}  rms {:.3}  max |e| {:.3}",
+                e.mean,
+                e.rms,
+                e.max_abs()
+            );
+        }
+        let _ = writeln!(
+            t,
+            "  bound covers the reference in {:.1} % of rows",
+            100.0 * r.coverage
+        );
+    }
+    t.trim_end().to_owned()
+}

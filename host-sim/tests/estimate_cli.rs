@@ -1,0 +1,153 @@
+//! `host-sim estimate` on a 1 kHz log with the default (2 kHz) configuration:
+//! the rate-dependent settings are derived from the log, the replay runs the
+//! fused estimator and its bound, and the output has every estimate.
+
+use std::process::Command;
+
+use cable_joint::Config;
+use host_sim::estimate::estimate;
+use host_sim::log::{Log, Schema};
+use host_sim::plant::PlantParams;
+use host_sim::scenario::{self, Direction, ScenarioOptions};
+use host_sim::sim::LogRecorder;
+
+/// A loading case (100 g, positive, at 0°) logged by a 1 kHz controller.
+fn loading_log_1khz() -> Log {
+    let (config, _) = Config::default().at_rate(1000.0);
+    let opts = ScenarioOptions {
+        duration_scale: 1.0,
+        angle_deg: Some(0.0),
+        mass_g: Some(100.0),
+        direction: Some(Direction::Pos),
+        tip_inertia: false,
+    };
+    let mut rec = LogRecorder::new(true);
+    let s = scenario::run(
+        "loading",
+        PlantParams::default(),
+        config,
+        Some(3),
+        &opts,
+        &mut rec,
+    )
+    .expect("loading at 1 kHz");
+    assert_eq!(s.fault, None);
+    // Keep only the DESIGN.md columns a rig records.
+    let full = rec.to_log().expect("log");
+    let mut log = Log::with_columns(&[
+        "t_s", "x1_m", "x2_m", "phi_rad", "i_ref_a", "i_meas_a", "f_ext_n",
+    ])
+    .unwrap();
+    let cols: Vec<&[f64]> = log
+        .names()
+        .iter()
+        .map(|n| full.col_required(n).unwrap())
+        .collect::<Vec<_>>();
+    for k in 0..full.len() {
+        let row: Vec<f64> = cols.iter().map(|c| c[k]).collect();
+        log.push_row(&row).unwrap();
+    }
+    log
+}
+
+#[test]
+fn a_1khz_log_runs_with_the_default_configuration_and_says_what_it_derived() {
+    let log = loading_log_1khz();
+    let default = Config::default();
+    assert!(
+        Config {
+            control_rate_hz: 1000.0,
+            ..default
+        }
+        .validate()
+        .is_err(),
+        "the test needs a default that does not fit 1 kHz as it is"
+    );
+    let (out, s) = estimate(&log, &default).expect("estimate on a 1 kHz log");
+    assert_eq!(s.rows, log.len());
+    assert!(s.derived[0].contains("1000.0 Hz"), "{:?}", s.derived);
+    assert!(
+        s.derived
+            .iter()
+            .any(|d| d.starts_with("differentiators.motor_bandwidth_hz = 100")),
+        "{:?}",
+        s.derived
+    );
+    for name in [
+        "f_ext_hat_n",
+        "f_ext_stretch_n",
+        "f_ext_fused_n",
+        "f_ext_lo_n",
+        "f_ext_hi_n",
+        "fusion_flags",
+        "tension1_stretch_n",
+        "fault_code",
+        "f_ext_n",
+    ] {
+        assert!(out.has(name), "missing column {name}");
+    }
+    assert_eq!(s.first_fault, None, "no false fault on a clean loading run");
+    // The bound is a bound: it covers the applied force on nearly every row
+    // (the ramps' filter lag may leave a few out) and is not vacuous.
+    let r = s.against_reference.expect("the log has f_ext_n");
+    assert!(r.coverage >= 0.95, "coverage {}", r.coverage);
+    assert!(
+        s.mean_bound_width_n < 4.0,
+        "bound width {}",
+        s.mean_bound_width_n
+    );
+    // Fused never worse than the published DOB on this run.
+    assert!(
+        r.fused_n.rms <= r.dob_n.rms + 1e-3,
+        "fused rms {} vs DOB {}",
+        r.fused_n.rms,
+        r.dob_n.rms
+    );
+}
+
+#[test]
+fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run_1khz.csv");
+    let output = dir.path().join("est.csv");
+    loading_log_1khz().write(&input).unwrap();
+    let exe = env!("CARGO_BIN_EXE_host-sim");
+    let o = Command::new(exe)
+        .args(["estimate", "--log"])
+        .arg(&input)
+        .arg("--out")
+        .arg(&output)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stderr}\n{stdout}");
+    assert!(stderr.contains("motor_bandwidth_hz = 100"), "{stderr}");
+    assert!(stdout.contains("bound covers the reference"), "{stdout}");
+    let est = Log::read_with(&output, &Schema::any()).unwrap();
+    assert!(est.has("f_ext_fused_n") && est.len() > 1000);
+
+    // A log with a non-numeric cell: one error naming file, line and column,
+    // and no output written.
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(
+        &bad,
+        "t_s,x1_m,x2_m,phi_rad,i_ref_a\n0,0,0,0,0\n0.001,0,x,0,0\n0.002,0,0,0,0\n",
+    )
+    .unwrap();
+    let out2 = dir.path().join("est2.csv");
+    let o = Command::new(exe)
+        .args(["estimate", "--log"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(&out2)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("bad.csv") && stderr.contains('3') && stderr.contains("x2_m"),
+        "{stderr}"
+    );
+    assert!(!out2.exists());
+}

@@ -451,6 +451,133 @@ pub struct JaeResult {
     pub offset_rad: f64,
     /// Identification error `theta_hat - theta`, degrees.
     pub error_deg: ErrorStats,
+    /// The joint's torque balance on the same runs (cable 1's stiffness and
+    /// the pin's friction, for the stretch and fused force estimates).
+    pub joint: JointFit,
+}
+
+/// The joint's torque balance (seed Eq. 9, 12, 13 with no load) on runs with
+/// the magnetic encoder, while the joint slips:
+/// `r K_w [(x1 - r theta) - (r theta - x2)] = f_efc sgn(theta') + f_efv
+/// theta' + J_e theta'' + c`, with `K_w` from the JAE's `c4` and the
+/// datasheet spring, cable 1 taken as cable 2 (the same cable path; a free
+/// `K_w1` came out 22 % low on the simulated prototype and took the pin's
+/// friction with it, so it is not fitted).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct JointFit {
+    /// Rows used (joint slipping, not faulted).
+    pub rows: u64,
+    /// Cable 2's stiffness from `c4`, N/m.
+    pub k_w2_n_m: f64,
+    /// Cable 1's stiffness used, N/m (taken as cable 2's; `%sigma` NaN).
+    pub k_w1_n_m: (f64, f64),
+    /// Pin Coulomb friction, N·m, and its `%sigma`.
+    pub pin_coulomb_nm: (f64, f64),
+    /// Pin viscous friction, N·m·s/rad.
+    pub pin_viscous_nm_s_rad: f64,
+    /// RMS residual, N·m.
+    pub residual_rms_nm: f64,
+    /// What was written, or why not.
+    pub note: String,
+}
+
+/// Largest `%sigma` at which a joint-fit parameter is written.
+const JOINT_MAX_PCT_SIGMA: f64 = 30.0;
+
+/// Fit [`JointFit`] on the prepared runs; `c4` is the identified JAE
+/// position coefficient.
+fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFit {
+    let m = &config.machine;
+    let r = f64::from(m.pulley_radius_m);
+    let k_s = f64::from(m.spring_n_m);
+    let d = c4_rad_m * r - 1.0;
+    let k_w2 = if d > 0.0 { k_s / d } else { f64::NAN };
+    let empty = |note: String| JointFit {
+        rows: 0,
+        k_w2_n_m: k_w2,
+        k_w1_n_m: (f64::NAN, f64::NAN),
+        pin_coulomb_nm: (f64::NAN, f64::NAN),
+        pin_viscous_nm_s_rad: f64::NAN,
+        residual_rms_nm: f64::NAN,
+        note,
+    };
+    if !(k_w2.is_finite() && k_w2 > 0.0) {
+        return empty(format!(
+            "not identified: c4 r = {} gives no cable stiffness",
+            c4_rad_m * r
+        ));
+    }
+    // The joint slips when theta' is above the JAE's switching speed seen
+    // at the joint (c4 x2').
+    let switch = f64::from(config.jae.sign_switch_m_s) * c4_rad_m;
+    let mut ls = match BatchLsq::<5>::new(4, LsqConfig::default()) {
+        Ok(l) => l,
+        Err(e) => return empty(format!("not identified: {e:?}")),
+    };
+    let mut rows = Vec::new();
+    for p in preps.iter().filter(|p| p.theta_source == "theta_rad") {
+        let (Ok(theta), Ok((vel, acc)), Ok(x1), Ok(x2)) =
+            (p.theta(), p.theta_kin(), p.col("x1_m"), p.col("x2_m"))
+        else {
+            continue;
+        };
+        for k in 0..p.len() {
+            if !p.usable[k] || vel[k].abs() <= switch {
+                continue;
+            }
+            // Cable 1 taken as cable 2 (the same cable path): the joint
+            // torque the two cables apply, against the pin's friction.
+            let y = r * k_w2 * ((x1[k] - r * theta[k]) - (r * theta[k] - x2[k]));
+            let phi = [0.0, vel[k].signum(), vel[k], acc[k], 1.0];
+            if ls.push(&phi[1..], y).is_ok() {
+                rows.push((phi, y));
+            }
+        }
+    }
+    if rows.len() < 50 {
+        return empty(format!(
+            "not identified: {} rows with the magnetic encoder and the joint slipping (needs 50)",
+            rows.len()
+        ));
+    }
+    let fit = match ls.solve() {
+        Ok(f) => f,
+        Err(e) => return empty(format!("not identified: {e:?}")),
+    };
+    let sq: f64 = rows
+        .iter()
+        .map(|(phi, y)| (y - fit.predict(&phi[1..])).powi(2))
+        .sum();
+    JointFit {
+        rows: rows.len() as u64,
+        k_w2_n_m: k_w2,
+        k_w1_n_m: (k_w2, f64::NAN),
+        pin_coulomb_nm: (fit.params[0], fit.pct_sigma(0)),
+        pin_viscous_nm_s_rad: fit.params[1],
+        residual_rms_nm: (sq / rows.len() as f64).sqrt(),
+        note: String::new(),
+    }
+}
+
+impl JointFit {
+    /// Write what the data identified; say what it could not.
+    fn apply(&self, config: &mut Config) -> String {
+        let mut notes = Vec::new();
+        let (f, pf) = self.pin_coulomb_nm;
+        if f.is_finite() && pf < JOINT_MAX_PCT_SIGMA {
+            config.fusion.pin_coulomb_nm = f.max(0.0) as f32;
+            notes.push(format!(
+                "fusion.pin_coulomb_nm = {:.5} (%sigma {pf:.1})",
+                f.max(0.0)
+            ));
+        } else {
+            notes.push(
+                "pin friction not identifiable from these runs: the force bound keeps model C's upper bound"
+                    .into(),
+            );
+        }
+        notes.join("; ")
+    }
 }
 
 /// Result of [`identify_tension`].
@@ -1082,7 +1209,12 @@ pub fn identify_jae_with(
         unit: "deg",
         ..scale_stats(&fit.errors, 180.0 / std::f64::consts::PI)
     };
+    let mut joint = identify_joint(&preps, config, fit.value(Regressor::X2));
+    if joint.note.is_empty() {
+        joint.note = joint.apply(&mut config.clone());
+    }
     Ok(JaeResult {
+        joint,
         chi_s: [
             fit.value(Regressor::X2Acc),
             fit.value(Regressor::X2Vel),
@@ -1143,6 +1275,18 @@ impl JaeResult {
         ) {
             config.stretch = s;
         }
+        // The JAE's error beyond slider 2's friction, for the force bound:
+        // two RMS of the identification residual.
+        let err_rad = 2.0 * self.error_deg.rmse.to_radians();
+        if err_rad.is_finite() {
+            config.fusion.jae_error_rad = err_rad as f32;
+        }
+        self.joint.apply(config);
+        let pct = self.joint.pin_coulomb_nm.1;
+        if pct.is_nan() || pct >= JOINT_MAX_PCT_SIGMA {
+            config.fusion.pin_coulomb_nm =
+                cable_joint::config::FusionConfig::pin_upper_bound_nm(config);
+        }
     }
 }
 
@@ -1157,7 +1301,10 @@ struct Pruned {
 }
 
 /// The seed's pruning of a fit on all columns of `d` (see the module
-/// documentation and [`IdentOptions::prune_all_at_once`]).
+/// documentation and [`IdentOptions::prune_all_at_once`]). The spring
+/// `K_s x2` and the preload `F_0` (and the JAE's `c4 x2`) are physics the
+/// model cannot do without: they are never pruned, whatever their `%sigma`
+/// (a poorly excited run says so in the fit's table instead).
 fn prune(
     d: &Design,
     terms: &[ModelTerm],
@@ -1180,7 +1327,7 @@ fn prune(
         let mut next = Vec::new();
         for (k, j) in active.iter().enumerate() {
             let p = pct(&fit, k);
-            if p > opts.max_pct_sigma {
+            if p > opts.max_pct_sigma && !physically_required(terms[*j].regressor) {
                 dropped.push((terms[*j].regressor, p));
             } else {
                 next.push(*j);
@@ -1200,6 +1347,7 @@ fn prune(
     // Backward elimination: drop the worst while one is above the limit.
     loop {
         let worst = (0..active.len())
+            .filter(|k| !physically_required(terms[active[*k]].regressor))
             .map(|k| (k, pct(&fit, k)))
             .filter(|(_, p)| *p > opts.max_pct_sigma)
             .max_by(|a, b| a.1.total_cmp(&b.1));
@@ -1219,6 +1367,11 @@ fn prune(
         fit,
         dropped,
     })
+}
+
+/// Regressors a model needs by physics (spring/stiffness and preload/offset).
+fn physically_required(r: Regressor) -> bool {
+    matches!(r, Regressor::X2 | Regressor::One)
 }
 
 /// The tension models with the default options.
@@ -1344,6 +1497,12 @@ impl TensionResult {
         t.f_cp2_n = self.chi_p[1] as f32;
         t.k_s_n_m = self.chi_p[2] as f32;
         t.f_0_n = self.chi_p[3] as f32;
+        // A pin friction above what the new model C leaves room for is not
+        // physical; one that was never identified follows the new bound.
+        let ub = cable_joint::config::FusionConfig::pin_upper_bound_nm(config);
+        if config.fusion.pin_coulomb_nm > ub {
+            config.fusion.pin_coulomb_nm = ub;
+        }
     }
 }
 
@@ -1719,6 +1878,19 @@ pub fn format_report(r: &IdentifyReport) -> String {
             fmt_num(j.chi_s[2]),
             fmt_num(j.chi_s[3]),
             fmt_num(j.offset_rad)
+        );
+        let jf = &j.joint;
+        let _ = writeln!(
+            s,
+            "joint torque balance ({} rows, joint slipping): K_w2 {} N/m (from c4), K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
+            jf.rows,
+            fmt_num(jf.k_w2_n_m),
+            fmt_num(jf.k_w1_n_m.0),
+            jf.k_w1_n_m.1,
+            fmt_num(jf.pin_coulomb_nm.0),
+            jf.pin_coulomb_nm.1,
+            fmt_num(jf.residual_rms_nm),
+            jf.note
         );
     }
     if let Some(t) = &r.tension {

@@ -41,6 +41,7 @@ pub mod figures;
 pub mod programme;
 pub mod regressors;
 pub mod render;
+pub mod variants;
 
 use std::path::{Path, PathBuf};
 
@@ -126,6 +127,8 @@ pub struct Report {
     pub effects: Option<EffectsPart>,
     /// Figures written.
     pub figures: Vec<Written>,
+    /// The force estimate on plant variants.
+    pub variants: Vec<variants::VariantResult>,
 }
 
 /// The JAE of `config` on a log with the magnetic encoder, replayed through
@@ -250,6 +253,8 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
         })?
     };
     let ((id, ev), clean_jae, mut figs) = clean;
+    progress.line("report", "force estimate on plant variants");
+    let variant_results = variants::run_all(&s);
     if let Some(fx) = &fx {
         progress.line("report", "step 7 figures");
         figs.extend(figures::accuracy_figure(
@@ -283,6 +288,7 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
         clean_jae_error_deg: clean_jae,
         effects: fx,
         figures: figs,
+        variants: variant_results,
     })
 }
 
@@ -320,7 +326,23 @@ pub fn write(r: &Report) -> Result<String> {
     write_atomic(&dir.join("report.md"), md.as_bytes())?;
     let json = serde_json::to_string_pretty(&render::json(r, &map, &rows))?;
     write_atomic(&dir.join("report.json"), json.as_bytes())?;
-    let mut text = render::terminal_table(&rows);
+    let mut text = String::from("Force estimate on plant variants (passive)\n");
+    for v in &r.variants {
+        let goals = variants::goal_lines(v);
+        let met = goals.iter().filter(|(_, ok)| *ok).count();
+        text.push_str(&format!(
+            "  {:<18} {:>6} Hz  {met}/{} goals met\n",
+            v.name,
+            v.rate_hz,
+            goals.len()
+        ));
+        for (g, ok) in goals.iter().filter(|(_, ok)| !*ok) {
+            let _ = ok;
+            text.push_str(&format!("      NOT met: {g}\n"));
+        }
+    }
+    text.push('\n');
+    text.push_str(&render::terminal_table(&rows));
     text.push_str("\nWhere we stand\n");
     text.push_str(&render::goals_table(r, &map));
     if r.effects.is_some() {

@@ -417,6 +417,20 @@ fn tracking(
     Ok((tm, tj, rb))
 }
 
+/// Steps 1, 2 and 5 alone: the configuration a user identifies on `plant`
+/// from `base`, and the faults latched in those runs.
+pub fn identify_config(
+    plant: &PlantParams,
+    base: &Config,
+    s: &Settings,
+    tag: &str,
+) -> Result<(Config, Vec<String>)> {
+    let mut faults = Vec::new();
+    let (_, _, _, config_jae, ..) = identify_bm_jae(plant, base, s, tag, &mut faults)?;
+    let (_, _, config, ..) = identify_tension(plant, &config_jae, s, tag, &mut faults)?;
+    Ok((config, faults))
+}
+
 /// Step 6: every case of the loading protocol, each as its own run.
 fn loading(
     plant: &PlantParams,

@@ -1134,6 +1134,7 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
          disturbance observer* (seed 000), Sect. 4.\n",
         r.options.seed, r.options.duration_scale, r.runtime_s
     );
+    o.push_str(&super::variants::markdown(&r.variants));
     if r.options.duration_scale != 1.0 {
         let _ = writeln!(
             o,
@@ -1465,6 +1466,7 @@ pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
         goals.push(v);
     }
     let mut out = json!({
+        "force_variants": serde_json::to_value(&r.variants).unwrap_or(Value::Null),
         "schema": 1,
         "seed": r.options.seed,
         "duration_scale": r.options.duration_scale,

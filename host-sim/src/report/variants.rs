@@ -1,0 +1,532 @@
+//! The force estimate on plants it was not tuned to (issue: force at
+//! standstill): plant variants with friction placed elsewhere, stiff
+//! stiction, presliding, every parameter drawn ±30 %, 1 kHz and 2 kHz
+//! control. On each, the user's path: identify the configuration on the
+//! variant's own calibration runs (steps 1, 2 and 5), then run the seed's
+//! loading protocol (joint held on `theta_hat` at 0°, 30°, -40°; 30, 100 and
+//! 250 g; both directions) and judge every estimate on the same runs: the
+//! DOB as published, the cable stretch, the fused estimate and, for the
+//! comparison of point estimates, the fused bound's midpoint.
+
+use cable_joint::Config;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use super::experiments::DEG_PER_RAD;
+use super::programme::{identify_config, run_seed, Settings};
+use crate::plant::PlantParams;
+use crate::scenario::{self, Direction, Phase, ScenarioOptions, G_M_S2};
+use crate::sim::{Acc, Recorder, TickRecord};
+
+/// Angles, weights of the protocol as run on every variant.
+const ANGLES_DEG: [f64; 3] = [0.0, 30.0, -40.0];
+const MASSES_G: [f64; 3] = [30.0, 100.0, 250.0];
+
+/// The estimates judged.
+pub const SOURCES: [&str; 4] = ["DOB (seed)", "stretch", "fused", "fused midpoint"];
+
+/// One plant variant.
+#[derive(Clone, Debug)]
+pub struct Variant {
+    /// Name in the tables.
+    pub name: String,
+    /// What differs from the default plant.
+    pub what: String,
+    /// The plant.
+    pub plant: PlantParams,
+    /// Control rate, Hz.
+    pub rate_hz: f32,
+}
+
+fn stick(p: &mut PlantParams, ratio: f64) {
+    p.slider1.static_n = ratio * p.slider1.coulomb_n;
+    p.slider2.static_n = ratio * p.slider2.coulomb_n;
+    p.joint.static_nm = ratio * p.joint.coulomb_nm;
+}
+
+/// Every parameter that shapes the force path drawn uniformly within ±30 %
+/// of the default, and the static/kinetic ratio within 1.05..1.45.
+fn drawn(seed: u64) -> PlantParams {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut f = || rng.gen_range(0.7..1.3);
+    let mut p = PlantParams::default();
+    p.motor.coulomb_nm *= f();
+    p.motor.viscous_nm_s_rad *= f();
+    p.slider1.mass_kg *= f();
+    p.slider1.coulomb_n *= f();
+    p.slider1.viscous_n_s_m *= f();
+    p.slider2.mass_kg *= f();
+    p.slider2.coulomb_n *= f();
+    p.slider2.viscous_n_s_m *= f();
+    p.joint.coulomb_nm *= f();
+    p.joint.viscous_nm_s_rad *= f();
+    p.cable0.stiffness_n_m *= f();
+    p.cable1.stiffness_n_m *= f();
+    p.cable2.stiffness_n_m *= f();
+    p.spring.stiffness_n_m *= f();
+    p.spring.preload_n *= f();
+    let ratio = 1.05 + 0.4 * (f() - 0.7) / 0.6;
+    stick(&mut p, ratio);
+    p
+}
+
+/// The variants (fixed seeds: the same plants every run).
+pub fn variants() -> Vec<Variant> {
+    let d = PlantParams::default();
+    let mut v = vec![Variant {
+        name: "default".into(),
+        what: "the project's simulated prototype".into(),
+        plant: d,
+        rate_hz: 2000.0,
+    }];
+    let mut slider1 = d;
+    slider1.slider1.coulomb_n *= 1.5;
+    slider1.joint.coulomb_nm *= 0.5;
+    slider1.motor.coulomb_nm *= 0.5;
+    stick(&mut slider1, 1.2);
+    v.push(Variant {
+        name: "slider-1 friction".into(),
+        what: "slider 1 ×1.5, pin and motor ×0.5".into(),
+        plant: slider1,
+        rate_hz: 2000.0,
+    });
+    let mut pin = d;
+    pin.joint.coulomb_nm *= 3.0;
+    pin.slider1.coulomb_n *= 0.5;
+    stick(&mut pin, 1.2);
+    v.push(Variant {
+        name: "pin friction".into(),
+        what: "joint pin ×3 (12 mN·m), slider 1 ×0.5".into(),
+        plant: pin,
+        rate_hz: 2000.0,
+    });
+    let mut slider2 = d;
+    slider2.slider2.coulomb_n *= 8.0;
+    slider2.joint.coulomb_nm *= 0.5;
+    stick(&mut slider2, 1.2);
+    v.push(Variant {
+        name: "slider-2 friction".into(),
+        what: "slider 2 ×8 (0.9 N), pin ×0.5".into(),
+        plant: slider2,
+        rate_hz: 2000.0,
+    });
+    let mut rigid = d;
+    stick(&mut rigid, 1.45);
+    v.push(Variant {
+        name: "stiff stiction".into(),
+        what: "static/kinetic 1.45 everywhere".into(),
+        plant: rigid,
+        rate_hz: 2000.0,
+    });
+    let mut pre = d;
+    if pre.effects.enable("presliding").is_ok() {
+        v.push(Variant {
+            name: "presliding".into(),
+            what: "presliding (Dahl) friction on".into(),
+            plant: pre,
+            rate_hz: 2000.0,
+        });
+    }
+    for seed in [11u64, 12] {
+        v.push(Variant {
+            name: format!("draw {seed}"),
+            what: "every parameter ±30 %".into(),
+            plant: drawn(seed),
+            rate_hz: 2000.0,
+        });
+    }
+    v.push(Variant {
+        name: "default 1 kHz".into(),
+        what: "the default plant, 1 kHz control".into(),
+        plant: d,
+        rate_hz: 1000.0,
+    });
+    v.push(Variant {
+        name: "draw 13, 1 kHz".into(),
+        what: "every parameter ±30 %, 1 kHz control".into(),
+        plant: drawn(13),
+        rate_hz: 1000.0,
+    });
+    v
+}
+
+/// One estimate on one variant.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct SourceStats {
+    /// Worst accuracy over the cases >= 100 g, %.
+    pub above_1n_min_pct: f64,
+    /// Mean accuracy over the cases >= 100 g, %.
+    pub above_1n_mean_pct: f64,
+    /// Worst accuracy at 30 g (0.29 N), %.
+    pub at_0n3_min_pct: f64,
+    /// Largest |estimate| in the static no-load regions, N.
+    pub static_noload_n: f64,
+    /// Largest |estimate| while moving to 30°/-40° and settling, N.
+    pub dynamic_noload_n: f64,
+}
+
+/// One variant's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct VariantResult {
+    /// Variant name.
+    pub name: String,
+    /// What differs.
+    pub what: String,
+    /// Control rate, Hz.
+    pub rate_hz: f32,
+    /// Identification failure, if any (then nothing else is filled).
+    pub error: Option<String>,
+    /// Notes from the identification (faults latched there).
+    pub notes: Vec<String>,
+    /// Per estimate, in [`SOURCES`] order.
+    pub sources: Vec<SourceStats>,
+    /// Share of hold samples (no-load and stable regions) whose applied
+    /// force lies inside the fused bound.
+    pub coverage: f64,
+    /// Mean width of the bound in the hold samples, N.
+    pub mean_bound_width_n: f64,
+    /// Largest peak-to-peak joint motion in a stable region, °.
+    pub tip_motion_pp_deg: f64,
+    /// Loading cases run, and those that latched a fault.
+    pub cases: usize,
+    /// Faulted cases, described.
+    pub faults: Vec<String>,
+}
+
+#[derive(Default)]
+struct CaseRec {
+    moved: bool,
+    stable: [Acc; 4],
+    static_noload: [Acc; 4],
+    dynamic: [Acc; 4],
+    hold_n: u64,
+    hold_in: u64,
+    width: Acc,
+    theta_stable: Acc,
+    fault: Option<String>,
+}
+
+impl Recorder for CaseRec {
+    fn record(&mut self, r: &TickRecord) {
+        if self.fault.is_none() {
+            self.fault = r.output.fault.map(|f| format!("{f} (t = {:.2} s)", r.t_s));
+        }
+        if !r.output.drive_enable || self.fault.is_some() {
+            return;
+        }
+        let e = &r.output.est;
+        let est = [
+            f64::from(e.f_ext_hat_n),
+            f64::from(e.f_ext_stretch_n),
+            f64::from(e.f_ext_fused_n),
+            0.5 * f64::from(e.f_ext_lo_n + e.f_ext_hi_n),
+        ];
+        let p = r.phase;
+        let hold = p == Phase::NoLoad.code() || p == Phase::Stable.code();
+        if hold {
+            self.hold_n += 1;
+            let (lo, hi) = (f64::from(e.f_ext_lo_n), f64::from(e.f_ext_hi_n));
+            if lo <= r.f_ext_n && r.f_ext_n <= hi {
+                self.hold_in += 1;
+            }
+            self.width.push(hi - lo);
+        }
+        for (k, v) in est.iter().enumerate() {
+            if p == Phase::Stable.code() {
+                self.stable[k].push(*v);
+            } else if p == Phase::NoLoad.code() {
+                self.static_noload[k].push(*v);
+            } else if (p == Phase::Move.code() || p == Phase::Adjust.code()) && self.moved {
+                self.dynamic[k].push(*v);
+            }
+        }
+        if p == Phase::Stable.code() {
+            self.theta_stable.push(r.state.theta_rad * DEG_PER_RAD);
+        }
+    }
+}
+
+/// Run one variant.
+pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
+    let tag = format!("variant {}", v.name);
+    let mut out = VariantResult {
+        name: v.name.clone(),
+        what: v.what.clone(),
+        rate_hz: v.rate_hz,
+        error: None,
+        notes: Vec::new(),
+        sources: Vec::new(),
+        coverage: f64::NAN,
+        mean_bound_width_n: f64::NAN,
+        tip_motion_pp_deg: f64::NAN,
+        cases: 0,
+        faults: Vec::new(),
+    };
+    let (base, _) = Config::default().at_rate(v.rate_hz);
+    let config = match identify_config(&v.plant, &base, s, &tag) {
+        Ok((c, notes)) => {
+            out.notes = notes;
+            c
+        }
+        Err(e) => {
+            out.error = Some(format!("{e:#}"));
+            return out;
+        }
+    };
+    let mut above: [Vec<f64>; 4] = Default::default();
+    let mut at03: [Vec<f64>; 4] = Default::default();
+    let (mut stat, mut dyn_) = ([0.0f64; 4], [0.0f64; 4]);
+    let (mut hold_n, mut hold_in, mut width, mut pp) = (0u64, 0u64, Acc::default(), 0.0f64);
+    for a in ANGLES_DEG {
+        for m in MASSES_G {
+            for d in [Direction::Pos, Direction::Neg] {
+                out.cases += 1;
+                let label = format!("variant/{}/{a}/{m}/{d:?}", v.name);
+                let opts = ScenarioOptions {
+                    duration_scale: s.scale,
+                    angle_deg: Some(a),
+                    mass_g: Some(m),
+                    direction: Some(d),
+                    tip_inertia: false,
+                };
+                let mut rec = CaseRec {
+                    moved: a != 0.0,
+                    ..CaseRec::default()
+                };
+                if let Err(e) = scenario::run(
+                    "loading",
+                    v.plant,
+                    config,
+                    Some(run_seed(s.seed, &label)),
+                    &opts,
+                    &mut rec,
+                ) {
+                    out.faults.push(format!("{a}° {m} g {d:?}: {e:#}"));
+                    continue;
+                }
+                if let Some(f) = rec.fault {
+                    out.faults.push(format!("{a}° {m} g {d:?}: {f}"));
+                    continue;
+                }
+                let force = d.sign() * m * 1e-3 * G_M_S2;
+                for k in 0..4 {
+                    let mean = rec.stable[k].summary(1.0).mean;
+                    let acc = 100.0 * (1.0 - (mean - force).abs() / force.abs());
+                    if m >= 100.0 {
+                        above[k].push(acc);
+                    } else {
+                        at03[k].push(acc);
+                    }
+                    stat[k] = stat[k].max(rec.static_noload[k].summary(1.0).max_abs());
+                    if rec.moved {
+                        dyn_[k] = dyn_[k].max(rec.dynamic[k].summary(1.0).max_abs());
+                    }
+                }
+                hold_n += rec.hold_n;
+                hold_in += rec.hold_in;
+                width.merge(&rec.width);
+                let t = rec.theta_stable.summary(1.0);
+                if t.n > 0 {
+                    pp = pp.max(t.max - t.min);
+                }
+            }
+        }
+    }
+    let min = |v: &[f64]| v.iter().copied().fold(f64::NAN, f64::min);
+    let mean = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    };
+    out.sources = (0..4)
+        .map(|k| SourceStats {
+            above_1n_min_pct: min(&above[k]),
+            above_1n_mean_pct: mean(&above[k]),
+            at_0n3_min_pct: min(&at03[k]),
+            static_noload_n: stat[k],
+            dynamic_noload_n: dyn_[k],
+        })
+        .collect();
+    out.coverage = if hold_n > 0 {
+        hold_in as f64 / hold_n as f64
+    } else {
+        f64::NAN
+    };
+    out.mean_bound_width_n = width.summary(1.0).mean;
+    out.tip_motion_pp_deg = pp;
+    s.progress.line(
+        &tag,
+        &format!(
+            "done: coverage {:.1} %, fused worst >= 1 N {:.1} %",
+            100.0 * out.coverage,
+            out.sources.get(2).map_or(f64::NAN, |x| x.above_1n_min_pct)
+        ),
+    );
+    out
+}
+
+/// Run every variant.
+pub fn run_all(s: &Settings) -> Vec<VariantResult> {
+    variants().iter().map(|v| run_variant(v, s)).collect()
+}
+
+fn pct(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.1}")
+    } else {
+        "–".into()
+    }
+}
+
+/// The goals of the issue, judged per variant (passive: no probing).
+pub fn goal_lines(r: &VariantResult) -> Vec<(String, bool)> {
+    let mut g = Vec::new();
+    if r.error.is_some() || r.sources.len() < 4 {
+        g.push(("identified and run".to_owned(), false));
+        return g;
+    }
+    let (dob, st, fu) = (&r.sources[0], &r.sources[1], &r.sources[2]);
+    g.push((
+        format!(
+            "bound covers >= 95 % of hold samples ({:.1} %)",
+            100.0 * r.coverage
+        ),
+        r.coverage >= 0.95,
+    ));
+    g.push((
+        format!(
+            "fused worst >= 90 % above 1 N ({} %)",
+            pct(fu.above_1n_min_pct)
+        ),
+        fu.above_1n_min_pct >= 90.0,
+    ));
+    g.push((
+        format!(
+            "fused worst >= 75 % at 0.3 N ({} %)",
+            pct(fu.at_0n3_min_pct)
+        ),
+        fu.at_0n3_min_pct >= 75.0,
+    ));
+    let better = |a: f64, b: f64| a.max(b);
+    g.push((
+        format!(
+            "fused no worse than the better of DOB and stretch (worst above 1 N {} vs {} %, at 0.3 N {} vs {} %)",
+            pct(fu.above_1n_min_pct),
+            pct(better(dob.above_1n_min_pct, st.above_1n_min_pct)),
+            pct(fu.at_0n3_min_pct),
+            pct(better(dob.at_0n3_min_pct, st.at_0n3_min_pct))
+        ),
+        fu.above_1n_min_pct + 0.5 >= better(dob.above_1n_min_pct, st.above_1n_min_pct)
+            && fu.at_0n3_min_pct + 0.5 >= better(dob.at_0n3_min_pct, st.at_0n3_min_pct),
+    ));
+    g.push((
+        format!(
+            "no false fault ({} of {} cases faulted)",
+            r.faults.len(),
+            r.cases
+        ),
+        r.faults.is_empty(),
+    ));
+    g
+}
+
+/// The Markdown section (the report leads with it).
+pub fn markdown(results: &[VariantResult]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "## Force estimate on plant variants (passive; probing not built)\n"
+    );
+    let _ = writeln!(
+        s,
+        "Each variant: identified on its own calibration runs (B_m, JAE with the pin-friction fit, model C), \
+         then the loading protocol at 0°, 30°, -40° with 30, 100 and 250 g in both directions, joint held on \
+         `theta_hat`. Accuracy `100 (1 - |mean estimate - F| / |F|)` in the stable region; no-load errors are \
+         the largest |estimate|; coverage is the share of hold samples (no-load and stable regions) whose \
+         applied force lies inside the fused bound `[f_ext_lo_n, f_ext_hi_n]`; tip motion is the largest \
+         peak-to-peak joint angle in a stable region. Command: `cargo run --release -p host-sim`.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| variant | rate | estimate | worst ≥1 N [%] | mean ≥1 N [%] | worst 0.3 N [%] | static no-load [N] | dynamic no-load [N] | coverage [%] | bound width [N] | tip motion [°] | faults |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for r in results {
+        if let Some(e) = &r.error {
+            let _ = writeln!(
+                s,
+                "| {} | {} Hz | identification failed: {} | | | | | | | | | |",
+                r.name,
+                r.rate_hz,
+                e.replace('|', "\\|")
+            );
+            continue;
+        }
+        for (k, st) in r.sources.iter().enumerate() {
+            let first = k == 0;
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {:.3} | {} | {} | {} | {} | {} |",
+                if first { r.name.as_str() } else { "" },
+                if first {
+                    format!("{} Hz", r.rate_hz)
+                } else {
+                    String::new()
+                },
+                SOURCES[k],
+                pct(st.above_1n_min_pct),
+                pct(st.above_1n_mean_pct),
+                pct(st.at_0n3_min_pct),
+                st.static_noload_n,
+                if st.dynamic_noload_n > 0.0 {
+                    format!("{:.3}", st.dynamic_noload_n)
+                } else {
+                    "–".into()
+                },
+                if k == 2 {
+                    pct(100.0 * r.coverage)
+                } else {
+                    String::new()
+                },
+                if k == 2 {
+                    format!("{:.2}", r.mean_bound_width_n)
+                } else {
+                    String::new()
+                },
+                if first {
+                    format!("{:.3}", r.tip_motion_pp_deg)
+                } else {
+                    String::new()
+                },
+                if first {
+                    format!("{}/{}", r.faults.len(), r.cases)
+                } else {
+                    String::new()
+                },
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nGoals per variant (passive estimate; every variant listed):\n"
+    );
+    for r in results {
+        let _ = writeln!(s, "* **{}** ({}, {} Hz):", r.name, r.what, r.rate_hz);
+        for (text, ok) in goal_lines(r) {
+            let _ = writeln!(s, "  * {}: {text}", if ok { "met" } else { "NOT met" });
+        }
+        for f in &r.faults {
+            let _ = writeln!(s, "  * fault: {f}");
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nNot built yet: active probing (dither / reversal averaging), the Dahl presliding state in the \
+         estimator, and the tick-budget measurement with the fusion on; their goals are not met.\n"
+    );
+    s
+}

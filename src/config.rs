@@ -484,6 +484,19 @@ fn non_negative(field: &'static str, v: f32) -> Result<(), ConfigError> {
     }
 }
 
+fn within(
+    field: &'static str,
+    v: f32,
+    range: impl core::ops::RangeBounds<f32>,
+    expected: &'static str,
+) -> Result<(), ConfigError> {
+    if v.is_finite() && range.contains(&v) {
+        Ok(())
+    } else {
+        Err(ConfigError { field, expected })
+    }
+}
+
 fn finite(field: &'static str, v: f32) -> Result<(), ConfigError> {
     if v.is_finite() {
         Ok(())
@@ -576,18 +589,18 @@ impl Config {
         }
         positive("scales.adc_a_per_code", s.adc_a_per_code)?;
         positive("scales.dac_a_per_code", s.dac_a_per_code)?;
-        if !(s.adc_zero_code.is_finite() && (0.0..=4095.0).contains(&s.adc_zero_code)) {
-            return Err(ConfigError {
-                field: "scales.adc_zero_code",
-                expected: "within 0..=4095",
-            });
-        }
-        if !(s.dac_zero_code.is_finite() && (0.0..=4095.0).contains(&s.dac_zero_code)) {
-            return Err(ConfigError {
-                field: "scales.dac_zero_code",
-                expected: "within 0..=4095",
-            });
-        }
+        within(
+            "scales.adc_zero_code",
+            s.adc_zero_code,
+            0.0..=4095.0,
+            "within 0..=4095",
+        )?;
+        within(
+            "scales.dac_zero_code",
+            s.dac_zero_code,
+            0.0..=4095.0,
+            "within 0..=4095",
+        )?;
 
         let nyquist = 0.5 * self.control_rate_hz;
         let d = &self.differentiators;
@@ -668,28 +681,25 @@ impl Config {
 
         let f = &self.fusion;
         non_negative("fusion.pin_coulomb_nm", f.pin_coulomb_nm)?;
-        if !(f.static_over_kinetic.is_finite() && (1.0..=10.0).contains(&f.static_over_kinetic)) {
-            return Err(ConfigError {
-                field: "fusion.static_over_kinetic",
-                expected: "within 1..=10",
-            });
-        }
-        if !(f.kinetic_tolerance.is_finite() && (0.0..=1.0).contains(&f.kinetic_tolerance)) {
-            return Err(ConfigError {
-                field: "fusion.kinetic_tolerance",
-                expected: "within 0..=1",
-            });
-        }
+        within(
+            "fusion.static_over_kinetic",
+            f.static_over_kinetic,
+            1.0..=10.0,
+            "within 1..=10",
+        )?;
+        within(
+            "fusion.kinetic_tolerance",
+            f.kinetic_tolerance,
+            0.0..=1.0,
+            "within 0..=1",
+        )?;
         non_negative("fusion.jae_error_rad", f.jae_error_rad)?;
-        if !(f.creep_window_s.is_finite()
-            && f.creep_window_s >= self.period_s()
-            && f.creep_window_s <= 10.0)
-        {
-            return Err(ConfigError {
-                field: "fusion.creep_window_s",
-                expected: "between one control period and 10 s",
-            });
-        }
+        within(
+            "fusion.creep_window_s",
+            f.creep_window_s,
+            self.period_s()..=10.0,
+            "between one control period and 10 s",
+        )?;
         positive("fusion.creep_distance_m", f.creep_distance_m)?;
 
         self.validate_limits()
@@ -701,12 +711,12 @@ impl Config {
         positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
         positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;
         positive("limits.max_joint_angle_rad", l.max_joint_angle_rad)?;
-        if !(l.min_tension_fraction.is_finite() && (0.0..1.0).contains(&l.min_tension_fraction)) {
-            return Err(ConfigError {
-                field: "limits.min_tension_fraction",
-                expected: "within 0..1 (0 = off)",
-            });
-        }
+        within(
+            "limits.min_tension_fraction",
+            l.min_tension_fraction,
+            0.0..1.0,
+            "within 0..1 (0 = off)",
+        )?;
         Ok(())
     }
 }

@@ -519,9 +519,11 @@ impl Controller {
         let dob_out: DobOut = d.dob.update(&mut st.dob, drive_current, phi.vel, model_n);
         let m = &cfg.machine;
         let r = m.pulley_radius_m;
-        let joint_torque_nm = r
-            * (cfg.stretch.cable1_n_m * (x1_m - r * theta_hat_rad)
-                - cfg.stretch.cable2_n_m * (r * theta_hat_rad - x2_m));
+        // Cable 1's stretch force (tension above the preload), used by the
+        // stretch estimate and the slack check.
+        let cable1_stretch_n = cfg.stretch.cable1_n_m * (x1_m - r * theta_hat_rad);
+        let joint_torque_nm =
+            r * (cable1_stretch_n - cfg.stretch.cable2_n_m * (r * theta_hat_rad - x2_m));
         let friction_n =
             cfg.tension.f_sc1_n * st.tension.sign_x1 + cfg.tension.f_cp2_n * st.tension.sign_x2;
         if !st.primed {
@@ -552,8 +554,7 @@ impl Controller {
         // Cable 1 is slack when its tension, read off its stretch, falls
         // below a fraction of the preload (a physical threshold, not a
         // motor/joint disagreement).
-        let tension1_stretch_n =
-            cfg.stretch.cable1_n_m * (x1_m - r * theta_hat_rad) + cfg.tension.f_0_n;
+        let tension1_stretch_n = cable1_stretch_n + cfg.tension.f_0_n;
         if st.primed
             && cfg.limits.min_tension_fraction > 0.0
             && tension1_stretch_n < cfg.limits.min_tension_fraction * cfg.tension.f_0_n

@@ -271,15 +271,14 @@ impl Fusion {
         // JAE does not see the pin directly: a friction sign is taken as
         // known only while the whole chain slips one way.
         let coherent = s1 != 0.0 && s1 == s2;
-        let (slip1, slip2) = (coherent, coherent);
 
         // Instantaneous friction bounds; `Q` (a positive filter) of a bound
         // bounds `Q` of the friction, so they are filtered like the signals.
-        let (a_lo, a_hi) = band(slip1, s1, self.f_sc1_n, rho, kappa);
-        let (b_lo, b_hi) = band(slip2, s2, self.f_cp2_n, rho, kappa);
-        let (p_lo, p_hi) = band(slip2, s2, self.pin_nm, rho, kappa);
+        let (a_lo, a_hi) = band(coherent, s1, self.f_sc1_n, rho, kappa);
+        let (b_lo, b_hi) = band(coherent, s2, self.f_cp2_n, rho, kappa);
+        let (p_lo, p_hi) = band(coherent, s2, self.pin_nm, rho, kappa);
         let theta_band = self.theta_floor_rad
-            + if slip2 {
+            + if coherent {
                 kappa * self.c3_rad
             } else {
                 (1.0 + rho) * self.c3_rad

@@ -467,10 +467,8 @@ pub struct JaeResult {
 pub struct JointFit {
     /// Rows used (joint slipping, not faulted).
     pub rows: u64,
-    /// Cable 2's stiffness from `c4`, N/m.
+    /// Cable stiffness from `c4` (cable 1 taken as cable 2), N/m.
     pub k_w2_n_m: f64,
-    /// Cable 1's stiffness used, N/m (taken as cable 2's; `%sigma` NaN).
-    pub k_w1_n_m: (f64, f64),
     /// Pin Coulomb friction, N·m, and its `%sigma`.
     pub pin_coulomb_nm: (f64, f64),
     /// Pin viscous friction, N·m·s/rad.
@@ -489,19 +487,21 @@ const JOINT_MAX_PCT_SIGMA: f64 = 30.0;
 fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFit {
     let m = &config.machine;
     let r = f64::from(m.pulley_radius_m);
-    let k_s = f64::from(m.spring_n_m);
-    let d = c4_rad_m * r - 1.0;
-    let k_w2 = if d > 0.0 { k_s / d } else { f64::NAN };
+    let k_w2 = cable_joint::config::StretchConfig::from_jae(
+        c4_rad_m as f32,
+        m.spring_n_m,
+        m.pulley_radius_m,
+    )
+    .map_or(f64::NAN, |s| f64::from(s.cable2_n_m));
     let empty = |note: String| JointFit {
         rows: 0,
         k_w2_n_m: k_w2,
-        k_w1_n_m: (f64::NAN, f64::NAN),
         pin_coulomb_nm: (f64::NAN, f64::NAN),
         pin_viscous_nm_s_rad: f64::NAN,
         residual_rms_nm: f64::NAN,
         note,
     };
-    if !(k_w2.is_finite() && k_w2 > 0.0) {
+    if k_w2.is_nan() {
         return empty(format!(
             "not identified: c4 r = {} gives no cable stiffness",
             c4_rad_m * r
@@ -510,7 +510,7 @@ fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFi
     // The joint slips when theta' is above the JAE's switching speed seen
     // at the joint (c4 x2').
     let switch = f64::from(config.jae.sign_switch_m_s) * c4_rad_m;
-    let mut ls = match BatchLsq::<5>::new(4, LsqConfig::default()) {
+    let mut ls = match BatchLsq::<4>::new(4, LsqConfig::default()) {
         Ok(l) => l,
         Err(e) => return empty(format!("not identified: {e:?}")),
     };
@@ -528,8 +528,8 @@ fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFi
             // Cable 1 taken as cable 2 (the same cable path): the joint
             // torque the two cables apply, against the pin's friction.
             let y = r * k_w2 * ((x1[k] - r * theta[k]) - (r * theta[k] - x2[k]));
-            let phi = [0.0, vel[k].signum(), vel[k], acc[k], 1.0];
-            if ls.push(&phi[1..], y).is_ok() {
+            let phi = [vel[k].signum(), vel[k], acc[k], 1.0];
+            if ls.push(&phi, y).is_ok() {
                 rows.push((phi, y));
             }
         }
@@ -546,12 +546,11 @@ fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFi
     };
     let sq: f64 = rows
         .iter()
-        .map(|(phi, y)| (y - fit.predict(&phi[1..])).powi(2))
+        .map(|(phi, y)| (y - fit.predict(phi)).powi(2))
         .sum();
     JointFit {
         rows: rows.len() as u64,
         k_w2_n_m: k_w2,
-        k_w1_n_m: (k_w2, f64::NAN),
         pin_coulomb_nm: (fit.params[0], fit.pct_sigma(0)),
         pin_viscous_nm_s_rad: fit.params[1],
         residual_rms_nm: (sq / rows.len() as f64).sqrt(),
@@ -560,23 +559,19 @@ fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFi
 }
 
 impl JointFit {
-    /// Write what the data identified; say what it could not.
+    /// Write the pin friction the data identified, or model C's upper bound
+    /// when it could not; returns what was written.
     fn apply(&self, config: &mut Config) -> String {
-        let mut notes = Vec::new();
         let (f, pf) = self.pin_coulomb_nm;
         if f.is_finite() && pf < JOINT_MAX_PCT_SIGMA {
             config.fusion.pin_coulomb_nm = f.max(0.0) as f32;
-            notes.push(format!(
-                "fusion.pin_coulomb_nm = {:.5} (%sigma {pf:.1})",
-                f.max(0.0)
-            ));
+            format!("fusion.pin_coulomb_nm = {:.5} (%sigma {pf:.1})", f.max(0.0))
         } else {
-            notes.push(
-                "pin friction not identifiable from these runs: the force bound keeps model C's upper bound"
-                    .into(),
-            );
+            config.fusion.pin_coulomb_nm =
+                cable_joint::config::FusionConfig::pin_upper_bound_nm(config);
+            "pin friction not identifiable from these runs: the force bound takes model C's upper bound"
+                .into()
         }
-        notes.join("; ")
     }
 }
 
@@ -1282,11 +1277,6 @@ impl JaeResult {
             config.fusion.jae_error_rad = err_rad as f32;
         }
         self.joint.apply(config);
-        let pct = self.joint.pin_coulomb_nm.1;
-        if pct.is_nan() || pct >= JOINT_MAX_PCT_SIGMA {
-            config.fusion.pin_coulomb_nm =
-                cable_joint::config::FusionConfig::pin_upper_bound_nm(config);
-        }
     }
 }
 
@@ -1882,11 +1872,9 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let jf = &j.joint;
         let _ = writeln!(
             s,
-            "joint torque balance ({} rows, joint slipping): K_w2 {} N/m (from c4), K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
+            "joint torque balance ({} rows, joint slipping): K_w1 = K_w2 {} N/m (from c4), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
             jf.rows,
             fmt_num(jf.k_w2_n_m),
-            fmt_num(jf.k_w1_n_m.0),
-            jf.k_w1_n_m.1,
             fmt_num(jf.pin_coulomb_nm.0),
             jf.pin_coulomb_nm.1,
             fmt_num(jf.residual_rms_nm),

@@ -336,8 +336,7 @@ pub fn write(r: &Report) -> Result<String> {
             v.rate_hz,
             goals.len()
         ));
-        for (g, ok) in goals.iter().filter(|(_, ok)| !*ok) {
-            let _ = ok;
+        for (g, _) in goals.iter().filter(|(_, ok)| !*ok) {
             text.push_str(&format!("      NOT met: {g}\n"));
         }
     }

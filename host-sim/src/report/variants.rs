@@ -39,6 +39,15 @@ pub struct Variant {
     pub rate_hz: f32,
 }
 
+fn variant(name: impl Into<String>, what: &str, plant: PlantParams, rate_hz: f32) -> Variant {
+    Variant {
+        name: name.into(),
+        what: what.into(),
+        plant,
+        rate_hz,
+    }
+}
+
 fn stick(p: &mut PlantParams, ratio: f64) {
     p.slider1.static_n = ratio * p.slider1.coulomb_n;
     p.slider2.static_n = ratio * p.slider2.coulomb_n;
@@ -74,80 +83,80 @@ fn drawn(seed: u64) -> PlantParams {
 /// The variants (fixed seeds: the same plants every run).
 pub fn variants() -> Vec<Variant> {
     let d = PlantParams::default();
-    let mut v = vec![Variant {
-        name: "default".into(),
-        what: "the project's simulated prototype".into(),
-        plant: d,
-        rate_hz: 2000.0,
-    }];
+    let mut v = vec![variant(
+        "default",
+        "the project's simulated prototype",
+        d,
+        2000.0,
+    )];
     let mut slider1 = d;
     slider1.slider1.coulomb_n *= 1.5;
     slider1.joint.coulomb_nm *= 0.5;
     slider1.motor.coulomb_nm *= 0.5;
     stick(&mut slider1, 1.2);
-    v.push(Variant {
-        name: "slider-1 friction".into(),
-        what: "slider 1 ×1.5, pin and motor ×0.5".into(),
-        plant: slider1,
-        rate_hz: 2000.0,
-    });
+    v.push(variant(
+        "slider-1 friction",
+        "slider 1 ×1.5, pin and motor ×0.5",
+        slider1,
+        2000.0,
+    ));
     let mut pin = d;
     pin.joint.coulomb_nm *= 3.0;
     pin.slider1.coulomb_n *= 0.5;
     stick(&mut pin, 1.2);
-    v.push(Variant {
-        name: "pin friction".into(),
-        what: "joint pin ×3 (12 mN·m), slider 1 ×0.5".into(),
-        plant: pin,
-        rate_hz: 2000.0,
-    });
+    v.push(variant(
+        "pin friction",
+        "joint pin ×3 (12 mN·m), slider 1 ×0.5",
+        pin,
+        2000.0,
+    ));
     let mut slider2 = d;
     slider2.slider2.coulomb_n *= 8.0;
     slider2.joint.coulomb_nm *= 0.5;
     stick(&mut slider2, 1.2);
-    v.push(Variant {
-        name: "slider-2 friction".into(),
-        what: "slider 2 ×8 (0.9 N), pin ×0.5".into(),
-        plant: slider2,
-        rate_hz: 2000.0,
-    });
+    v.push(variant(
+        "slider-2 friction",
+        "slider 2 ×8 (0.9 N), pin ×0.5",
+        slider2,
+        2000.0,
+    ));
     let mut rigid = d;
     stick(&mut rigid, 1.45);
-    v.push(Variant {
-        name: "stiff stiction".into(),
-        what: "static/kinetic 1.45 everywhere".into(),
-        plant: rigid,
-        rate_hz: 2000.0,
-    });
+    v.push(variant(
+        "stiff stiction",
+        "static/kinetic 1.45 everywhere",
+        rigid,
+        2000.0,
+    ));
     let mut pre = d;
     if pre.effects.enable("presliding").is_ok() {
-        v.push(Variant {
-            name: "presliding".into(),
-            what: "presliding (Dahl) friction on".into(),
-            plant: pre,
-            rate_hz: 2000.0,
-        });
+        v.push(variant(
+            "presliding",
+            "presliding (Dahl) friction on",
+            pre,
+            2000.0,
+        ));
     }
     for seed in [11u64, 12] {
-        v.push(Variant {
-            name: format!("draw {seed}"),
-            what: "every parameter ±30 %".into(),
-            plant: drawn(seed),
-            rate_hz: 2000.0,
-        });
+        v.push(variant(
+            format!("draw {seed}"),
+            "every parameter ±30 %",
+            drawn(seed),
+            2000.0,
+        ));
     }
-    v.push(Variant {
-        name: "default 1 kHz".into(),
-        what: "the default plant, 1 kHz control".into(),
-        plant: d,
-        rate_hz: 1000.0,
-    });
-    v.push(Variant {
-        name: "draw 13, 1 kHz".into(),
-        what: "every parameter ±30 %, 1 kHz control".into(),
-        plant: drawn(13),
-        rate_hz: 1000.0,
-    });
+    v.push(variant(
+        "default 1 kHz",
+        "the default plant, 1 kHz control",
+        d,
+        1000.0,
+    ));
+    v.push(variant(
+        "draw 13, 1 kHz",
+        "every parameter ±30 %, 1 kHz control",
+        drawn(13),
+        1000.0,
+    ));
     v
 }
 

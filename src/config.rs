@@ -702,12 +702,14 @@ impl Config {
         )?;
         positive("fusion.creep_distance_m", f.creep_distance_m)?;
 
-        self.validate_limits()
+        self.limits.validate()
     }
+}
 
+impl FaultLimits {
     /// Check the fault limits alone (see `Controller::set_limits`).
-    pub fn validate_limits(&self) -> Result<(), ConfigError> {
-        let l = &self.limits;
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let l = self;
         positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
         positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;
         positive("limits.max_joint_angle_rad", l.max_joint_angle_rad)?;

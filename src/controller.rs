@@ -352,10 +352,11 @@ impl Controller {
     /// Replace only the fault limits: cheap enough to call inside the control
     /// tick (no filter redesign, unlike [`Controller::set_config`]).
     pub fn set_limits(&mut self, limits: crate::config::FaultLimits) -> Result<(), ConfigError> {
-        let mut config = self.config;
-        config.limits = limits;
-        config.validate_limits()?;
-        self.config = config;
+        // Checked alone and written in place: the sequencer calls this on a
+        // control tick, where a copy of the whole configuration would cost
+        // hundreds of instructions.
+        limits.validate()?;
+        self.config.limits = limits;
         self.derived.set_steps(&self.config);
         Ok(())
     }
@@ -390,27 +391,24 @@ impl Controller {
     /// Homing: take `raw` as the origin of every counter. Estimators restart
     /// from rest at zero.
     pub fn set_origin(&mut self, raw: &RawSample) {
-        let mut motor_ext = Extender16::default();
-        let mut magnetic_ext = Extender16::default();
-        let (motor, _) = motor_ext.update(raw.motor.0);
-        let (magnetic, _) = magnetic_ext.update(raw.magnetic.0);
         let fault = self.state.fault;
         let tick = self.state.tick;
-        self.state = State {
-            motor_ext,
-            magnetic_ext,
-            origin: Origin {
-                grating1: raw.grating1.0,
-                grating2: raw.grating2.0,
-                motor,
-                magnetic,
-            },
-            fault,
-            tick,
-            command_tick: tick,
-            ..State::default()
+        // Reset in place, field by field after the default: this runs on a
+        // control tick (homing), so no second copy of the state.
+        self.state = State::default();
+        let st = &mut self.state;
+        let (motor, _) = st.motor_ext.update(raw.motor.0);
+        let (magnetic, _) = st.magnetic_ext.update(raw.magnetic.0);
+        st.origin = Origin {
+            grating1: raw.grating1.0,
+            grating2: raw.grating2.0,
+            motor,
+            magnetic,
         };
-        self.state.primed = false;
+        st.fault = fault;
+        st.tick = tick;
+        st.command_tick = tick;
+        st.primed = false;
     }
 
     /// Trajectory time of the command in force, s.

@@ -458,17 +458,23 @@ pub struct JaeResult {
 
 /// The joint's torque balance (seed Eq. 9, 12, 13 with no load) on runs with
 /// the magnetic encoder, while the joint slips:
-/// `r K_w [(x1 - r theta) - (r theta - x2)] = f_efc sgn(theta') + f_efv
-/// theta' + J_e theta'' + c`, with `K_w` from the JAE's `c4` and the
-/// datasheet spring, cable 1 taken as cable 2 (the same cable path; a free
-/// `K_w1` came out 22 % low on the simulated prototype and took the pin's
-/// friction with it, so it is not fitted).
+/// `r K_w2 (r theta - x2) = K_w1 r (x1 - r theta) - f_efc sgn(theta') -
+/// f_efv theta' - J_e theta'' - c`, with `K_w2` from the JAE's `c4` and the
+/// datasheet spring and `K_w1`, the pin's friction, its viscous term, the
+/// joint inertia and an offset fitted. The joint speed and acceleration are
+/// zero-phase central differences of the magnetic encoder over
+/// [`JOINT_DIFF_HALF_WINDOW_S`]: a causal observer lags the slip bursts of a
+/// joint in stick-slip and gives the pin's friction to the viscous term.
+/// Rows count once the joint has moved [`JOINT_MIN_TRAVEL_RAD`] since its
+/// last reversal (past presliding).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct JointFit {
     /// Rows used (joint slipping, not faulted).
     pub rows: u64,
-    /// Cable stiffness from `c4` (cable 1 taken as cable 2), N/m.
+    /// Cable 2 stiffness from `c4` and the datasheet spring, N/m.
     pub k_w2_n_m: f64,
+    /// Cable 1 stiffness, N/m, and its `%sigma`.
+    pub k_w1_n_m: (f64, f64),
     /// Pin Coulomb friction, N·m, and its `%sigma`.
     pub pin_coulomb_nm: (f64, f64),
     /// Pin viscous friction, N·m·s/rad.
@@ -496,6 +502,7 @@ fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFi
     let empty = |note: String| JointFit {
         rows: 0,
         k_w2_n_m: k_w2,
+        k_w1_n_m: (f64::NAN, f64::NAN),
         pin_coulomb_nm: (f64::NAN, f64::NAN),
         pin_viscous_nm_s_rad: f64::NAN,
         residual_rms_nm: f64::NAN,
@@ -510,25 +517,43 @@ fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFi
     // The joint slips when theta' is above the JAE's switching speed seen
     // at the joint (c4 x2').
     let switch = f64::from(config.jae.sign_switch_m_s) * c4_rad_m;
-    let mut ls = match BatchLsq::<4>::new(4, LsqConfig::default()) {
+    let mut ls = match BatchLsq::<5>::new(5, LsqConfig::default()) {
         Ok(l) => l,
         Err(e) => return empty(format!("not identified: {e:?}")),
     };
     let mut rows = Vec::new();
     for p in preps.iter().filter(|p| p.theta_source == "theta_rad") {
-        let (Ok(theta), Ok((vel, acc)), Ok(x1), Ok(x2)) =
-            (p.theta(), p.theta_kin(), p.col("x1_m"), p.col("x2_m"))
-        else {
+        let (Ok(theta), Ok(x1), Ok(x2)) = (p.theta(), p.col("x1_m"), p.col("x2_m")) else {
             continue;
         };
+        let period_s = f64::from(p.config().period_s());
+        let half = (JOINT_DIFF_HALF_WINDOW_S / period_s).round().max(1.0) as usize;
+        let (vel, acc) = central_kinematics(theta, half, period_s);
+        // Travel since the last reversal: a pin in presliding (its friction
+        // still building up after a reversal) is not at its kinetic level.
+        let mut travel_rad = 0.0;
         for k in 0..p.len() {
-            if !p.usable[k] || vel[k].abs() <= switch {
+            travel_rad = if k > 0 && vel[k].signum() == vel[k - 1].signum() {
+                travel_rad + (theta[k] - theta[k - 1]).abs()
+            } else {
+                0.0
+            };
+            if !p.usable[k]
+                || !vel[k].is_finite()
+                || !acc[k].is_finite()
+                || vel[k].abs() <= switch
+                || travel_rad < JOINT_MIN_TRAVEL_RAD
+            {
                 continue;
             }
-            // Cable 1 taken as cable 2 (the same cable path): the joint
-            // torque the two cables apply, against the pin's friction.
-            let y = r * k_w2 * ((x1[k] - r * theta[k]) - (r * theta[k] - x2[k]));
-            let phi = [vel[k].signum(), vel[k], acc[k], 1.0];
+            let y = r * k_w2 * (r * theta[k] - x2[k]);
+            let phi = [
+                r * (x1[k] - r * theta[k]),
+                -vel[k].signum(),
+                -vel[k],
+                -acc[k],
+                -1.0,
+            ];
             if ls.push(&phi, y).is_ok() {
                 rows.push((phi, y));
             }
@@ -551,19 +576,63 @@ fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFi
     JointFit {
         rows: rows.len() as u64,
         k_w2_n_m: k_w2,
-        pin_coulomb_nm: (fit.params[0], fit.pct_sigma(0)),
-        pin_viscous_nm_s_rad: fit.params[1],
+        k_w1_n_m: (fit.params[0], fit.pct_sigma(0)),
+        pin_coulomb_nm: (fit.params[1], fit.pct_sigma(1)),
+        pin_viscous_nm_s_rad: fit.params[2],
         residual_rms_nm: (sq / rows.len() as f64).sqrt(),
         note: String::new(),
     }
 }
 
+/// Half-width of the central differences the joint fit takes of the
+/// magnetic encoder, s: long enough that one encoder count over the window
+/// is a small speed, short against a slip burst of a joint in stick-slip
+/// (tens of milliseconds).
+pub const JOINT_DIFF_HALF_WINDOW_S: f64 = 0.005;
+
+/// Joint travel since the last reversal before a row enters the joint fit,
+/// rad: 20 µm at a 4 mm pulley, several times the micrometre presliding
+/// distance of a pin or a guide, so the friction is at its kinetic level.
+pub const JOINT_MIN_TRAVEL_RAD: f64 = 5e-3;
+
+/// Zero-phase speed and acceleration of `x` sampled every `period_s`: central
+/// differences over `half` samples either side (NaN within `2 half` of
+/// either end).
+fn central_kinematics(x: &[f64], half: usize, period_s: f64) -> (Vec<f64>, Vec<f64>) {
+    let diff = |u: &[f64]| -> Vec<f64> {
+        (0..u.len())
+            .map(|k| {
+                if k < half || k + half >= u.len() {
+                    f64::NAN
+                } else {
+                    (u[k + half] - u[k - half]) / (2.0 * half as f64 * period_s)
+                }
+            })
+            .collect()
+    };
+    let vel = diff(x);
+    let acc = diff(&vel);
+    (vel, acc)
+}
+
 impl JointFit {
-    /// Write the pin friction the data identified, or model C's upper bound
-    /// when it could not; returns what was written.
+    /// Write cable 1's stiffness and the pin friction the data identified;
+    /// a pin friction the data could not identify becomes model C's upper
+    /// bound, a cable 1 it could not identify stays equal to cable 2.
+    /// Returns what was written.
     fn apply(&self, config: &mut Config) -> String {
+        let (k1, pk1) = self.k_w1_n_m;
+        let stiffness = if k1.is_finite() && k1 > 0.0 && pk1 < JOINT_MAX_PCT_SIGMA {
+            config.stretch.cable1_n_m = k1 as f32;
+            format!("stretch.cable1_n_m = {k1:.0} (%sigma {pk1:.1})")
+        } else {
+            config.stretch.cable1_n_m = config.stretch.cable2_n_m;
+            format!(
+                "cable 1 stiffness not identifiable (K_w1 {k1:.0} N/m, %sigma {pk1:.1}): taken as cable 2's"
+            )
+        };
         let (f, pf) = self.pin_coulomb_nm;
-        if f.is_finite() && pf < JOINT_MAX_PCT_SIGMA {
+        let pin = if f.is_finite() && pf < JOINT_MAX_PCT_SIGMA {
             config.fusion.pin_coulomb_nm = f.max(0.0) as f32;
             format!("fusion.pin_coulomb_nm = {:.5} (%sigma {pf:.1})", f.max(0.0))
         } else {
@@ -571,7 +640,8 @@ impl JointFit {
                 cable_joint::config::FusionConfig::pin_upper_bound_nm(config);
             "pin friction not identifiable from these runs: the force bound takes model C's upper bound"
                 .into()
-        }
+        };
+        format!("{stiffness}; {pin}")
     }
 }
 
@@ -1292,9 +1362,10 @@ struct Pruned {
 
 /// The seed's pruning of a fit on all columns of `d` (see the module
 /// documentation and [`IdentOptions::prune_all_at_once`]). The spring
-/// `K_s x2` and the preload `F_0` (and the JAE's `c4 x2`) are physics the
-/// model cannot do without: they are never pruned, whatever their `%sigma`
-/// (a poorly excited run says so in the fit's table instead).
+/// `K_s x2`, the preload `F_0` (and the JAE's `c4 x2`) and the guides'
+/// Coulomb terms are physics the model cannot do without
+/// ([`physically_required`]): they are never pruned, whatever their
+/// `%sigma` (a poorly excited run says so in the fit's table instead).
 fn prune(
     d: &Design,
     terms: &[ModelTerm],
@@ -1359,9 +1430,16 @@ fn prune(
     })
 }
 
-/// Regressors a model needs by physics (spring/stiffness and preload/offset).
-fn physically_required(r: Regressor) -> bool {
-    matches!(r, Regressor::X2 | Regressor::One)
+/// Regressors a model needs by physics: the spring/stiffness, the
+/// preload/offset, and the guides' Coulomb friction (a guide always has
+/// some; a `%sigma` above the limit says the run could not separate it, not
+/// that it is zero, and a zero would make the force bound claim the DOB
+/// sees through slider 1).
+pub fn physically_required(r: Regressor) -> bool {
+    matches!(
+        r,
+        Regressor::X2 | Regressor::One | Regressor::SgnX1Vel | Regressor::SgnX2Vel
+    )
 }
 
 /// The tension models with the default options.
@@ -1487,12 +1565,6 @@ impl TensionResult {
         t.f_cp2_n = self.chi_p[1] as f32;
         t.k_s_n_m = self.chi_p[2] as f32;
         t.f_0_n = self.chi_p[3] as f32;
-        // A pin friction above what the new model C leaves room for is not
-        // physical; one that was never identified follows the new bound.
-        let ub = cable_joint::config::FusionConfig::pin_upper_bound_nm(config);
-        if config.fusion.pin_coulomb_nm > ub {
-            config.fusion.pin_coulomb_nm = ub;
-        }
     }
 }
 
@@ -1872,9 +1944,11 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let jf = &j.joint;
         let _ = writeln!(
             s,
-            "joint torque balance ({} rows, joint slipping): K_w1 = K_w2 {} N/m (from c4), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
+            "joint torque balance ({} rows, joint slipping): K_w2 {} N/m (from c4), K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
             jf.rows,
             fmt_num(jf.k_w2_n_m),
+            fmt_num(jf.k_w1_n_m.0),
+            jf.k_w1_n_m.1,
             fmt_num(jf.pin_coulomb_nm.0),
             jf.pin_coulomb_nm.1,
             fmt_num(jf.residual_rms_nm),
@@ -2038,31 +2112,35 @@ mod tests {
     }
 
     #[test]
-    fn one_at_a_time_keeps_one_of_a_collinear_pair() {
+    fn collinear_friction_signs_are_kept_with_their_sum_determined() {
         let mut rng = Rng(42);
         // s1 and s2 differ on 4 rows only: each alone is poorly determined,
         // their sum (8 N) is not.
         let d = design(4, 2.0, &mut rng);
         let full = solve(&d, &[0, 1, 2, 3, 4], &IdentOptions::default()).unwrap();
         assert!(full.pct_sigma(0) > 5.0 && full.pct_sigma(1) > 5.0);
-        let (kept, fit) = kept(&d, &IdentOptions::default());
-        assert_eq!(kept.len(), 3, "{kept:?}");
-        assert!(kept.contains(&Regressor::X2) && kept.contains(&Regressor::One));
-        let sign = kept
-            .iter()
-            .position(|r| matches!(r, Regressor::SgnX1Vel | Regressor::SgnX2Vel))
-            .expect("one friction sign kept");
-        assert!((fit.params[sign] - 8.0).abs() < 0.1, "{}", fit.params[sign]);
-        // The seed's all-at-once rule loses the friction altogether.
-        let seed = IdentOptions {
-            prune_all_at_once: true,
-            ..IdentOptions::default()
-        };
-        let (kept, _) = self::kept(&d, &seed);
-        assert!(
-            !kept.contains(&Regressor::SgnX1Vel) && !kept.contains(&Regressor::SgnX2Vel),
-            "{kept:?}"
-        );
+        for opts in [
+            IdentOptions::default(),
+            // The seed's all-at-once rule dropped both and lost the friction.
+            IdentOptions {
+                prune_all_at_once: true,
+                ..IdentOptions::default()
+            },
+        ] {
+            let (kept, fit) = kept(&d, &opts);
+            assert_eq!(
+                kept,
+                vec![
+                    Regressor::SgnX1Vel,
+                    Regressor::SgnX2Vel,
+                    Regressor::X2,
+                    Regressor::One
+                ],
+                "the junk term goes, the guides' friction stays"
+            );
+            let sum = fit.params[0] + fit.params[1];
+            assert!((sum - 8.0).abs() < 0.1, "friction sum {sum}");
+        }
     }
 
     #[test]

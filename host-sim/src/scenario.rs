@@ -447,6 +447,11 @@ pub struct RunSummary {
     pub force_error_n: Option<(f64, f64)>,
     /// The same for the cable-stretch estimate `f_ext_stretch_n`.
     pub force_stretch_error_n: Option<(f64, f64)>,
+    /// The same for the fused estimate `f_ext_fused_n`.
+    pub force_fused_error_n: Option<(f64, f64)>,
+    /// Share of the `Stable` samples whose applied force lies inside the
+    /// fused bound `[f_ext_lo_n, f_ext_hi_n]`.
+    pub force_bound_coverage: Option<f64>,
     /// Latched fault at the end, if any.
     pub fault: Option<Fault>,
 }
@@ -490,6 +495,9 @@ struct ForceAcc {
     max_abs: f64,
     stretch_sum: f64,
     stretch_max_abs: f64,
+    fused_sum: f64,
+    fused_max_abs: f64,
+    inside_bound: u64,
 }
 
 impl Recorder for ForceAcc {
@@ -499,6 +507,13 @@ impl Recorder for ForceAcc {
             let es = r.output.est.f_ext_stretch_n as f64 - r.f_ext_n;
             self.stretch_sum += es;
             self.stretch_max_abs = self.stretch_max_abs.max(es.abs());
+            let est = &r.output.est;
+            let ef = f64::from(est.f_ext_fused_n) - r.f_ext_n;
+            self.fused_sum += ef;
+            self.fused_max_abs = self.fused_max_abs.max(ef.abs());
+            if f64::from(est.f_ext_lo_n) <= r.f_ext_n && r.f_ext_n <= f64::from(est.f_ext_hi_n) {
+                self.inside_bound += 1;
+            }
             self.n += 1;
             self.sum += e;
             self.max_abs = self.max_abs.max(e.abs());
@@ -541,6 +556,9 @@ pub fn run<R: Recorder + ?Sized>(
         force_error_n: (force.n > 0).then(|| (force.sum / force.n as f64, force.max_abs)),
         force_stretch_error_n: (force.n > 0)
             .then(|| (force.stretch_sum / force.n as f64, force.stretch_max_abs)),
+        force_fused_error_n: (force.n > 0)
+            .then(|| (force.fused_sum / force.n as f64, force.fused_max_abs)),
+        force_bound_coverage: (force.n > 0).then(|| force.inside_bound as f64 / force.n as f64),
         fault: sim.output().fault,
     })
 }

@@ -186,8 +186,14 @@ pub struct VariantResult {
     pub rate_hz: f32,
     /// Identification failure, if any (then nothing else is filled).
     pub error: Option<String>,
-    /// Notes from the identification (faults latched there).
+    /// Notes from the identification (faults latched there, what was
+    /// identified against the plant's values).
     pub notes: Vec<String>,
+    /// The identified pin friction seen at the tip, `f_efc / l_e`, N: a
+    /// stuck pin can hold at least this much of a load (and up to its static
+    /// level) without any sensor seeing it, so it bounds what a passive
+    /// estimate can resolve at standstill.
+    pub pin_at_tip_n: f64,
     /// Per estimate, in [`SOURCES`] order.
     pub sources: Vec<SourceStats>,
     /// Share of hold samples (no-load and stable regions) whose applied
@@ -256,6 +262,29 @@ impl Recorder for CaseRec {
     }
 }
 
+/// What identification found against the plant's own values (the
+/// simulator's truth, read here only to report, never to configure). The
+/// stretch estimate's scale rests on the datasheet spring rate through `c4`
+/// (Eq. 16): a plant whose spring differs scales every stiffness with it.
+fn identified_vs_plant(c: &Config, p: &PlantParams) -> String {
+    format!(
+        "identified pin Coulomb {:.2} mN·m (plant {:.2} kinetic, {:.2} static); \
+         K_w1 {:.0} N/m, K_w2 {:.0} N/m (plant {:.0}, {:.0}) from the datasheet spring {:.0} N/m (plant {:.0}); \
+         JAE sign term {:.3}°, model error {:.3}°",
+        1e3 * c.fusion.pin_coulomb_nm,
+        1e3 * p.joint.coulomb_nm,
+        1e3 * p.joint.static_nm,
+        c.stretch.cable1_n_m,
+        c.stretch.cable2_n_m,
+        p.cable1.stiffness_n_m,
+        p.cable2.stiffness_n_m,
+        c.machine.spring_n_m,
+        p.spring.stiffness_n_m,
+        f64::from(c.jae.c_sign_rad) * DEG_PER_RAD,
+        f64::from(c.fusion.jae_error_rad) * DEG_PER_RAD,
+    )
+}
+
 /// Run one variant.
 pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
     let tag = format!("variant {}", v.name);
@@ -265,6 +294,7 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
         rate_hz: v.rate_hz,
         error: None,
         notes: Vec::new(),
+        pin_at_tip_n: f64::NAN,
         sources: Vec::new(),
         coverage: f64::NAN,
         mean_bound_width_n: f64::NAN,
@@ -276,6 +306,8 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
     let config = match identify_config(&v.plant, &base, s, &tag) {
         Ok((c, notes)) => {
             out.notes = notes;
+            out.notes.push(identified_vs_plant(&c, &v.plant));
+            out.pin_at_tip_n = f64::from(c.fusion.pin_coulomb_nm / c.machine.gripper_length_m);
             c
         }
         Err(e) => {
@@ -528,14 +560,29 @@ pub fn markdown(results: &[VariantResult]) -> String {
         for (text, ok) in goal_lines(r) {
             let _ = writeln!(s, "  * {}: {text}", if ok { "met" } else { "NOT met" });
         }
+        if r.pin_at_tip_n.is_finite() {
+            let _ = writeln!(
+                s,
+                "  * observability: the identified pin friction is {:.3} N at the tip ({:.0} % of 0.3 N); \
+                 a stuck pin hides a load change up to that much (more at its static level) from every passive sensor",
+                r.pin_at_tip_n,
+                100.0 * r.pin_at_tip_n / 0.3
+            );
+        }
+        for n in &r.notes {
+            let _ = writeln!(s, "  * {n}");
+        }
         for f in &r.faults {
             let _ = writeln!(s, "  * fault: {f}");
         }
     }
     let _ = writeln!(
         s,
-        "\nNot built yet: active probing (dither / reversal averaging), the Dahl presliding state in the \
-         estimator, and the tick-budget measurement with the fusion on; their goals are not met.\n"
+        "\nNot built yet: active probing (dither / reversal averaging) and the Dahl presliding state in the \
+         estimator; the probing goals are not met. The force scale of the stretch estimate rests on the \
+         datasheet spring rate (`machine.spring_n_m`, through `c4`, Eq. 16): no calibration run without a \
+         known load can observe it, so a plant whose spring differs (the drawn variants) carries that error \
+         into every stiffness and into the force.\n"
     );
     s
 }

@@ -67,7 +67,6 @@
 //! keeps the seed's rule on the plain `%sigma`.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -78,6 +77,7 @@ use serde::Serialize;
 
 use crate::derive::{config_for_log, derive};
 use crate::log::Log;
+use crate::output::Outputs;
 
 /// Most regressors one model has (model B, Eq. 23).
 pub const MAX_REGRESSORS: usize = 12;
@@ -1513,44 +1513,25 @@ pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
     Ok(config)
 }
 
-/// Write `config` as TOML, atomically (temporary file in the target's
-/// directory, then rename). An invalid configuration is refused before the
-/// file system is touched.
+/// Write `config` as TOML, atomically ([`crate::output`]). An invalid
+/// configuration is refused before the file system is touched.
 pub fn write_config(path: impl AsRef<Path>, config: &Config) -> Result<()> {
+    let mut out = Outputs::new();
+    stage_config(&mut out, path, config)?;
+    out.commit()?;
+    Ok(())
+}
+
+/// Stage `config` as TOML among a command's outputs (written by
+/// [`Outputs::commit`], all or none); checked as [`write_config`].
+pub fn stage_config(out: &mut Outputs, path: impl AsRef<Path>, config: &Config) -> Result<()> {
     let path = path.as_ref();
     config
         .validate()
         .map_err(|e| anyhow!("refusing to write {}: {e}", path.display()))?;
     let text = toml::to_string_pretty(config).context("serializing the configuration")?;
     let header = "# cable-joint configuration (SI units), written by `host-sim identify`.\n\n";
-    write_atomic(path, &format!("{header}{text}"))
-}
-
-fn write_atomic(path: &Path, text: &str) -> Result<()> {
-    // Renaming over a device or a directory would replace it: only a new
-    // path or an existing regular file is a valid target.
-    if let Ok(meta) = std::fs::metadata(path) {
-        if !meta.is_file() {
-            bail!(
-                "{} exists and is not a regular file: not replacing it",
-                path.display()
-            );
-        }
-    }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".ident-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .with_context(|| format!("creating a temporary file next to {}", path.display()))?;
-    tmp.write_all(text.as_bytes())
-        .and_then(|()| tmp.as_file().sync_all())
-        .with_context(|| format!("writing {}", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| anyhow!("renaming onto {}: {}", path.display(), e.error))?;
+    out.bytes(path, format!("{header}{text}").as_bytes())?;
     Ok(())
 }
 
@@ -1937,11 +1918,16 @@ pub fn format_report(r: &IdentifyReport) -> String {
 pub fn run(args: IdentifyArgs) -> Result<()> {
     let (rep, config) = identify(&args)?;
     print!("{}", format_report(&rep));
-    write_config(&args.config_out, &config)?;
-    println!("configuration written to {}", args.config_out.display());
+    // The configuration and the report are written together, or neither is.
+    let mut out = Outputs::new();
+    stage_config(&mut out, &args.config_out, &config)?;
     if let Some(p) = &args.json {
         let text = serde_json::to_string_pretty(&rep).context("serializing the report")?;
-        write_atomic(p, &text)?;
+        out.bytes(p, text.as_bytes())?;
+    }
+    out.commit()?;
+    println!("configuration written to {}", args.config_out.display());
+    if let Some(p) = &args.json {
         println!("report written to {}", p.display());
     }
     Ok(())

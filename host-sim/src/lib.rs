@@ -6,6 +6,7 @@ pub mod ident;
 pub mod import;
 pub mod ingest;
 pub mod log;
+pub mod output;
 pub mod payload;
 pub mod plant;
 pub mod plot;

@@ -55,6 +55,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use crate::log::{Log, Schema};
+use crate::output::Outputs;
 
 /// Arguments of `host-sim payload`.
 #[derive(clap::Args, Debug, Clone)]
@@ -880,8 +881,8 @@ pub struct RunEstimates {
     pub selected: Estimate,
 }
 
-/// Write `DIR/payload_<run>.csv` per run (see `--csv`).
-pub fn write_csv(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
+/// Stage `DIR/payload_<run>.csv` per run among the outputs (see `--csv`).
+pub fn write_csv(out: &mut Outputs, runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut names = vec!["t_s".to_owned()];
     for pre in ["raw", "fe_base", "fe_sel"] {
@@ -890,7 +891,7 @@ pub fn write_csv(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
         }
     }
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
-    let mut out = Vec::new();
+    let mut paths = Vec::new();
     for r in runs {
         let mut log = Log::with_columns(&refs)?;
         for (i, t) in r.run.wrench.t_s.iter().enumerate() {
@@ -901,18 +902,18 @@ pub fn write_csv(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
             log.push_row(&row)?;
         }
         let path = dir.join(format!("payload_{}.csv", r.run.name));
-        log.write(&path)?;
-        out.push(path);
+        log.stage(out, &path)?;
+        paths.push(path);
     }
-    Ok(out)
+    Ok(paths)
 }
 
-/// Write one figure per run (`DIR/payload_<run>.svg` and `.png`): the six
+/// Stage one figure per run (`DIR/payload_<run>.svg` and `.png`): the six
 /// axes of the raw sensor (minus its start) and of the estimated `F_e`.
-pub fn plot_runs(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
-    use crate::plot::{write_figure, Figure, Panel, Series};
+pub fn plot_runs(out: &mut Outputs, runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
+    use crate::plot::{stage_figure, Figure, Panel, Series};
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut out = Vec::new();
+    let mut paths = Vec::new();
     for r in runs {
         let t = r.run.wrench.t_s.clone();
         let col = |x: &[[f64; 6]], k: usize| x.iter().map(|v| v[k]).collect::<Vec<f64>>();
@@ -938,11 +939,11 @@ pub fn plot_runs(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
             })
             .collect();
         let fig = Figure::grid(panels, 3);
-        let [svg, png] = write_figure(&fig, &dir.join(format!("payload_{}", r.run.name)))?;
-        out.push(svg);
-        out.push(png);
+        let [svg, png] = stage_figure(out, &fig, &dir.join(format!("payload_{}", r.run.name)))?;
+        paths.push(svg);
+        paths.push(png);
     }
-    Ok(out)
+    Ok(paths)
 }
 
 /// The whole report.
@@ -1466,26 +1467,20 @@ pub fn run(args: PayloadArgs) -> Result<()> {
     }
     let (report, estimates) = analyse(&args)?;
     print!("{}", format_report(&report));
+    // Every output is written, or none is.
+    let mut out = Outputs::new();
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&report)?;
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let tmp = tempfile::NamedTempFile::new_in(dir)?;
-        std::fs::write(tmp.path(), text)?;
-        tmp.persist(path)
-            .with_context(|| format!("writing {}", path.display()))?;
+        out.bytes(path, text.as_bytes())?;
     }
     if let Some(dir) = &args.csv {
-        for p in write_csv(&estimates, dir)? {
-            println!("wrote {}", p.display());
-        }
+        write_csv(&mut out, &estimates, dir)?;
     }
     if let Some(dir) = &args.plot {
-        for p in plot_runs(&estimates, dir)? {
-            println!("wrote {}", p.display());
-        }
+        plot_runs(&mut out, &estimates, dir)?;
+    }
+    for p in out.commit()? {
+        println!("wrote {}", p.display());
     }
     Ok(())
 }

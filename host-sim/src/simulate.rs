@@ -20,6 +20,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use cable_joint::Config;
 
+use crate::output::Outputs;
 use crate::plant::{merge_toml, PlantParams};
 use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
 use crate::sim::{LogRecorder, RawTrace, Stats};
@@ -180,10 +181,13 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     } else {
         scenario::run(name, plant, config, args.seed, &opts, &mut log)?
     };
-    log.write(out)?;
+    // The log and the raw trace are written together, or neither is.
+    let mut outputs = Outputs::new();
+    log.to_log()?.stage(&mut outputs, out)?;
     if let Some(p) = &args.raw_out {
-        raw.write(p)?;
+        raw.to_table().to_log()?.stage(&mut outputs, p)?;
     }
+    outputs.commit()?;
     let effects = plant.effects.enabled();
     println!(
         "{}: seed {}, {} rows, {:.2} s simulated{} -> {}",

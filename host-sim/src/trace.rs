@@ -41,6 +41,7 @@ use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
 use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
 use cable_joint::RawSample;
 
+use crate::output::Outputs;
 use crate::plant::PlantParams;
 use crate::sim::{NullRecorder, Sim};
 
@@ -239,33 +240,25 @@ fn load_plant(path: Option<&Path>) -> anyhow::Result<PlantParams> {
     }
 }
 
-/// Write `bytes` to `path` through a temporary file and a rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("temporary file in {}", dir.display()))?;
-    std::io::Write::write_all(&mut tmp, bytes)?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        // A temporary file is private (0600); the result is an ordinary file.
-        tmp.as_file()
-            .set_permissions(fs::Permissions::from_mode(0o644))?;
-    }
-    tmp.persist(path)
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
-}
-
 /// `host-sim trace`.
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let plant = load_plant(args.plant.as_deref())?;
     let rec = record(plant, &args.options)?;
-    write_atomic(&args.out, &rec.trace_bytes())?;
+    // The trace and the CSV log are written together, or neither is.
+    let mut out = Outputs::new();
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    out.bytes(&args.out, &rec.trace_bytes())?;
+    if let Some(csv) = &args.csv {
+        let log = crate::ingest::to_log(
+            &rec.telemetry(),
+            &firmware_config(),
+            &crate::ingest::LogOptions::default(),
+        )?;
+        log.stage(&mut out, csv)?;
+    }
+    out.commit()?;
     let homed = rec
         .outcomes
         .iter()
@@ -280,12 +273,6 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         homed
     );
     if let Some(csv) = &args.csv {
-        let log = crate::ingest::to_log(
-            &rec.telemetry(),
-            &firmware_config(),
-            &crate::ingest::LogOptions::default(),
-        )?;
-        log.write(csv)?;
         eprintln!("wrote {}", csv.display());
     }
     Ok(())

@@ -36,6 +36,8 @@ use anyhow::{bail, ensure, Context, Result};
 use cable_joint::model::{AddedTerms, MAX_TERMS};
 use cable_joint::Config;
 
+use crate::output::Outputs;
+
 pub use problem::{
     build, is_reference, load_log, BuildOptions, ModelKind, MrdlabZero, NamedLog, REFERENCE_COLUMNS,
 };
@@ -287,8 +289,18 @@ pub fn read_config(path: &std::path::Path) -> Result<Config> {
 
 /// Write a configuration as TOML, atomically.
 pub fn write_config(cfg: &Config, path: &std::path::Path) -> Result<()> {
+    let mut out = Outputs::new();
+    stage_config(&mut out, cfg, path)?;
+    out.commit()?;
+    Ok(())
+}
+
+/// Stage a configuration as TOML among a command's outputs
+/// ([`crate::output`]).
+pub fn stage_config(out: &mut Outputs, cfg: &Config, path: &std::path::Path) -> Result<()> {
     let text = toml::to_string(cfg).context("serialising the configuration")?;
-    report::write_atomic(path, text.as_bytes())
+    out.bytes(path, text.as_bytes())?;
+    Ok(())
 }
 
 /// Run the subcommand.
@@ -332,11 +344,12 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     };
     let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
     print!("{}", report::table(&a));
-    let mut written = Vec::new();
+    // Every output is staged first and written only if all of them can be:
+    // a failure leaves every existing file as it was.
+    let mut out = Outputs::new();
     if let Some(path) = &args.config_out {
         let cfg = config_with(&a, &config)?;
-        write_config(&cfg, path)?;
-        written.push(path.display().to_string());
+        stage_config(&mut out, &cfg, path)?;
     }
     if let Some(path) = &args.json {
         let mut v = report::json(&a);
@@ -344,15 +357,17 @@ pub fn run(args: ResidualArgs) -> Result<()> {
             v["config_out"] = serde_json::Value::String(c.display().to_string());
         }
         let text = serde_json::to_string_pretty(&v)?;
-        report::write_atomic(path, text.as_bytes())?;
-        written.push(path.display().to_string());
+        out.bytes(path, text.as_bytes())?;
     }
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for p in report::plots(&a, dir)? {
-            written.push(p.display().to_string());
-        }
+        report::stage_plots(&mut out, &a, dir)?;
     }
+    let written: Vec<String> = out
+        .commit()?
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
     if !written.is_empty() {
         println!("wrote {}", written.join(", "));
     }

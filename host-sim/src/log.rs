@@ -192,6 +192,24 @@ impl LogError {
     }
 }
 
+/// Most characters of a cell or a column name that a message quotes.
+pub const MAX_QUOTED_CHARS: usize = 40;
+
+/// `text` for a message: quoted, cut after [`MAX_QUOTED_CHARS`] characters
+/// with an ellipsis and its length, so a huge cell never floods the terminal.
+///
+/// ```
+/// use host_sim::log::quoted;
+/// assert_eq!(quoted("abc"), "\"abc\"");
+/// assert_eq!(quoted(&"x".repeat(5000)), format!("\"{}…\" (5000 bytes)", "x".repeat(40)));
+/// ```
+pub fn quoted(text: &str) -> String {
+    match text.char_indices().nth(MAX_QUOTED_CHARS) {
+        None => format!("{text:?}"),
+        Some((cut, _)) => format!("\"{}…\" ({} bytes)", text[..cut].escape_debug(), text.len()),
+    }
+}
+
 impl fmt::Display for LogError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.file)?;
@@ -200,7 +218,7 @@ impl fmt::Display for LogError {
         }
         write!(f, ": ")?;
         if let Some(col) = &self.column {
-            write!(f, "column \"{col}\": ")?;
+            write!(f, "column {}: ", quoted(col))?;
         }
         match &self.kind {
             LogErrorKind::Io(e) => write!(f, "{e}"),
@@ -212,8 +230,10 @@ impl fmt::Display for LogError {
             LogErrorKind::DuplicateColumn => write!(f, "column name appears twice"),
             LogErrorKind::MissingColumn => write!(f, "required column is missing"),
             LogErrorKind::UnknownColumn => write!(f, "no such column"),
-            LogErrorKind::NotANumber(text) => write!(f, "{text:?} is not a number"),
-            LogErrorKind::NotFinite(text) => write!(f, "{text:?} is not a finite number"),
+            LogErrorKind::NotANumber(text) => write!(f, "{} is not a number", quoted(text)),
+            LogErrorKind::NotFinite(text) => {
+                write!(f, "{} is not a finite number", quoted(text))
+            }
             LogErrorKind::NotMeasured => {
                 write!(f, "empty cell (not measured) in a required column")
             }

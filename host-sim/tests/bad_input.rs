@@ -135,3 +135,97 @@ fn outputs_refuse_a_fifo_and_new_files_are_mode_0644() {
         assert_eq!(mode(p), 0o644, "{}", p.display());
     }
 }
+
+// --- import --------------------------------------------------------------
+
+/// A synthetic MRDLab run: `header` lines (without `%`), then one data line
+/// per time in `t_s` (every other field a small count).
+fn mrdlab_text(header: &[&str], t_s: &[f64]) -> String {
+    let mut s = String::new();
+    for h in header {
+        s.push_str(&format!("%{h}\n"));
+    }
+    for (k, t) in t_s.iter().enumerate() {
+        s.push_str(&format!("{t:e},{k},0.5,0.1,{k},0.2,0,0.1,{},0\n", 3 * k));
+    }
+    s
+}
+
+fn import(input: &Path, out: &Path) -> Output {
+    run(host_sim()
+        .args(["import", "mrdlab"])
+        .arg(input)
+        .arg("--out")
+        .arg(out))
+}
+
+#[test]
+fn import_reads_a_header_with_non_ascii_text_before_a_number() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("22.TXT");
+    let t: Vec<f64> = (0..20).map(|k| k as f64 * 1e-3).collect();
+    let header = ["input sine at ≈0.30 Hz, amplitude of ±30.00 degrees"];
+    std::fs::write(&input, mrdlab_text(&header, &t)).unwrap();
+    let out = import(&input, &dir.path().join("o.csv"));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stdout.contains("(0.3 Hz"), "{stdout}");
+}
+
+#[test]
+fn import_writes_sub_nanosecond_times_its_reader_accepts() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    let t: Vec<f64> = (0..20).map(|k| 5.0 + k as f64 * 2e-10).collect();
+    std::fs::write(&input, mrdlab_text(&[], &t)).unwrap();
+    let csv = dir.path().join("o.csv");
+    let out = import(&input, &csv);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let back = host_sim::log::Log::read_with(&csv, &host_sim::import::mrdlab_schema())
+        .expect("the reader accepts what import wrote");
+    assert_eq!(back.len(), 20);
+}
+
+#[test]
+fn import_errors_name_the_input_file_and_line_not_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    let t: Vec<f64> = (0..20).map(|k| k as f64 * 1e-3).collect();
+    // A finite first motor count that makes the next ones overflow once
+    // rebased and scaled to radians.
+    let text = mrdlab_text(&["a header line"], &t).replacen(",0,0\n", ",-1.7e308,0\n", 1);
+    std::fs::write(&input, text).unwrap();
+    let csv = dir.path().join("o.csv");
+    let out = import(&input, &csv);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    // The second data row is on line 3 of the input.
+    assert!(
+        err.contains(&format!(
+            "{}:3: column \"9: motor encoder\"",
+            input.display()
+        )),
+        "{err}"
+    );
+    assert!(!err.contains("o.csv"), "{err}");
+    assert!(!csv.exists());
+}
+
+#[test]
+fn a_huge_cell_is_not_copied_into_the_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    let t: Vec<f64> = (0..20).map(|k| k as f64 * 1e-3).collect();
+    let huge = "9".repeat(1_000_000) + "x";
+    let text = mrdlab_text(&[], &t).replacen("0.5,", &format!("{huge},"), 1);
+    std::fs::write(&input, text).unwrap();
+    let out = import(&input, &dir.path().join("o.csv"));
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.len() < 400, "{} bytes of stderr", err.len());
+    assert!(err.contains("…\" (1000001 bytes) is not a number"), "{err}");
+    assert!(
+        err.contains("run.TXT:1: column \"3: input torque\""),
+        "{err}"
+    );
+}

@@ -75,6 +75,7 @@ use cable_joint::lsq::{BatchLsq, Fit, LsqConfig};
 use cable_joint::Config;
 use serde::Serialize;
 
+use crate::cli;
 use crate::derive::{config_for_log, derive};
 use crate::log::Log;
 use crate::output::Outputs;
@@ -1574,25 +1575,30 @@ pub struct IdentifyArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Leading seconds of each log left out (observer start-up).
-    #[arg(long, default_value_t = IdentOptions::default().skip_start_s)]
+    #[arg(long, default_value_t = IdentOptions::default().skip_start_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
     pub skip_start_s: f64,
     /// Tension fits: leave out ticks with |theta'| below this, rad/s (0: keep all).
-    #[arg(long, default_value_t = IdentOptions::default().min_joint_vel_rad_s)]
+    #[arg(long, default_value_t = IdentOptions::default().min_joint_vel_rad_s,
+          value_parser = cli::f64_in(0.0, 1e3))]
     pub min_joint_vel_rad_s: f64,
     /// Tension fits: also leave out this long after the joint was still, s.
-    #[arg(long, default_value_t = IdentOptions::default().holdoff_s)]
+    #[arg(long, default_value_t = IdentOptions::default().holdoff_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
     pub holdoff_s: f64,
     /// Do not pass the regressors through the DOB's low-pass (the seed's plain fit).
     #[arg(long)]
     pub no_filter: bool,
     /// Pruning limit on %sigma, %.
-    #[arg(long, default_value_t = IdentOptions::default().max_pct_sigma)]
+    #[arg(long, default_value_t = IdentOptions::default().max_pct_sigma,
+          value_parser = cli::f64_above(0.0, 1e6))]
     pub max_pct_sigma: f64,
     /// Prune as the seed did: every parameter above the limit at once.
     #[arg(long)]
     pub prune_all_at_once: bool,
     /// DOB-based fits: extra low-pass on both sides, Hz (0: none).
-    #[arg(long, default_value_t = IdentOptions::default().post_filter_hz)]
+    #[arg(long, default_value_t = IdentOptions::default().post_filter_hz,
+          value_parser = cli::f64_in(0.0, 1e4))]
     pub post_filter_hz: f64,
     /// Fit B_m without the Coulomb term sgn(phi') (the seed's model).
     #[arg(long)]

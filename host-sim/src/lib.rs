@@ -1,5 +1,6 @@
 //! Host-side simulator and tools for the cable-joint core.
 
+pub mod cli;
 pub mod derive;
 pub mod estimate;
 pub mod ident;

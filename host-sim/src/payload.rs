@@ -54,6 +54,7 @@ use cable_joint::payload::{
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
+use crate::cli;
 use crate::log::{Log, Schema};
 use crate::output::Outputs;
 
@@ -83,12 +84,12 @@ pub struct PayloadArgs {
     pub gravity: GravitySource,
     /// Lag of the IMU stream behind the wrench stream, ms (default: estimated
     /// on the fit run).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-1000.0, 1000.0))]
     pub accel_lag_ms: Option<f64>,
     /// Low-pass cut-off applied identically to the wrench and to the
     /// kinematics (two cascaded first-order sections of the core's
     /// `LowPass1`, causal), Hz; 0 = unfiltered.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = cli::f64_in(0.0, 1000.0))]
     pub lowpass_hz: f64,
     /// Include the rotational terms (angular velocity and acceleration from
     /// differentiated orientations).
@@ -98,10 +99,11 @@ pub struct PayloadArgs {
     #[arg(long, requires = "rotational")]
     pub inertia: bool,
     /// Candidate creep time constants, s, for the compensation selection.
-    #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2,4,8,16")]
+    #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2,4,8,16",
+          value_parser = cli::f32_above(0.0, 1e4))]
     pub creep_taus: Vec<f32>,
     /// Known no-contact window at the start of each run, s (offset tracker).
-    #[arg(long, default_value_t = 0.25)]
+    #[arg(long, default_value_t = 0.25, value_parser = cli::f64_in(0.0, 1e4))]
     pub tare_s: f64,
     /// Write the report as JSON.
     #[arg(long)]

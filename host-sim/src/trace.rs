@@ -41,9 +41,11 @@ use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
 use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
 use cable_joint::RawSample;
 
+use crate::cli;
 use crate::output::Outputs;
 use crate::plant::PlantParams;
 use crate::sim::{NullRecorder, Sim};
+use crate::simulate::check_ticks;
 
 /// Arguments of `host-sim trace`.
 #[derive(clap::Args, Debug, Clone)]
@@ -64,21 +66,24 @@ pub struct TraceArgs {
 /// What the recorded run does.
 #[derive(clap::Args, Debug, Clone, Copy, PartialEq)]
 pub struct TraceOptions {
-    /// Seconds recorded after boot.
-    #[arg(long, default_value_t = 2.6)]
+    /// Seconds recorded after boot (at most
+    /// [`crate::simulate::MAX_TICKS`] control ticks).
+    #[arg(long, default_value_t = 2.6, value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration_s: f64,
     /// Seconds the mechanism relaxes with the drive off before boot.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, value_parser = cli::f64_in(0.0, f64::MAX))]
     pub relax_s: f64,
     /// Weight hung on the tip during the hold, N.
-    #[arg(long, default_value_t = 0.49)]
+    #[arg(long, default_value_t = 0.49, allow_negative_numbers = true,
+          value_parser = cli::f64_in(-100.0, 100.0))]
     pub load_n: f64,
     /// When the weight is hung (ramped in over 50 ms), s after boot.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = cli::f64_in(0.0, 1e6))]
     pub load_at_s: f64,
     /// When the drive's fault line is asserted, s after boot (negative:
     /// never).
-    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true,
+          value_parser = cli::f64_in(-1e6, 1e6))]
     pub drive_fault_at_s: f64,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
@@ -165,6 +170,13 @@ pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorde
         opts.duration_s.is_finite() && opts.duration_s > 0.0,
         "--duration-s must be > 0"
     );
+    anyhow::ensure!(
+        opts.relax_s.is_finite() && opts.relax_s >= 0.0,
+        "--relax-s must be >= 0"
+    );
+    let rate_hz = f64::from(config.control_rate_hz);
+    check_ticks("--duration-s", opts.duration_s, rate_hz)?;
+    check_ticks("--relax-s", opts.relax_s, rate_hz)?;
     // Power off: the drive is disabled and the preload back-drives the
     // gearhead until the mechanism rests, relaxed.
     let mut sim = Sim::new(plant, config, opts.seed)?;

@@ -229,3 +229,237 @@ fn a_huge_cell_is_not_copied_into_the_message() {
         "{err}"
     );
 }
+
+// --- Durations, rates and numeric options --------------------------------
+
+#[test]
+fn simulate_and_trace_refuse_a_duration_beyond_the_tick_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("run.csv");
+    let err = run_err(
+        host_sim()
+            .args([
+                "simulate",
+                "--scenario",
+                "track-motor",
+                "--duration",
+                "1e12",
+            ])
+            .arg("--out")
+            .arg(&csv),
+    );
+    assert!(
+        err.contains("--duration 1000000000000") && err.contains("at most 1000000 ticks"),
+        "{err}"
+    );
+    let err = run_err(
+        host_sim()
+            .args([
+                "simulate",
+                "--scenario",
+                "loading",
+                "--duration-scale",
+                "1e6",
+            ])
+            .arg("--out")
+            .arg(&csv),
+    );
+    assert!(
+        err.contains("--duration-scale") && err.contains("at most 1000000 ticks"),
+        "{err}"
+    );
+    let bin = dir.path().join("trace.bin");
+    for opt in ["--duration-s", "--relax-s"] {
+        let err = run_err(host_sim().args(["trace", opt, "1e12", "--out"]).arg(&bin));
+        assert!(
+            err.contains(opt) && err.contains("at most 1000000 ticks"),
+            "{err}"
+        );
+    }
+    assert!(dir_entries(dir.path()).is_empty());
+}
+
+/// A decoded defmt text: a start record at `rate_hz`, then `ticks` tick
+/// records.
+fn telemetry_text(rate_hz: f32, ticks: u32) -> String {
+    use cable_joint::telemetry::{Record, StartRecord, TickRecord, FORMAT_VERSION, MAX_RECORD_LEN};
+    let mut records = vec![Record::Start(StartRecord {
+        version: FORMAT_VERSION,
+        control_rate_hz: rate_hz,
+        decimation: 1,
+    })];
+    records.extend((1..=ticks).map(|k| {
+        Record::Tick(TickRecord {
+            tick: k,
+            ..Default::default()
+        })
+    }));
+    let mut text = String::from("INFO  firmware up\n");
+    for r in &records {
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let bytes: Vec<String> = r.encode(&mut buf).iter().map(|b| b.to_string()).collect();
+        text.push_str(&format!("0.000500 INFO  tlm [{}]\n", bytes.join(", ")));
+    }
+    text
+}
+
+#[test]
+fn ingest_refuses_an_impossible_rate_and_a_log_too_short_to_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("tlm.txt");
+    let csv = dir.path().join("run.csv");
+    std::fs::write(&input, telemetry_text(1.4e-45, 20)).unwrap();
+    let err = run_err(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert!(
+        err.contains(&format!("{}: ", input.display()))
+            && err.contains("control rate of 0.000000000000000000000000000000000000000000001 Hz")
+            && err.contains("between 100 and 20000 Hz"),
+        "{err}"
+    );
+    std::fs::write(&input, telemetry_text(2000.0, 1)).unwrap();
+    let err = run_err(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert!(
+        err.contains(&format!("{}: 1 tick records", input.display())),
+        "{err}"
+    );
+    assert!(!csv.exists());
+    // The same stream, long enough, is a log the other commands read.
+    std::fs::write(&input, telemetry_text(2000.0, 20)).unwrap();
+    run_ok(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert_eq!(host_sim::log::Log::read(&csv).unwrap().len(), 20);
+}
+
+#[test]
+fn every_numeric_option_refuses_non_finite_and_out_of_range_values() {
+    // (subcommand and its required arguments, option, a bad finite value)
+    let cases: &[(&[&str], &str, &str)] = &[
+        (&["simulate", "--scenario", "loading"], "--angle-deg", "1e9"),
+        (&["simulate", "--scenario", "loading"], "--mass-g", "-5"),
+        (&["simulate", "--scenario", "loading"], "--duration", "-1"),
+        (
+            &["simulate", "--scenario", "loading"],
+            "--duration-scale",
+            "0",
+        ),
+        (&["trace"], "--duration-s", "0"),
+        (&["trace"], "--relax-s", "-1"),
+        (&["trace"], "--load-n", "1e9"),
+        (&["trace"], "--load-at-s", "-1"),
+        (&["trace"], "--drive-fault-at-s", "1e300"),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--skip-start-s",
+            "-1",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--min-joint-vel-rad-s",
+            "-1",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--holdoff-s",
+            "-1",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--max-pct-sigma",
+            "0",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--post-filter-hz",
+            "1e9",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--holdout",
+            "1",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--min-gain",
+            "2",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--t-max",
+            "0",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--settle",
+            "-1",
+        ),
+        (&["report"], "--duration-scale", "0"),
+        (&["payload"], "--accel-lag-ms", "1e9"),
+        (&["payload"], "--lowpass-hz", "1e9"),
+        (&["payload"], "--creep-taus", "0"),
+        (&["payload"], "--tare-s", "-1"),
+    ];
+    for (cmd, opt, bad) in cases {
+        for value in ["NaN", "inf", bad] {
+            let err = run_err(host_sim().args(*cmd).arg(format!("{opt}={value}")));
+            assert!(
+                err.contains(&format!("invalid value '{value}' for '{opt}")),
+                "{cmd:?} {opt} {value}: {err}"
+            );
+        }
+    }
+    // Integer options: out of range (a non-number is refused by the parser).
+    for (opt, bad) in [
+        ("--max-terms", "99"),
+        ("--patience", "1e9"),
+        ("--decimate", "0"),
+    ] {
+        let err = run_err(
+            host_sim()
+                .args(["residual", "--model", "jae", "--log", "a.csv"])
+                .args([opt, bad]),
+        );
+        assert!(
+            err.contains(&format!("invalid value '{bad}' for '{opt}")),
+            "{opt}: {err}"
+        );
+    }
+}

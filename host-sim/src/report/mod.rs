@@ -66,7 +66,7 @@ pub struct ReportArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Scale of every scenario's duration (1 = the full programme).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::cli::f64_above(0.0, 100.0))]
     pub duration_scale: f64,
     /// Skip step 7 (unmodelled effects and the residual loop).
     #[arg(long)]

@@ -621,6 +621,74 @@ pub struct Prepared {
     theta: Option<Vec<f64>>,
     theta_kin: Option<(Vec<f64>, Vec<f64>)>,
     theta_source: &'static str,
+    /// Why rows are lost, for the warning [`design`] prints.
+    loss: LossNotes,
+}
+
+/// What [`Prepared::new`] found that costs rows, for the row-loss warning.
+#[derive(Default)]
+struct LossNotes {
+    /// The first faulted row: "the replay latched ... at line L ...".
+    fault: Option<String>,
+    /// `theta_rad` is present but not measured everywhere: (rows, first row).
+    theta_gap: Option<(usize, usize)>,
+    /// The warning was printed (once per log and procedure).
+    warned: std::sync::atomic::AtomicBool,
+}
+
+/// 1-based line of 0-based data row `row` of a log read from a file.
+fn line_of(row: usize) -> usize {
+    row + 2
+}
+
+impl LossNotes {
+    fn new(log: &Log, t: &[f64], fault: &[f64]) -> Self {
+        let fault = fault.iter().position(|f| *f != 0.0).map(|k| {
+            let code = fault[k] as u8;
+            let name = cable_joint::Fault::from_code(code)
+                .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+            // A value the core's f32 cannot hold is the likely cause.
+            let cause = (k.saturating_sub(2)..=k)
+                .flat_map(|r| log.names().into_iter().map(move |c| (r, c)))
+                .find(|(r, c)| {
+                    log.col(c)
+                        .is_some_and(|v| v[*r].is_finite() && v[*r].abs() > f64::from(f32::MAX))
+                })
+                .map(|(r, c)| {
+                    format!(
+                        "; column {c} = {:e} on line {} is beyond the core's f32 range",
+                        log.col(c).map_or(0.0, |v| v[r]),
+                        line_of(r)
+                    )
+                })
+                .unwrap_or_default();
+            format!(
+                "the replay latched {name} at line {} (t = {} s){cause}",
+                line_of(k),
+                t[k]
+            )
+        });
+        let theta_gap = log.col_opt("theta_rad").and_then(|v| {
+            let first = v.iter().position(Option::is_none)?;
+            Some((v.iter().filter(|x| x.is_none()).count(), first))
+        });
+        Self {
+            fault,
+            theta_gap,
+            warned: Default::default(),
+        }
+    }
+}
+
+/// Rows one log lost in one fit, by reason.
+#[derive(Default)]
+struct RowLoss {
+    start_up: usize,
+    faulted: usize,
+    still: usize,
+    /// Rows with a non-finite target or regressor: count, first (row, column).
+    not_finite: usize,
+    first_not_finite: Option<(usize, &'static str)>,
 }
 
 /// Which switching speed the `sgn(x2')` column uses.
@@ -671,9 +739,11 @@ impl Prepared {
             }
             (v, a)
         });
+        let loss = LossNotes::new(log, &t, fault);
         Ok(Self {
             label: label.to_owned(),
             first_fault,
+            loss,
             derived,
             cfg,
             usable,
@@ -901,19 +971,33 @@ fn design(
                 *s = since <= holdoff;
             }
         }
+        let fault = p.derived.col_required("fault_code")?;
+        let mut loss = RowLoss::default();
         for k in 0..p.len() {
-            if !p.usable[k]
-                || still[k]
-                || !y[k].is_finite()
-                || cols.iter().any(|c| !c[k].is_finite())
-            {
-                continue;
+            let bad = (!y[k].is_finite()).then_some(target.column()).or_else(|| {
+                (0..cols.len())
+                    .find(|&j| !cols[j][k].is_finite())
+                    .map(|j| regs[j].symbol())
+            });
+            if !p.usable[k] {
+                if fault[k] != 0.0 {
+                    loss.faulted += 1;
+                } else {
+                    loss.start_up += 1;
+                }
+            } else if still[k] {
+                loss.still += 1;
+            } else if let Some(col) = bad {
+                loss.not_finite += 1;
+                loss.first_not_finite.get_or_insert((k, col));
+            } else {
+                for (dc, c) in d.cols.iter_mut().zip(&cols) {
+                    dc.push(c[k]);
+                }
+                d.y.push(y[k]);
             }
-            for (dc, c) in d.cols.iter_mut().zip(&cols) {
-                dc.push(c[k]);
-            }
-            d.y.push(y[k]);
         }
+        warn_row_loss(p, &loss, target, opts);
     }
     if d.y.is_empty() {
         let faults: Vec<String> = preps
@@ -933,6 +1017,85 @@ fn design(
         );
     }
     Ok(d)
+}
+
+/// Prints (once per log and fit) how many rows a fit left out and why, when
+/// rows were lost to the data rather than to the settings alone: a fault
+/// the replay latched, a cell not measured or not finite, or a magnetic
+/// encoder column with gaps (the joint angle then comes from the JAE).
+fn warn_row_loss(p: &Prepared, loss: &RowLoss, target: Target, opts: &IdentOptions) {
+    use std::sync::atomic::Ordering;
+    let gap = p.loss.theta_gap.filter(|_| p.theta_source != "theta_rad");
+    if loss.faulted == 0 && loss.not_finite == 0 && gap.is_none() {
+        return;
+    }
+    if p.loss.warned.swap(true, Ordering::Relaxed) {
+        return;
+    }
+    let n = p.len();
+    let used = n - loss.start_up - loss.faulted - loss.still - loss.not_finite;
+    let mut why = Vec::new();
+    if loss.start_up > 0 {
+        why.push(format!(
+            "{} in the first {} s (--skip-start-s)",
+            loss.start_up, opts.skip_start_s
+        ));
+    }
+    if loss.faulted > 0 {
+        let fault = p
+            .loss
+            .fault
+            .as_deref()
+            .unwrap_or("the replay latched a fault");
+        why.push(format!("{} from where {fault}", loss.faulted));
+    }
+    if loss.still > 0 {
+        why.push(format!(
+            "{} with |theta'| below {} rad/s (--min-joint-vel-rad-s, theta' from {})",
+            loss.still, opts.min_joint_vel_rad_s, p.theta_source
+        ));
+    }
+    if let Some((row, col)) = loss.first_not_finite {
+        why.push(format!(
+            "{} with column {col} not measured or not finite (first at line {})",
+            loss.not_finite,
+            line_of(row)
+        ));
+    }
+    let mut text = format!(
+        "warning: {}: the {} fit uses {used} of {n} rows; left out: {}",
+        p.label,
+        target.fit_name(),
+        why.join(", ")
+    );
+    if let Some((rows, first)) = gap {
+        text.push_str(&format!(
+            ". Column theta_rad is not measured on {rows} row(s) (first at line {}), so the \
+             joint angle of this log is the JAE estimate theta_hat_rad, not the magnetic encoder",
+            line_of(first)
+        ));
+    }
+    eprintln!("{text}");
+}
+
+impl Target {
+    /// The column a fit explains.
+    fn column(self) -> &'static str {
+        match self {
+            Target::MotorTorque => "load_torque_nm",
+            Target::Theta => "theta_rad",
+            Target::Tension => "tension1_hat_n",
+        }
+    }
+
+    /// The fit's name in messages.
+    fn fit_name(self) -> &'static str {
+        match self {
+            Target::MotorTorque => "B_m",
+            Target::Theta => "JAE",
+            Target::Tension => "tension",
+        }
+    }
 }
 
 /// Least squares on the columns `active` of `d`.

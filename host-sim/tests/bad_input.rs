@@ -463,3 +463,158 @@ fn every_numeric_option_refuses_non_finite_and_out_of_range_values() {
         );
     }
 }
+
+// --- Rows left out ---------------------------------------------------------
+
+/// `log` with column `col` set to `value` (`None`: not measured) on data
+/// row `row`, written to `dir/name`.
+fn with_cell(log: &Path, col: &str, row: usize, value: Option<f64>, name: &str) -> PathBuf {
+    let mut l = host_sim::log::Log::read(log).unwrap();
+    let mut c = l.col_opt(col).unwrap();
+    c[row] = value;
+    l.set_col_opt(col, &c).unwrap();
+    let path = log.with_file_name(name);
+    l.write(&path).unwrap();
+    path
+}
+
+/// Rows the fit named `model` reports on stdout (`model: N rows, ...`).
+fn fit_rows(stdout: &str, model: &str) -> usize {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with(model))
+        .unwrap_or_else(|| panic!("no `{model}` line in {stdout}"));
+    line[model.len()..]
+        .trim_start_matches(|c: char| !c.is_ascii_digit())
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+fn identify(log: &Path, procedure: &str) -> Output {
+    let out = run(host_sim()
+        .args(["identify", "--procedure", procedure, "--log"])
+        .arg(log)
+        .arg("--config-out")
+        .arg(log.with_extension("toml")));
+    assert!(out.status.success(), "{}", stderr(&out));
+    out
+}
+
+#[test]
+fn identify_leaves_out_one_row_for_an_empty_theta_rad_cell_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = simulated(dir.path(), "jae-ident", 3.0, "jae.csv");
+    let gap = with_cell(&clean, "theta_rad", 1000, None, "gap.csv");
+    let model = "JAE (Eq. 25-26):";
+    let n_clean = fit_rows(
+        &String::from_utf8_lossy(&identify(&clean, "jae").stdout),
+        model,
+    );
+    let out = identify(&gap, "jae");
+    let n_gap = fit_rows(&String::from_utf8_lossy(&out.stdout), model);
+    assert_eq!(n_gap, n_clean - 1);
+    let err = stderr(&out);
+    assert!(
+        err.contains(&format!(
+            "warning: {}: the JAE fit uses {n_gap} of",
+            gap.display()
+        )) && err
+            .contains("1 with column theta_rad not measured or not finite (first at line 1002)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn identify_warns_when_a_replay_fault_leaves_rows_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = simulated(dir.path(), "tension-ident", 3.0, "ten.csv");
+    let big = with_cell(&clean, "i_ref_a", 3000, Some(1e308), "big.csv");
+    let err = stderr(&identify(&big, "tension"));
+    assert!(
+        err.contains(&format!("warning: {}: the tension fit uses", big.display()))
+            && err.contains("from where the replay latched")
+            && err.contains("column i_ref_a = 1e308 on line 3002"),
+        "{err}"
+    );
+    assert!(!stderr(&identify(&clean, "tension")).contains("warning"));
+}
+
+#[test]
+fn residual_names_left_out_rows_and_why_there_are_no_validation_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
+    let gap = with_cell(&fit, "theta_rad", 500, None, "gap.csv");
+    let out = run(host_sim()
+        .args(["residual", "--model", "jae", "--log"])
+        .arg(&gap));
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(&format!(
+            "warning: gap.csv: column theta_rad is not measured on 1 of 6000 rows (first at line 502)"
+        )),
+        "{}",
+        stderr(&out)
+    );
+    // A validation log without a single magnetic-encoder reading.
+    let mut l = host_sim::log::Log::read(&fit).unwrap();
+    l.set_col_opt("theta_rad", &vec![None; l.len()]).unwrap();
+    let blind = dir.path().join("blind.csv");
+    l.write(&blind).unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--model", "jae", "--log"])
+            .arg(&fit)
+            .arg("--validate")
+            .arg(&blind),
+    );
+    assert!(
+        err.contains("no validation rows: blind.csv: lines 2..6001 (6000 rows), none with a finite theta_rad"),
+        "{err}"
+    );
+}
+
+#[test]
+fn residual_names_the_file_and_line_of_times_too_large_for_a_sample_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    // Increasing times whose differences from the first overflow.
+    let mut t = vec![-1.7e308];
+    t.extend((0..19).map(|k| 1.7e308 * (1.0 + k as f64 * 1e-9)));
+    std::fs::write(&input, mrdlab_text(&[], &t)).unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--target", "theta_rad", "--log"])
+            .arg(&input),
+    );
+    assert!(
+        err.contains(&format!("{}:2: column \"1: time\"", input.display()))
+            && err.contains("is not a finite number"),
+        "{err}"
+    );
+    assert!(!err.contains("NaN"), "{err}");
+}
+
+#[test]
+fn estimate_warns_about_rows_without_a_reference_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulated(dir.path(), "loading", 4.0, "load.csv");
+    let gap = with_cell(&log, "f_ext_n", 100, None, "gap.csv");
+    let out = run(host_sim()
+        .args(["estimate", "--log"])
+        .arg(&gap)
+        .arg("--out")
+        .arg(dir.path().join("est.csv")));
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    let rows = host_sim::log::Log::read(&gap).unwrap().len();
+    assert!(
+        err.contains(&format!(
+            "warning: {}: column f_ext_n is not measured on 1 of {rows} rows (first at line 102)",
+            gap.display()
+        )),
+        "{err}"
+    );
+}

@@ -552,9 +552,9 @@ fn residual_names_left_out_rows_and_why_there_are_no_validation_rows() {
         .arg(&gap));
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(
-        stderr(&out).contains(&format!(
+        stderr(&out).contains(
             "warning: gap.csv: column theta_rad is not measured on 1 of 6000 rows (first at line 502)"
-        )),
+        ),
         "{}",
         stderr(&out)
     );

@@ -92,6 +92,7 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
     names.extend(EXTRA_COLUMNS);
     let mut out = Log::with_columns(&names)?;
     let two_pi = std::f64::consts::TAU;
+    let mut magnetic = 0u16;
     for k in 0..log.len() {
         let meas = i_meas
             .map(|c| c[k])
@@ -103,13 +104,15 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
             motor: MotorCount(
                 (phi[k] * s.motor_counts_per_rev as f64 / two_pi).round() as i64 as u16,
             ),
-            magnetic: MagneticCount(
-                theta
-                    .map(|c| c[k])
-                    .filter(|v| v.is_finite())
-                    .map(|v| (v * s.magnetic_counts_per_rev as f64 / two_pi).round() as i64 as u16)
-                    .unwrap_or(0),
-            ),
+            // A cell not measured holds the last reading (a jump to 0 would
+            // latch an encoder-jump fault and end the replay).
+            magnetic: MagneticCount({
+                if let Some(v) = theta.map(|c| c[k]).filter(|v| v.is_finite()) {
+                    magnetic =
+                        (v * s.magnetic_counts_per_rev as f64 / two_pi).round() as i64 as u16;
+                }
+                magnetic
+            }),
             current: AdcCode(
                 (meas as f32 / s.adc_a_per_code + s.adc_zero_code)
                     .round()

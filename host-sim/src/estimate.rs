@@ -72,6 +72,13 @@ pub struct ReferenceErrors {
     pub fused_n: Summary,
     /// Share of rows with the reference inside `[lo, hi]`.
     pub coverage: f64,
+    /// Rows compared.
+    pub rows: usize,
+    /// Rows left out because the reference is not measured there, and the
+    /// first of them (0-based).
+    pub not_measured: (usize, Option<usize>),
+    /// Rows left out because the replay had latched a fault.
+    pub faulted: usize,
 }
 
 /// Replay `log` with `config` (rate derived from the log) and summarise.
@@ -104,9 +111,16 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             let (dob, stretch) = (col("f_ext_hat_n")?, col("f_ext_stretch_n")?);
             let (mut ed, mut es, mut ef) = (Acc::default(), Acc::default(), Acc::default());
             let (mut inside, mut n) = (0usize, 0usize);
+            let (mut not_measured, mut faulted) = ((0usize, None), 0usize);
             for k in 0..rows {
                 let f = reference[k];
-                if !f.is_finite() || fault[k] != 0.0 {
+                if !f.is_finite() {
+                    not_measured.0 += 1;
+                    not_measured.1.get_or_insert(k);
+                    continue;
+                }
+                if fault[k] != 0.0 {
+                    faulted += 1;
                     continue;
                 }
                 ed.push(dob[k] - f);
@@ -122,6 +136,9 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
                 stretch_n: es.summary(1.0),
                 fused_n: ef.summary(1.0),
                 coverage: inside as f64 / n as f64,
+                rows: n,
+                not_measured,
+                faulted,
             })
         }
         None => None,
@@ -152,10 +169,42 @@ pub fn run(args: EstimateArgs) -> Result<()> {
     for d in &s.derived {
         eprintln!("estimate: {d}");
     }
+    for w in row_loss_warnings(&name, &s) {
+        eprintln!("{w}");
+    }
     out.write(&args.out)?;
     println!("{}", format_summary(&name, &s));
     println!("wrote {} ({} rows)", args.out.display(), s.rows);
     Ok(())
+}
+
+/// Warnings about rows the comparison with the reference left out.
+pub fn row_loss_warnings(name: &str, s: &EstimateSummary) -> Vec<String> {
+    let mut w = Vec::new();
+    let Some(r) = &s.against_reference else {
+        return w;
+    };
+    if let (n, Some(first)) = r.not_measured {
+        w.push(format!(
+            "warning: {name}: column f_ext_n is not measured on {n} of {} rows (first at line {}): \
+             they are left out of the comparison with the reference",
+            s.rows,
+            first + 2
+        ));
+    }
+    if r.faulted > 0 {
+        let at = s
+            .first_fault
+            .as_ref()
+            .map(|(k, code, text)| format!(" ({text}, code {code}, at line {})", k + 2))
+            .unwrap_or_default();
+        w.push(format!(
+            "warning: {name}: {} of {} rows are left out of the comparison with the reference: \
+             the replay had latched a fault{at}",
+            r.faulted, s.rows
+        ));
+    }
+    w
 }
 
 /// The terminal summary.
@@ -187,7 +236,11 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
         s.mean_bound_width_n
     );
     if let Some(r) = &s.against_reference {
-        let _ = writeln!(t, "  against the logged f_ext_n (estimate − reference, N):");
+        let _ = writeln!(
+            t,
+            "  against the logged f_ext_n on {} of {} rows (estimate − reference, N):",
+            r.rows, s.rows
+        );
         for (label, e) in [
             ("DOB (seed)", &r.dob_n),
             ("stretch", &r.stretch_n),

@@ -67,7 +67,6 @@
 //! keeps the seed's rule on the plain `%sigma`.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -76,8 +75,10 @@ use cable_joint::lsq::{BatchLsq, Fit, LsqConfig};
 use cable_joint::Config;
 use serde::Serialize;
 
+use crate::cli;
 use crate::derive::{config_for_log, derive};
 use crate::log::Log;
+use crate::output::Outputs;
 
 /// Most regressors one model has (model B, Eq. 23).
 pub const MAX_REGRESSORS: usize = 12;
@@ -690,6 +691,74 @@ pub struct Prepared {
     theta: Option<Vec<f64>>,
     theta_kin: Option<(Vec<f64>, Vec<f64>)>,
     theta_source: &'static str,
+    /// Why rows are lost, for the warning [`design`] prints.
+    loss: LossNotes,
+}
+
+/// What [`Prepared::new`] found that costs rows, for the row-loss warning.
+#[derive(Default)]
+struct LossNotes {
+    /// The first faulted row: "the replay latched ... at line L ...".
+    fault: Option<String>,
+    /// `theta_rad` is present but not measured everywhere: (rows, first row).
+    theta_gap: Option<(usize, usize)>,
+    /// The warning was printed (once per log and procedure).
+    warned: std::sync::atomic::AtomicBool,
+}
+
+/// 1-based line of 0-based data row `row` of a log read from a file.
+fn line_of(row: usize) -> usize {
+    row + 2
+}
+
+impl LossNotes {
+    fn new(log: &Log, t: &[f64], fault: &[f64]) -> Self {
+        let fault = fault.iter().position(|f| *f != 0.0).map(|k| {
+            let code = fault[k] as u8;
+            let name = cable_joint::Fault::from_code(code)
+                .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+            // A value the core's f32 cannot hold is the likely cause.
+            let cause = (k.saturating_sub(2)..=k)
+                .flat_map(|r| log.names().into_iter().map(move |c| (r, c)))
+                .find(|(r, c)| {
+                    log.col(c)
+                        .is_some_and(|v| v[*r].is_finite() && v[*r].abs() > f64::from(f32::MAX))
+                })
+                .map(|(r, c)| {
+                    format!(
+                        "; column {c} = {:e} on line {} is beyond the core's f32 range",
+                        log.col(c).map_or(0.0, |v| v[r]),
+                        line_of(r)
+                    )
+                })
+                .unwrap_or_default();
+            format!(
+                "the replay latched {name} at line {} (t = {} s){cause}",
+                line_of(k),
+                t[k]
+            )
+        });
+        let theta_gap = log.col_opt("theta_rad").and_then(|v| {
+            let first = v.iter().position(Option::is_none)?;
+            Some((v.iter().filter(|x| x.is_none()).count(), first))
+        });
+        Self {
+            fault,
+            theta_gap,
+            warned: Default::default(),
+        }
+    }
+}
+
+/// Rows one log lost in one fit, by reason.
+#[derive(Default)]
+struct RowLoss {
+    start_up: usize,
+    faulted: usize,
+    still: usize,
+    /// Rows with a non-finite target or regressor: count, first (row, column).
+    not_finite: usize,
+    first_not_finite: Option<(usize, &'static str)>,
 }
 
 /// Which switching speed the `sgn(x2')` column uses.
@@ -740,9 +809,11 @@ impl Prepared {
             }
             (v, a)
         });
+        let loss = LossNotes::new(log, &t, fault);
         Ok(Self {
             label: label.to_owned(),
             first_fault,
+            loss,
             derived,
             cfg,
             usable,
@@ -970,19 +1041,33 @@ fn design(
                 *s = since <= holdoff;
             }
         }
+        let fault = p.derived.col_required("fault_code")?;
+        let mut loss = RowLoss::default();
         for k in 0..p.len() {
-            if !p.usable[k]
-                || still[k]
-                || !y[k].is_finite()
-                || cols.iter().any(|c| !c[k].is_finite())
-            {
-                continue;
+            let bad = (!y[k].is_finite()).then_some(target.column()).or_else(|| {
+                (0..cols.len())
+                    .find(|&j| !cols[j][k].is_finite())
+                    .map(|j| regs[j].symbol())
+            });
+            if !p.usable[k] {
+                if fault[k] != 0.0 {
+                    loss.faulted += 1;
+                } else {
+                    loss.start_up += 1;
+                }
+            } else if still[k] {
+                loss.still += 1;
+            } else if let Some(col) = bad {
+                loss.not_finite += 1;
+                loss.first_not_finite.get_or_insert((k, col));
+            } else {
+                for (dc, c) in d.cols.iter_mut().zip(&cols) {
+                    dc.push(c[k]);
+                }
+                d.y.push(y[k]);
             }
-            for (dc, c) in d.cols.iter_mut().zip(&cols) {
-                dc.push(c[k]);
-            }
-            d.y.push(y[k]);
         }
+        warn_row_loss(p, &loss, target, opts);
     }
     if d.y.is_empty() {
         let faults: Vec<String> = preps
@@ -1002,6 +1087,85 @@ fn design(
         );
     }
     Ok(d)
+}
+
+/// Prints (once per log and fit) how many rows a fit left out and why, when
+/// rows were lost to the data rather than to the settings alone: a fault
+/// the replay latched, a cell not measured or not finite, or a magnetic
+/// encoder column with gaps (the joint angle then comes from the JAE).
+fn warn_row_loss(p: &Prepared, loss: &RowLoss, target: Target, opts: &IdentOptions) {
+    use std::sync::atomic::Ordering;
+    let gap = p.loss.theta_gap.filter(|_| p.theta_source != "theta_rad");
+    if loss.faulted == 0 && loss.not_finite == 0 && gap.is_none() {
+        return;
+    }
+    if p.loss.warned.swap(true, Ordering::Relaxed) {
+        return;
+    }
+    let n = p.len();
+    let used = n - loss.start_up - loss.faulted - loss.still - loss.not_finite;
+    let mut why = Vec::new();
+    if loss.start_up > 0 {
+        why.push(format!(
+            "{} in the first {} s (--skip-start-s)",
+            loss.start_up, opts.skip_start_s
+        ));
+    }
+    if loss.faulted > 0 {
+        let fault = p
+            .loss
+            .fault
+            .as_deref()
+            .unwrap_or("the replay latched a fault");
+        why.push(format!("{} from where {fault}", loss.faulted));
+    }
+    if loss.still > 0 {
+        why.push(format!(
+            "{} with |theta'| below {} rad/s (--min-joint-vel-rad-s, theta' from {})",
+            loss.still, opts.min_joint_vel_rad_s, p.theta_source
+        ));
+    }
+    if let Some((row, col)) = loss.first_not_finite {
+        why.push(format!(
+            "{} with column {col} not measured or not finite (first at line {})",
+            loss.not_finite,
+            line_of(row)
+        ));
+    }
+    let mut text = format!(
+        "warning: {}: the {} fit uses {used} of {n} rows; left out: {}",
+        p.label,
+        target.fit_name(),
+        why.join(", ")
+    );
+    if let Some((rows, first)) = gap {
+        text.push_str(&format!(
+            ". Column theta_rad is not measured on {rows} row(s) (first at line {}), so the \
+             joint angle of this log is the JAE estimate theta_hat_rad, not the magnetic encoder",
+            line_of(first)
+        ));
+    }
+    eprintln!("{text}");
+}
+
+impl Target {
+    /// The column a fit explains.
+    fn column(self) -> &'static str {
+        match self {
+            Target::MotorTorque => "load_torque_nm",
+            Target::Theta => "theta_rad",
+            Target::Tension => "tension1_hat_n",
+        }
+    }
+
+    /// The fit's name in messages.
+    fn fit_name(self) -> &'static str {
+        match self {
+            Target::MotorTorque => "B_m",
+            Target::Theta => "JAE",
+            Target::Tension => "tension",
+        }
+    }
 }
 
 /// Least squares on the columns `active` of `d`.
@@ -1585,44 +1749,25 @@ pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
     Ok(config)
 }
 
-/// Write `config` as TOML, atomically (temporary file in the target's
-/// directory, then rename). An invalid configuration is refused before the
-/// file system is touched.
+/// Write `config` as TOML, atomically ([`crate::output`]). An invalid
+/// configuration is refused before the file system is touched.
 pub fn write_config(path: impl AsRef<Path>, config: &Config) -> Result<()> {
+    let mut out = Outputs::new();
+    stage_config(&mut out, path, config)?;
+    out.commit()?;
+    Ok(())
+}
+
+/// Stage `config` as TOML among a command's outputs (written by
+/// [`Outputs::commit`], all or none); checked as [`write_config`].
+pub fn stage_config(out: &mut Outputs, path: impl AsRef<Path>, config: &Config) -> Result<()> {
     let path = path.as_ref();
     config
         .validate()
         .map_err(|e| anyhow!("refusing to write {}: {e}", path.display()))?;
     let text = toml::to_string_pretty(config).context("serializing the configuration")?;
     let header = "# cable-joint configuration (SI units), written by `host-sim identify`.\n\n";
-    write_atomic(path, &format!("{header}{text}"))
-}
-
-fn write_atomic(path: &Path, text: &str) -> Result<()> {
-    // Renaming over a device or a directory would replace it: only a new
-    // path or an existing regular file is a valid target.
-    if let Ok(meta) = std::fs::metadata(path) {
-        if !meta.is_file() {
-            bail!(
-                "{} exists and is not a regular file: not replacing it",
-                path.display()
-            );
-        }
-    }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".ident-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .with_context(|| format!("creating a temporary file next to {}", path.display()))?;
-    tmp.write_all(text.as_bytes())
-        .and_then(|()| tmp.as_file().sync_all())
-        .with_context(|| format!("writing {}", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| anyhow!("renaming onto {}: {}", path.display(), e.error))?;
+    out.bytes(path, format!("{header}{text}").as_bytes())?;
     Ok(())
 }
 
@@ -1665,25 +1810,30 @@ pub struct IdentifyArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Leading seconds of each log left out (observer start-up).
-    #[arg(long, default_value_t = IdentOptions::default().skip_start_s)]
+    #[arg(long, default_value_t = IdentOptions::default().skip_start_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
     pub skip_start_s: f64,
     /// Tension fits: leave out ticks with |theta'| below this, rad/s (0: keep all).
-    #[arg(long, default_value_t = IdentOptions::default().min_joint_vel_rad_s)]
+    #[arg(long, default_value_t = IdentOptions::default().min_joint_vel_rad_s,
+          value_parser = cli::f64_in(0.0, 1e3))]
     pub min_joint_vel_rad_s: f64,
     /// Tension fits: also leave out this long after the joint was still, s.
-    #[arg(long, default_value_t = IdentOptions::default().holdoff_s)]
+    #[arg(long, default_value_t = IdentOptions::default().holdoff_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
     pub holdoff_s: f64,
     /// Do not pass the regressors through the DOB's low-pass (the seed's plain fit).
     #[arg(long)]
     pub no_filter: bool,
     /// Pruning limit on %sigma, %.
-    #[arg(long, default_value_t = IdentOptions::default().max_pct_sigma)]
+    #[arg(long, default_value_t = IdentOptions::default().max_pct_sigma,
+          value_parser = cli::f64_above(0.0, 1e6))]
     pub max_pct_sigma: f64,
     /// Prune as the seed did: every parameter above the limit at once.
     #[arg(long)]
     pub prune_all_at_once: bool,
     /// DOB-based fits: extra low-pass on both sides, Hz (0: none).
-    #[arg(long, default_value_t = IdentOptions::default().post_filter_hz)]
+    #[arg(long, default_value_t = IdentOptions::default().post_filter_hz,
+          value_parser = cli::f64_in(0.0, 1e4))]
     pub post_filter_hz: f64,
     /// Fit B_m without the Coulomb term sgn(phi') (the seed's model).
     #[arg(long)]
@@ -2011,11 +2161,16 @@ pub fn format_report(r: &IdentifyReport) -> String {
 pub fn run(args: IdentifyArgs) -> Result<()> {
     let (rep, config) = identify(&args)?;
     print!("{}", format_report(&rep));
-    write_config(&args.config_out, &config)?;
-    println!("configuration written to {}", args.config_out.display());
+    // The configuration and the report are written together, or neither is.
+    let mut out = Outputs::new();
+    stage_config(&mut out, &args.config_out, &config)?;
     if let Some(p) = &args.json {
         let text = serde_json::to_string_pretty(&rep).context("serializing the report")?;
-        write_atomic(p, &text)?;
+        out.bytes(p, text.as_bytes())?;
+    }
+    out.commit()?;
+    println!("configuration written to {}", args.config_out.display());
+    if let Some(p) = &args.json {
         println!("report written to {}", p.display());
     }
     Ok(())

@@ -193,6 +193,8 @@ pub fn read_mrdlab(reader: impl Read, name: &str) -> Result<MrdlabRun, LogError>
     let mut buf = String::new();
     let mut line_no = 0usize;
     let mut raw: Vec<[f64; RAW_FIELDS]> = Vec::with_capacity(20_000);
+    // 1-based line of each raw row, for messages about converted values.
+    let mut lines: Vec<usize> = Vec::with_capacity(20_000);
     let mut blank_lines: Vec<usize> = Vec::new();
     let err = |line: usize, col: usize, kind: LogErrorKind| {
         LogError::new(name, kind)
@@ -288,6 +290,7 @@ pub fn read_mrdlab(reader: impl Read, name: &str) -> Result<MrdlabRun, LogError>
             }
         }
         raw.push(row);
+        lines.push(line_no);
     }
     if raw.len() < DEFAULT_MIN_ROWS {
         return Err(LogError::new(
@@ -300,20 +303,51 @@ pub fn read_mrdlab(reader: impl Read, name: &str) -> Result<MrdlabRun, LogError>
         .at_line(line_no.max(1)));
     }
     parse_header(&mut meta);
-    let log = convert(&raw).map_err(|mut e| {
-        e.file = name.to_owned();
-        e
-    })?;
+    let log = convert(&raw).map_err(|(row, col, kind)| err(lines[row], col, kind))?;
     Ok(MrdlabRun { log, meta })
 }
 
+/// Time since the first sample, rounded to the nanosecond so that 1 kHz
+/// stamps print short, or unrounded where samples are closer than that.
+///
+/// # Errors
+/// The first row (0-based) whose time is not finite or not after the
+/// previous one once rebased (times too large or too close for an `f64`).
+fn rebased_time(raw: &[[f64; RAW_FIELDS]]) -> Result<Vec<f64>, (usize, LogErrorKind)> {
+    let t0 = raw[0][0];
+    let exact: Vec<f64> = raw.iter().map(|r| r[0] - t0).collect();
+    let rounded: Vec<f64> = exact.iter().map(|t| (t * 1e9).round() / 1e9).collect();
+    let first_bad =
+        |t: &[f64]| (0..t.len()).find(|&k| !t[k].is_finite() || (k > 0 && t[k] <= t[k - 1]));
+    if first_bad(&rounded).is_none() {
+        return Ok(rounded);
+    }
+    match first_bad(&exact) {
+        None => Ok(exact),
+        Some(k) if !exact[k].is_finite() => Err((
+            k,
+            LogErrorKind::NotFinite(format!("{} s after the first sample", exact[k])),
+        )),
+        Some(k) => Err((
+            k,
+            LogErrorKind::NonIncreasingTime {
+                prev_s: exact[k - 1],
+                this_s: exact[k],
+            },
+        )),
+    }
+}
+
 /// Raw rows (checked) to the project's columns.
-fn convert(raw: &[[f64; RAW_FIELDS]]) -> Result<Log, LogError> {
+///
+/// # Errors
+/// A converted value that is not finite or a time that does not increase
+/// once rebased: (0-based raw row, raw column, what).
+fn convert(raw: &[[f64; RAW_FIELDS]]) -> Result<Log, (usize, usize, LogErrorKind)> {
     use std::f64::consts::TAU;
     let first = raw[0];
     let col = |f: &dyn Fn(&[f64; RAW_FIELDS]) -> f64| raw.iter().map(f).collect::<Vec<f64>>();
-    // Rebased time, rounded to the nanosecond so that 1 kHz stamps print short.
-    let t_s = col(&|r| ((r[0] - first[0]) * 1e9).round() / 1e9);
+    let t_s = rebased_time(raw).map_err(|(row, kind)| (row, 0, kind))?;
     let phi_rad = col(&|r| (r[8] - first[8]) * TAU / MOTOR_COUNTS_PER_REV);
     let spindle_rad = col(&|r| (first[1] - r[1]) * TAU / SPINDLE_COUNTS_PER_REV);
     let i_meas_a = col(&|r| r[3]);
@@ -323,17 +357,37 @@ fn convert(raw: &[[f64; RAW_FIELDS]]) -> Result<Log, LogError> {
     let theta_rad = col(&|r| (r[4] - first[4]) * TAU / JAW_COUNTS_PER_REV);
     let tau_ext_nm = col(&|r| (0.0 - r[5]) * FUTEK_NM_PER_COUNT);
     let mut log = Log::new();
-    for (name, values) in MRDLAB_COLUMNS.iter().zip([
-        t_s,
-        phi_rad,
-        spindle_rad,
-        i_meas_a,
-        cmd,
-        tau_in_nm,
-        theta_rad,
-        tau_ext_nm,
-    ]) {
-        log.set_col(name, values)?;
+    // Raw column of each converted one, for messages.
+    let raw_col = [0, 8, 1, 3, 7, 2, 4, 5];
+    for ((name, values), rc) in MRDLAB_COLUMNS
+        .iter()
+        .zip([
+            t_s,
+            phi_rad,
+            spindle_rad,
+            i_meas_a,
+            cmd,
+            tau_in_nm,
+            theta_rad,
+            tau_ext_nm,
+        ])
+        .zip(raw_col)
+    {
+        // Finite raw counts can still overflow once rebased and scaled.
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err((
+                k,
+                rc,
+                LogErrorKind::NotFinite(format!("{} once converted to {name}", values[k])),
+            ));
+        }
+        log.set_col(name, values).map_err(|e| {
+            (
+                0,
+                rc,
+                LogErrorKind::Io(std::io::Error::other(e.to_string())),
+            )
+        })?;
     }
     Ok(log)
 }
@@ -368,10 +422,18 @@ fn meta_from_name(name: &str) -> MrdlabMeta {
 fn number_before(text: &str, marker: &str) -> Option<f64> {
     let end = text.find(marker)?;
     let head = text[..end].trim_end();
+    // The byte after the last character that cannot be part of a number
+    // (that character may be several bytes long).
     let start = head
-        .rfind(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
-        .map_or(0, |i| i + 1);
+        .char_indices()
+        .rev()
+        .find(|&(_, c)| !is_number_char(c))
+        .map_or(0, |(i, c)| i + c.len_utf8());
     head[start..].parse().ok()
+}
+
+fn is_number_char(c: char) -> bool {
+    c.is_ascii_digit() || c == '.' || c == '-'
 }
 
 /// The number written just after `marker` in `text`.
@@ -379,7 +441,7 @@ fn number_after(text: &str, marker: &str) -> Option<f64> {
     let start = text.find(marker)? + marker.len();
     let tail = text[start..].trim_start();
     let end = tail
-        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+        .find(|c: char| !is_number_char(c))
         .unwrap_or(tail.len());
     tail[..end].parse().ok()
 }
@@ -490,5 +552,29 @@ mod tests {
         assert_eq!(meta.torque_percent, Some(60.0));
         assert_eq!((meta.freq_index, meta.torque_index), (Some(2), Some(5)));
         assert_eq!(meta_from_name("run.TXT").freq_index, None);
+    }
+
+    #[test]
+    fn header_numbers_after_non_ascii_text() {
+        assert_eq!(number_before("sine at ≈0.30 hz", " hz"), Some(0.30));
+        assert_eq!(number_before("±µ hz", " hz"), None);
+        assert_eq!(number_before("é2 hz", " hz"), Some(2.0));
+        assert_eq!(number_after("amplitude of ≈30 °", "amplitude of"), None);
+        assert_eq!(number_after("amplitude of 30°", "amplitude of"), Some(30.0));
+    }
+
+    #[test]
+    fn sub_nanosecond_times_are_kept_unrounded() {
+        let mut raw = vec![[0.0; RAW_FIELDS]; 4];
+        for (k, r) in raw.iter_mut().enumerate() {
+            r[0] = 1.0 + k as f64 * 1e-10;
+        }
+        let t = rebased_time(&raw).unwrap();
+        assert!(t.windows(2).all(|w| w[1] > w[0]), "{t:?}");
+        raw[0][0] = -f64::MAX;
+        raw[1][0] = f64::MAX;
+        let (row, kind) = rebased_time(&raw).unwrap_err();
+        assert_eq!(row, 1);
+        assert!(matches!(kind, LogErrorKind::NotFinite(_)), "{kind:?}");
     }
 }

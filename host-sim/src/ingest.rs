@@ -30,7 +30,7 @@ use cable_joint::telemetry::{parse_line, Record, StartRecord, TickRecord};
 use cable_joint::units::{Extender16, GratingCount, Scales};
 use cable_joint::Config;
 
-use crate::log::Log;
+use crate::log::{Log, DEFAULT_MIN_ROWS};
 
 /// Arguments of `host-sim ingest`.
 #[derive(clap::Args, Debug, Clone)]
@@ -117,8 +117,19 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
         _ => None,
     });
     let rate_hz = start.map_or(config.control_rate_hz, |s| s.control_rate_hz);
-    if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        bail!("telemetry start record has an impossible control rate {rate_hz} Hz");
+    // The range the core accepts (Config::validate), at that rate.
+    if let Err(e) = config.at_rate(rate_hz).0.validate() {
+        if e.field == "control_rate_hz" {
+            bail!(
+                "{} gives a control rate of {rate_hz} Hz: it must be {}",
+                if start.is_some() {
+                    "the telemetry start record"
+                } else {
+                    "the configuration"
+                },
+                e.expected
+            );
+        }
     }
     let s: &Scales = &config.scales;
     let mut log = Log::with_columns(&columns(opts))?;
@@ -301,7 +312,15 @@ pub fn run(args: IngestArgs) -> anyhow::Result<()> {
     let opts = LogOptions {
         magnetic: args.magnetic,
     };
-    let log = to_log(&records, &config, &opts)?;
+    let log =
+        to_log(&records, &config, &opts).with_context(|| format!("{}", args.file.display()))?;
+    anyhow::ensure!(
+        log.len() >= DEFAULT_MIN_ROWS,
+        "{}: {} tick records; a log needs at least {DEFAULT_MIN_ROWS} rows (the other commands \
+         would refuse it)",
+        args.file.display(),
+        log.len()
+    );
     log.write(&args.out)?;
     eprintln!(
         "{}: {} tick records -> {}",

@@ -1,11 +1,13 @@
 //! Host-side simulator and tools for the cable-joint core.
 
+pub mod cli;
 pub mod derive;
 pub mod estimate;
 pub mod ident;
 pub mod import;
 pub mod ingest;
 pub mod log;
+pub mod output;
 pub mod payload;
 pub mod plant;
 pub mod plot;

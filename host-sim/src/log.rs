@@ -21,6 +21,8 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
 use std::path::Path;
 
+use crate::output::{OutputError, Outputs};
+
 /// Columns every project log must have (DESIGN.md §2).
 pub const REQUIRED_COLUMNS: [&str; 5] = ["t_s", "x1_m", "x2_m", "phi_rad", "i_ref_a"];
 
@@ -190,6 +192,24 @@ impl LogError {
     }
 }
 
+/// Most characters of a cell or a column name that a message quotes.
+pub const MAX_QUOTED_CHARS: usize = 40;
+
+/// `text` for a message: quoted, cut after [`MAX_QUOTED_CHARS`] characters
+/// with an ellipsis and its length, so a huge cell never floods the terminal.
+///
+/// ```
+/// use host_sim::log::quoted;
+/// assert_eq!(quoted("abc"), "\"abc\"");
+/// assert_eq!(quoted(&"x".repeat(5000)), format!("\"{}…\" (5000 bytes)", "x".repeat(40)));
+/// ```
+pub fn quoted(text: &str) -> String {
+    match text.char_indices().nth(MAX_QUOTED_CHARS) {
+        None => format!("{text:?}"),
+        Some((cut, _)) => format!("\"{}…\" ({} bytes)", text[..cut].escape_debug(), text.len()),
+    }
+}
+
 impl fmt::Display for LogError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.file)?;
@@ -198,7 +218,7 @@ impl fmt::Display for LogError {
         }
         write!(f, ": ")?;
         if let Some(col) = &self.column {
-            write!(f, "column \"{col}\": ")?;
+            write!(f, "column {}: ", quoted(col))?;
         }
         match &self.kind {
             LogErrorKind::Io(e) => write!(f, "{e}"),
@@ -210,8 +230,10 @@ impl fmt::Display for LogError {
             LogErrorKind::DuplicateColumn => write!(f, "column name appears twice"),
             LogErrorKind::MissingColumn => write!(f, "required column is missing"),
             LogErrorKind::UnknownColumn => write!(f, "no such column"),
-            LogErrorKind::NotANumber(text) => write!(f, "{text:?} is not a number"),
-            LogErrorKind::NotFinite(text) => write!(f, "{text:?} is not a finite number"),
+            LogErrorKind::NotANumber(text) => write!(f, "{} is not a number", quoted(text)),
+            LogErrorKind::NotFinite(text) => {
+                write!(f, "{} is not a finite number", quoted(text))
+            }
             LogErrorKind::NotMeasured => {
                 write!(f, "empty cell (not measured) in a required column")
             }
@@ -871,59 +893,48 @@ impl Log {
         w.flush()
     }
 
-    /// Writes the log atomically: checked first (nothing is created if a
-    /// value is NaN or infinite), then written to a temporary file in the
-    /// target's directory and renamed over the target. A path ending in
-    /// `.gz` is gzipped. A new file gets mode 0644 (Unix); a replaced file
-    /// keeps its permissions.
+    /// Writes the log atomically through [`crate::output`]: checked first
+    /// (nothing is created if a value is NaN or infinite), then written to a
+    /// temporary file in the target's directory and renamed over the target.
+    /// A path ending in `.gz` is gzipped. A new file gets mode 0644 (Unix); a
+    /// replaced file keeps its permissions; a target that is not a regular
+    /// file is refused.
     ///
     /// # Errors
     /// A NaN or infinite value, or an I/O error; the target is then untouched
     /// and no temporary file is left behind.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), LogError> {
-        let path = path.as_ref();
-        let name = path.display().to_string();
-        self.check_writable(&name)?;
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let io_err = |e: io::Error| LogError::io(&name, e);
-        let tmp = tempfile::Builder::new()
-            .prefix(".log-")
-            .suffix(".tmp")
-            .tempfile_in(dir)
-            .map_err(io_err)?;
-        if is_gz(path) {
-            let mut enc =
-                flate2::write::GzEncoder::new(tmp.as_file(), flate2::Compression::default());
-            self.write_unchecked(&mut enc).map_err(io_err)?;
-            enc.finish().map_err(io_err)?;
-        } else {
-            self.write_unchecked(tmp.as_file()).map_err(io_err)?;
-        }
-        tmp.as_file().sync_all().map_err(io_err)?;
-        let perms = match std::fs::metadata(path) {
-            Ok(m) => Some(m.permissions()),
-            Err(_) => default_permissions(),
-        };
-        if let Some(p) = perms {
-            tmp.as_file().set_permissions(p).map_err(io_err)?;
-        }
-        tmp.persist(path).map_err(|e| io_err(e.error))?;
+        let mut out = Outputs::new();
+        self.stage(&mut out, path)?;
+        out.commit().map_err(output_err)?;
         Ok(())
+    }
+
+    /// Stages the log as one of a command's outputs (written with the
+    /// others by [`Outputs::commit`], all or none); checked as
+    /// [`Log::write`].
+    ///
+    /// # Errors
+    /// As [`Log::write`].
+    pub fn stage(&self, out: &mut Outputs, path: impl AsRef<Path>) -> Result<(), LogError> {
+        let path = path.as_ref();
+        self.check_writable(&path.display().to_string())?;
+        let gz = is_gz(path);
+        out.with_writer(path, |w| {
+            if gz {
+                let mut enc = flate2::write::GzEncoder::new(w, flate2::Compression::default());
+                self.write_unchecked(&mut enc)?;
+                enc.finish().map(drop)
+            } else {
+                self.write_unchecked(w)
+            }
+        })
+        .map_err(output_err)
     }
 }
 
-#[cfg(unix)]
-fn default_permissions() -> Option<std::fs::Permissions> {
-    use std::os::unix::fs::PermissionsExt;
-    Some(std::fs::Permissions::from_mode(0o644))
-}
-
-#[cfg(not(unix))]
-fn default_permissions() -> Option<std::fs::Permissions> {
-    None
+fn output_err(e: OutputError) -> LogError {
+    LogError::new(e.path.display().to_string(), LogErrorKind::Io(e.error))
 }
 
 #[cfg(test)]

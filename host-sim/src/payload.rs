@@ -54,7 +54,9 @@ use cable_joint::payload::{
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
+use crate::cli;
 use crate::log::{Log, Schema};
+use crate::output::Outputs;
 
 /// Arguments of `host-sim payload`.
 #[derive(clap::Args, Debug, Clone)]
@@ -82,12 +84,12 @@ pub struct PayloadArgs {
     pub gravity: GravitySource,
     /// Lag of the IMU stream behind the wrench stream, ms (default: estimated
     /// on the fit run).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-1000.0, 1000.0))]
     pub accel_lag_ms: Option<f64>,
     /// Low-pass cut-off applied identically to the wrench and to the
     /// kinematics (two cascaded first-order sections of the core's
     /// `LowPass1`, causal), Hz; 0 = unfiltered.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = cli::f64_in(0.0, 1000.0))]
     pub lowpass_hz: f64,
     /// Include the rotational terms (angular velocity and acceleration from
     /// differentiated orientations).
@@ -97,10 +99,11 @@ pub struct PayloadArgs {
     #[arg(long, requires = "rotational")]
     pub inertia: bool,
     /// Candidate creep time constants, s, for the compensation selection.
-    #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2,4,8,16")]
+    #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2,4,8,16",
+          value_parser = cli::f32_above(0.0, 1e4))]
     pub creep_taus: Vec<f32>,
     /// Known no-contact window at the start of each run, s (offset tracker).
-    #[arg(long, default_value_t = 0.25)]
+    #[arg(long, default_value_t = 0.25, value_parser = cli::f64_in(0.0, 1e4))]
     pub tare_s: f64,
     /// Write the report as JSON.
     #[arg(long)]
@@ -880,8 +883,8 @@ pub struct RunEstimates {
     pub selected: Estimate,
 }
 
-/// Write `DIR/payload_<run>.csv` per run (see `--csv`).
-pub fn write_csv(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
+/// Stage `DIR/payload_<run>.csv` per run among the outputs (see `--csv`).
+pub fn write_csv(out: &mut Outputs, runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut names = vec!["t_s".to_owned()];
     for pre in ["raw", "fe_base", "fe_sel"] {
@@ -890,7 +893,7 @@ pub fn write_csv(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
         }
     }
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
-    let mut out = Vec::new();
+    let mut paths = Vec::new();
     for r in runs {
         let mut log = Log::with_columns(&refs)?;
         for (i, t) in r.run.wrench.t_s.iter().enumerate() {
@@ -901,18 +904,18 @@ pub fn write_csv(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
             log.push_row(&row)?;
         }
         let path = dir.join(format!("payload_{}.csv", r.run.name));
-        log.write(&path)?;
-        out.push(path);
+        log.stage(out, &path)?;
+        paths.push(path);
     }
-    Ok(out)
+    Ok(paths)
 }
 
-/// Write one figure per run (`DIR/payload_<run>.svg` and `.png`): the six
+/// Stage one figure per run (`DIR/payload_<run>.svg` and `.png`): the six
 /// axes of the raw sensor (minus its start) and of the estimated `F_e`.
-pub fn plot_runs(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
-    use crate::plot::{write_figure, Figure, Panel, Series};
+pub fn plot_runs(out: &mut Outputs, runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
+    use crate::plot::{stage_figure, Figure, Panel, Series};
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut out = Vec::new();
+    let mut paths = Vec::new();
     for r in runs {
         let t = r.run.wrench.t_s.clone();
         let col = |x: &[[f64; 6]], k: usize| x.iter().map(|v| v[k]).collect::<Vec<f64>>();
@@ -938,11 +941,11 @@ pub fn plot_runs(runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
             })
             .collect();
         let fig = Figure::grid(panels, 3);
-        let [svg, png] = write_figure(&fig, &dir.join(format!("payload_{}", r.run.name)))?;
-        out.push(svg);
-        out.push(png);
+        let [svg, png] = stage_figure(out, &fig, &dir.join(format!("payload_{}", r.run.name)))?;
+        paths.push(svg);
+        paths.push(png);
     }
-    Ok(out)
+    Ok(paths)
 }
 
 /// The whole report.
@@ -1466,26 +1469,20 @@ pub fn run(args: PayloadArgs) -> Result<()> {
     }
     let (report, estimates) = analyse(&args)?;
     print!("{}", format_report(&report));
+    // Every output is written, or none is.
+    let mut out = Outputs::new();
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&report)?;
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let tmp = tempfile::NamedTempFile::new_in(dir)?;
-        std::fs::write(tmp.path(), text)?;
-        tmp.persist(path)
-            .with_context(|| format!("writing {}", path.display()))?;
+        out.bytes(path, text.as_bytes())?;
     }
     if let Some(dir) = &args.csv {
-        for p in write_csv(&estimates, dir)? {
-            println!("wrote {}", p.display());
-        }
+        write_csv(&mut out, &estimates, dir)?;
     }
     if let Some(dir) = &args.plot {
-        for p in plot_runs(&estimates, dir)? {
-            println!("wrote {}", p.display());
-        }
+        plot_runs(&mut out, &estimates, dir)?;
+    }
+    for p in out.commit()? {
+        println!("wrote {}", p.display());
     }
     Ok(())
 }

@@ -23,9 +23,11 @@
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+
+use crate::output::Outputs;
 
 /// The bundled font (DejaVu Sans, Bitstream Vera license).
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
@@ -309,49 +311,58 @@ pub fn render_svg(fig: &Figure) -> Result<String> {
     Ok(s)
 }
 
-fn temp_beside(path: &Path, suffix: &str) -> Result<tempfile::NamedTempFile> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    tempfile::Builder::new()
-        .prefix(".plot-")
-        .suffix(suffix)
-        .tempfile_in(dir)
-        .with_context(|| format!("creating a temporary file in {}", dir.display()))
-}
-
 /// Write the figure as SVG to `path` (atomically).
 pub fn write_svg(fig: &Figure, path: &Path) -> Result<()> {
-    let svg = render_svg(fig)?;
-    let mut tmp = temp_beside(path, ".svg")?;
-    std::io::Write::write_all(&mut tmp, svg.as_bytes())
-        .with_context(|| format!("writing {}", path.display()))?;
-    tmp.persist(path)
-        .with_context(|| format!("writing {}", path.display()))?;
+    let mut out = Outputs::new();
+    stage_svg(&mut out, fig, path)?;
+    out.commit()?;
     Ok(())
 }
 
 /// Write the figure as PNG to `path` (atomically).
 pub fn write_png(fig: &Figure, path: &Path) -> Result<()> {
-    register_bundled_font();
-    let tmp = temp_beside(path, ".png")?;
-    draw(
-        BitMapBackend::new(tmp.path(), fig.size_px()).into_drawing_area(),
-        fig,
-    )
-    .with_context(|| format!("writing {}", path.display()))?;
-    tmp.persist(path)
-        .with_context(|| format!("writing {}", path.display()))?;
+    let mut out = Outputs::new();
+    stage_png(&mut out, fig, path)?;
+    out.commit()?;
     Ok(())
 }
 
-/// Write `STEM.svg` and `STEM.png`; returns both paths.
+/// Stage the figure as SVG among a command's outputs ([`crate::output`]).
+pub fn stage_svg(out: &mut Outputs, fig: &Figure, path: &Path) -> Result<()> {
+    let svg = render_svg(fig)?;
+    out.bytes(path, svg.as_bytes())?;
+    Ok(())
+}
+
+/// Stage the figure as PNG among a command's outputs ([`crate::output`]).
+pub fn stage_png(out: &mut Outputs, fig: &Figure, path: &Path) -> Result<()> {
+    register_bundled_font();
+    // The bitmap backend opens its file itself: draw into the temporary one.
+    out.with_temp_path(path, |tmp| {
+        draw(
+            BitMapBackend::new(tmp, fig.size_px()).into_drawing_area(),
+            fig,
+        )
+        .map_err(|e| std::io::Error::other(format!("{e:#}")))
+    })?;
+    Ok(())
+}
+
+/// Write `STEM.svg` and `STEM.png` (both or neither); returns both paths.
 pub fn write_figure(fig: &Figure, stem: &Path) -> Result<[PathBuf; 2]> {
+    let mut out = Outputs::new();
+    let paths = stage_figure(&mut out, fig, stem)?;
+    out.commit()?;
+    Ok(paths)
+}
+
+/// Stage `STEM.svg` and `STEM.png` among a command's outputs; returns both
+/// paths.
+pub fn stage_figure(out: &mut Outputs, fig: &Figure, stem: &Path) -> Result<[PathBuf; 2]> {
     let svg = stem.with_extension("svg");
     let png = stem.with_extension("png");
-    write_svg(fig, &svg)?;
-    write_png(fig, &png)?;
+    stage_svg(out, fig, &svg)?;
+    stage_png(out, fig, &png)?;
     Ok([svg, png])
 }
 

@@ -20,6 +20,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use cable_joint::Config;
 
+use crate::cli;
+use crate::output::Outputs;
 use crate::plant::{merge_toml, PlantParams};
 use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
 use crate::sim::{LogRecorder, RawTrace, Stats};
@@ -49,17 +51,18 @@ pub struct SimulateArgs {
     /// spring, drift.
     #[arg(long, value_delimiter = ',')]
     pub effect: Vec<String>,
-    /// Total simulated duration, s (scales every segment).
-    #[arg(long, conflicts_with = "duration_scale")]
+    /// Total simulated duration, s (scales every segment; at most
+    /// [`MAX_TICKS`] control ticks).
+    #[arg(long, conflicts_with = "duration_scale", value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration: Option<f64>,
     /// Scale of every segment's duration.
-    #[arg(long)]
+    #[arg(long, value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration_scale: Option<f64>,
     /// `loading`: run only this held angle, degrees.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-180.0, 180.0))]
     pub angle_deg: Option<f64>,
     /// `loading`: run only this weight, grams.
-    #[arg(long)]
+    #[arg(long, value_parser = cli::f64_in(0.0, 10_000.0))]
     pub mass_g: Option<f64>,
     /// `loading`: run only this direction.
     #[arg(long, value_enum)]
@@ -80,6 +83,23 @@ pub struct SimulateArgs {
     /// Print the plant parameters (after `--plant` and `--effect`) as TOML and exit.
     #[arg(long)]
     pub print_plant: bool,
+}
+
+/// Most control ticks one simulated run records: 500 s at 2 kHz. The whole
+/// log is kept in memory (about 0.4 kB a tick, twice while it is written).
+pub const MAX_TICKS: f64 = 1e6;
+
+/// `duration_s` at `rate_hz` is at most [`MAX_TICKS`] control ticks; the
+/// error names `what` (the option that set the duration) and the limit.
+pub fn check_ticks(what: &str, duration_s: f64, rate_hz: f64) -> anyhow::Result<()> {
+    let ticks = duration_s * rate_hz;
+    anyhow::ensure!(
+        ticks <= MAX_TICKS,
+        "{what}: {duration_s} s is {ticks:.3e} control ticks at {rate_hz} Hz; one run records \
+         at most {MAX_TICKS:.0} ticks ({} s at this rate), all kept in memory",
+        MAX_TICKS / rate_hz
+    );
+    Ok(())
 }
 
 fn read(path: &PathBuf) -> anyhow::Result<String> {
@@ -166,6 +186,16 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         let full = scenario::plan(name, &opts)?.duration_s();
         opts.duration_scale = d / full;
     }
+    let what = match (args.duration, args.duration_scale) {
+        (Some(d), _) => format!("--duration {d}"),
+        (None, Some(s)) => format!("--duration-scale {s}"),
+        (None, None) => format!("scenario {name}"),
+    };
+    check_ticks(
+        &what,
+        scenario::plan(name, &opts)?.duration_s(),
+        f64::from(config.control_rate_hz),
+    )?;
     let mut log = LogRecorder::new(plant.sensors.magnetic_fitted);
     let mut raw = RawTrace::new();
     let summary = if args.raw_out.is_some() {
@@ -180,10 +210,13 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     } else {
         scenario::run(name, plant, config, args.seed, &opts, &mut log)?
     };
-    log.write(out)?;
+    // The log and the raw trace are written together, or neither is.
+    let mut outputs = Outputs::new();
+    log.to_log()?.stage(&mut outputs, out)?;
     if let Some(p) = &args.raw_out {
-        raw.write(p)?;
+        raw.to_table().to_log()?.stage(&mut outputs, p)?;
     }
+    outputs.commit()?;
     let effects = plant.effects.enabled();
     println!(
         "{}: seed {}, {} rows, {:.2} s simulated{} -> {}",

@@ -41,8 +41,11 @@ use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
 use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
 use cable_joint::RawSample;
 
+use crate::cli;
+use crate::output::Outputs;
 use crate::plant::PlantParams;
 use crate::sim::{NullRecorder, Sim};
+use crate::simulate::check_ticks;
 
 /// Arguments of `host-sim trace`.
 #[derive(clap::Args, Debug, Clone)]
@@ -63,21 +66,24 @@ pub struct TraceArgs {
 /// What the recorded run does.
 #[derive(clap::Args, Debug, Clone, Copy, PartialEq)]
 pub struct TraceOptions {
-    /// Seconds recorded after boot.
-    #[arg(long, default_value_t = 2.6)]
+    /// Seconds recorded after boot (at most
+    /// [`crate::simulate::MAX_TICKS`] control ticks).
+    #[arg(long, default_value_t = 2.6, value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration_s: f64,
     /// Seconds the mechanism relaxes with the drive off before boot.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, value_parser = cli::f64_in(0.0, f64::MAX))]
     pub relax_s: f64,
     /// Weight hung on the tip during the hold, N.
-    #[arg(long, default_value_t = 0.49)]
+    #[arg(long, default_value_t = 0.49, allow_negative_numbers = true,
+          value_parser = cli::f64_in(-100.0, 100.0))]
     pub load_n: f64,
     /// When the weight is hung (ramped in over 50 ms), s after boot.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = cli::f64_in(0.0, 1e6))]
     pub load_at_s: f64,
     /// When the drive's fault line is asserted, s after boot (negative:
     /// never).
-    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true,
+          value_parser = cli::f64_in(-1e6, 1e6))]
     pub drive_fault_at_s: f64,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
@@ -164,6 +170,13 @@ pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorde
         opts.duration_s.is_finite() && opts.duration_s > 0.0,
         "--duration-s must be > 0"
     );
+    anyhow::ensure!(
+        opts.relax_s.is_finite() && opts.relax_s >= 0.0,
+        "--relax-s must be >= 0"
+    );
+    let rate_hz = f64::from(config.control_rate_hz);
+    check_ticks("--duration-s", opts.duration_s, rate_hz)?;
+    check_ticks("--relax-s", opts.relax_s, rate_hz)?;
     // Power off: the drive is disabled and the preload back-drives the
     // gearhead until the mechanism rests, relaxed.
     let mut sim = Sim::new(plant, config, opts.seed)?;
@@ -239,33 +252,25 @@ fn load_plant(path: Option<&Path>) -> anyhow::Result<PlantParams> {
     }
 }
 
-/// Write `bytes` to `path` through a temporary file and a rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("temporary file in {}", dir.display()))?;
-    std::io::Write::write_all(&mut tmp, bytes)?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        // A temporary file is private (0600); the result is an ordinary file.
-        tmp.as_file()
-            .set_permissions(fs::Permissions::from_mode(0o644))?;
-    }
-    tmp.persist(path)
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
-}
-
 /// `host-sim trace`.
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let plant = load_plant(args.plant.as_deref())?;
     let rec = record(plant, &args.options)?;
-    write_atomic(&args.out, &rec.trace_bytes())?;
+    // The trace and the CSV log are written together, or neither is.
+    let mut out = Outputs::new();
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    out.bytes(&args.out, &rec.trace_bytes())?;
+    if let Some(csv) = &args.csv {
+        let log = crate::ingest::to_log(
+            &rec.telemetry(),
+            &firmware_config(),
+            &crate::ingest::LogOptions::default(),
+        )?;
+        log.stage(&mut out, csv)?;
+    }
+    out.commit()?;
     let homed = rec
         .outcomes
         .iter()
@@ -280,12 +285,6 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         homed
     );
     if let Some(csv) = &args.csv {
-        let log = crate::ingest::to_log(
-            &rec.telemetry(),
-            &firmware_config(),
-            &crate::ingest::LogOptions::default(),
-        )?;
-        log.write(csv)?;
         eprintln!("wrote {}", csv.display());
     }
     Ok(())

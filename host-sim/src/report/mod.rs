@@ -48,7 +48,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Context, Result};
 use cable_joint::Config;
 
+use crate::ident::stage_config;
 use crate::log::Log;
+use crate::output::Outputs;
 use crate::plant::{Effects, PlantParams};
 use experiments::{Acc, Summary, DEG_PER_RAD};
 use figures::Written;
@@ -64,7 +66,7 @@ pub struct ReportArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Scale of every scenario's duration (1 = the full programme).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::cli::f64_above(0.0, 100.0))]
     pub duration_scale: f64,
     /// Skip step 7 (unmodelled effects and the residual loop).
     #[arg(long)]
@@ -292,40 +294,32 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
     })
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".report-")
-        .tempfile_in(dir)
-        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
-    std::io::Write::write_all(&mut tmp, bytes)
-        .with_context(|| format!("writing {}", path.display()))?;
-    tmp.persist(path)
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
-}
-
 /// Write report.md and report.json into the output directory; returns the
 /// terminal text (comparison, goals, step 7).
 pub fn write(r: &Report) -> Result<String> {
     let map = render::figure_map(r);
     let rows = render::comparison(&map);
     let dir = &r.options.out;
-    crate::ident::write_config(dir.join("config_clean.toml"), &r.clean.0.config)?;
+    // The configurations and the report are written together, or none is.
+    let mut out = Outputs::new();
+    stage_config(&mut out, dir.join("config_clean.toml"), &r.clean.0.config)?;
     if let Some(fx) = &r.effects {
-        crate::ident::write_config(dir.join("config_effects_seed_model.toml"), &fx.id.config)?;
-        crate::ident::write_config(
+        stage_config(
+            &mut out,
+            dir.join("config_effects_seed_model.toml"),
+            &fx.id.config,
+        )?;
+        stage_config(
+            &mut out,
             dir.join("config_effects_residual.toml"),
             &fx.residual.config,
         )?;
     }
     let md = render::markdown(r, &map, &rows);
-    write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    out.bytes(&dir.join("report.md"), md.as_bytes())?;
     let json = serde_json::to_string_pretty(&render::json(r, &map, &rows))?;
-    write_atomic(&dir.join("report.json"), json.as_bytes())?;
+    out.bytes(&dir.join("report.json"), json.as_bytes())?;
+    out.commit()?;
     let mut text = String::from("Force estimate on plant variants (passive)\n");
     for v in &r.variants {
         let goals = variants::goal_lines(v);

@@ -36,6 +36,9 @@ use anyhow::{bail, ensure, Context, Result};
 use cable_joint::model::{AddedTerms, MAX_TERMS};
 use cable_joint::Config;
 
+use crate::cli;
+use crate::output::Outputs;
+
 pub use problem::{
     build, is_reference, load_log, BuildOptions, ModelKind, MrdlabZero, NamedLog, REFERENCE_COLUMNS,
 };
@@ -71,7 +74,7 @@ pub struct ResidualArgs {
     #[arg(long = "validate", num_args = 1..)]
     pub validate: Vec<PathBuf>,
     /// Share of each fitting log held out when no --validate is given.
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, default_value_t = 0.3, value_parser = cli::f64_in(0.0, 0.95))]
     pub holdout: f64,
     /// Write the result as JSON.
     #[arg(long)]
@@ -86,23 +89,23 @@ pub struct ResidualArgs {
     #[arg(long = "config-out")]
     pub config_out: Option<PathBuf>,
     /// Most effects added.
-    #[arg(long, default_value_t = MAX_TERMS)]
+    #[arg(long, default_value_t = MAX_TERMS, value_parser = cli::usize_in(0, MAX_TERMS))]
     pub max_terms: usize,
     /// Smallest relative cut of the validation RMSE that keeps an effect.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, value_parser = cli::f64_in(0.0, 1.0))]
     pub min_gain: f64,
     /// Candidates set aside in a row before the selection stops.
-    #[arg(long, default_value_t = 20)]
+    #[arg(long, default_value_t = 20, value_parser = cli::usize_in(0, 100_000))]
     pub patience: usize,
     /// Fit on every N-th row (default: enough to keep about 30 000 fitting rows).
-    #[arg(long)]
+    #[arg(long, value_parser = cli::usize_in(1, 1_000_000))]
     pub decimate: Option<usize>,
     /// Use only the first SECONDS of every log.
-    #[arg(long = "t-max")]
+    #[arg(long = "t-max", value_parser = cli::f64_above(0.0, 1e6))]
     pub t_max_s: Option<f64>,
     /// Leave the first SECONDS of every log out of fitting and validation
     /// (the terms still run from the first sample).
-    #[arg(long = "settle", default_value_t = 0.0)]
+    #[arg(long = "settle", default_value_t = 0.0, value_parser = cli::f64_in(0.0, 1e6))]
     pub settle_s: f64,
     /// jae/tension: keep the terms already in the configuration's `added`
     /// (refitted with the baseline) and add new ones after them.
@@ -287,8 +290,18 @@ pub fn read_config(path: &std::path::Path) -> Result<Config> {
 
 /// Write a configuration as TOML, atomically.
 pub fn write_config(cfg: &Config, path: &std::path::Path) -> Result<()> {
+    let mut out = Outputs::new();
+    stage_config(&mut out, cfg, path)?;
+    out.commit()?;
+    Ok(())
+}
+
+/// Stage a configuration as TOML among a command's outputs
+/// ([`crate::output`]).
+pub fn stage_config(out: &mut Outputs, cfg: &Config, path: &std::path::Path) -> Result<()> {
     let text = toml::to_string(cfg).context("serialising the configuration")?;
-    report::write_atomic(path, text.as_bytes())
+    out.bytes(path, text.as_bytes())?;
+    Ok(())
 }
 
 /// Run the subcommand.
@@ -332,11 +345,12 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     };
     let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
     print!("{}", report::table(&a));
-    let mut written = Vec::new();
+    // Every output is staged first and written only if all of them can be:
+    // a failure leaves every existing file as it was.
+    let mut out = Outputs::new();
     if let Some(path) = &args.config_out {
         let cfg = config_with(&a, &config)?;
-        write_config(&cfg, path)?;
-        written.push(path.display().to_string());
+        stage_config(&mut out, &cfg, path)?;
     }
     if let Some(path) = &args.json {
         let mut v = report::json(&a);
@@ -344,15 +358,17 @@ pub fn run(args: ResidualArgs) -> Result<()> {
             v["config_out"] = serde_json::Value::String(c.display().to_string());
         }
         let text = serde_json::to_string_pretty(&v)?;
-        report::write_atomic(path, text.as_bytes())?;
-        written.push(path.display().to_string());
+        out.bytes(path, text.as_bytes())?;
     }
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for p in report::plots(&a, dir)? {
-            written.push(p.display().to_string());
-        }
+        report::stage_plots(&mut out, &a, dir)?;
     }
+    let written: Vec<String> = out
+        .commit()?
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
     if !written.is_empty() {
         println!("wrote {}", written.join(", "));
     }

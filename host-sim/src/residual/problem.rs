@@ -378,6 +378,12 @@ pub fn build(
         let n = nl.log.len();
         let p = median_period_s(nl.log.time_s()?).context("log too short")?;
         ensure!(
+            p.is_finite() && p > 0.0,
+            "{}: the median time step of t_s is {p} s: the sample period must be a positive \
+             finite number (are the times too large for their differences to be represented?)",
+            nl.name
+        );
+        ensure!(
             (p - period0).abs() <= 0.01 * period0,
             "{}: sample period {p} s differs from the first log's {period0} s",
             nl.name
@@ -526,8 +532,22 @@ fn core_run(
         }
         ModelKind::Generic { .. } => bail!("internal: generic model in core_run"),
     };
+    warn_unmeasured(&nl.name, kind.target(), &target);
     // Ticks the replay flags as faulted are neither fitted nor judged.
     if let Some(fault) = d.col("fault_code") {
+        if let Some(k) = fault.iter().position(|f| *f != 0.0) {
+            let code = fault[k] as u8;
+            let name = cable_joint::Fault::from_code(code)
+                .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+            eprintln!(
+                "warning: {}: the replay latched {name} at line {} (t = {} s): {} of {n} rows \
+                 are neither fitted nor judged",
+                nl.name,
+                k + 2,
+                t_s[k],
+                fault.iter().filter(|f| **f != 0.0).count()
+            );
+        }
         for (y, f) in target.iter_mut().zip(fault) {
             if *f != 0.0 {
                 *y = f64::NAN;
@@ -648,6 +668,7 @@ fn generic_run(
         })
     };
     let target_v = col(target)?;
+    warn_unmeasured(&nl.name, target, &target_v);
     let mut baseline = Vec::new();
     let mut signals = Vec::new();
     for i in inputs {
@@ -689,6 +710,20 @@ fn generic_run(
         fit_rows: 0..0,
         val_rows: 0..0,
     })
+}
+
+/// Warns on stderr when the target is not measured (or not finite) on some
+/// rows: those rows are neither fitted nor judged.
+fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
+    if let Some(k) = target.iter().position(|v| !v.is_finite()) {
+        eprintln!(
+            "warning: {log}: column {column} is not measured on {} of {} rows (first at line {}): \
+             those rows are neither fitted nor judged",
+            target.iter().filter(|v| !v.is_finite()).count(),
+            target.len(),
+            k + 2
+        );
+    }
 }
 
 fn generic_roles(names: &[String]) -> Roles {

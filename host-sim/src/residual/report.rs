@@ -3,13 +3,14 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use cable_joint::effects::Term;
 use serde_json::{json, Value};
 
 use super::select::{Coef, Diagnostics, Step};
 use super::Analysis;
-use crate::plot::{write_figure, Figure, Panel, Series};
+use crate::output::Outputs;
+use crate::plot::{stage_figure, Figure, Panel, Series};
 
 /// Display unit of a target by its name's suffix: `(unit, factor from SI)`.
 pub fn display_unit(target: &str) -> (&'static str, f64) {
@@ -42,21 +43,6 @@ pub fn si_unit(target: &str) -> &'static str {
         }
     }
     ""
-}
-
-/// Write bytes to `path` through a temporary file in the same directory.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
-    std::io::Write::write_all(&mut tmp, bytes)
-        .with_context(|| format!("writing {}", path.display()))?;
-    tmp.persist(path)
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
 }
 
 fn baseline_label(a: &Analysis) -> String {
@@ -327,6 +313,15 @@ pub fn table(a: &Analysis) -> String {
 /// effect: the baseline residual and the effect's fitted contribution against
 /// its input signal). Returns the files written.
 pub fn plots(a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out = Outputs::new();
+    let files = stage_plots(&mut out, a, dir)?;
+    out.commit()?;
+    Ok(files)
+}
+
+/// Stage the plots of [`plots`] among a command's outputs
+/// ([`crate::output`]); returns their paths.
+pub fn stage_plots(out: &mut Outputs, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
     let o = &a.outcome;
     let (unit, scale) = display_unit(&a.problem.target);
     let mut files = Vec::new();
@@ -354,7 +349,8 @@ pub fn plots(a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
         );
     }
     let cols = if panels.len() > 1 { 2 } else { 1 };
-    files.extend(write_figure(
+    files.extend(stage_figure(
+        out,
         &Figure::grid(panels, cols),
         &dir.join("residual_time"),
     )?);
@@ -394,7 +390,8 @@ pub fn plots(a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
             );
         }
         let cols = if panels.len() > 1 { 2 } else { 1 };
-        files.extend(write_figure(
+        files.extend(stage_figure(
+            out,
             &Figure::grid(panels, cols),
             &dir.join("residual_effects"),
         )?);

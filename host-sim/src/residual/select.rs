@@ -448,7 +448,36 @@ fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split)> {
         "too few fitting rows ({}) for {nb} baseline parameters",
         fit.len()
     );
-    ensure!(!val.y.is_empty(), "no validation rows");
+    if val.y.is_empty() {
+        let runs: Vec<String> = problem
+            .runs
+            .iter()
+            .filter(|r| !r.val_rows.is_empty())
+            .map(|r| {
+                format!(
+                    "{}: lines {}..{} ({} rows), none with a finite {}",
+                    r.name,
+                    r.val_rows.start + 2,
+                    r.val_rows.end + 1,
+                    r.val_rows.len(),
+                    problem.target
+                )
+            })
+            .collect();
+        bail!(
+            "no validation rows: {}",
+            if runs.is_empty() {
+                "no log has a validation part (--validate gives none, or --holdout 0 or \
+                 --settle longer than the logs leaves none)"
+                    .to_owned()
+            } else {
+                format!(
+                    "{} (the target not measured, or every row after a fault the replay latched)",
+                    runs.join("; ")
+                )
+            }
+        );
+    }
     Ok((fit, val))
 }
 

@@ -1,0 +1,141 @@
+//! Checks of numeric command-line options, shared by every subcommand.
+//!
+//! Each numeric option names its range with one of these parsers
+//! (`#[arg(long, value_parser = cli::f64_in(0.0, 1.0))]`), so that `NaN`,
+//! `inf` or an out-of-range value is refused by the argument parser with a
+//! message naming the option:
+//!
+//! ```text
+//! error: invalid value 'NaN' for '--min-gain <MIN_GAIN>': not a finite number
+//! ```
+//!
+//! [`check_f64`] is the same check for a value that does not come from the
+//! command line (a library caller filling an argument structure).
+
+use std::fmt::Display;
+use std::str::FromStr;
+
+/// Parses a number and checks it: finite, `>= lo` (or `> lo` when
+/// `lo_open`) and `<= hi`.
+fn parse_in<T>(text: &str, lo: T, lo_open: bool, hi: T) -> Result<T, String>
+where
+    T: FromStr + PartialOrd + Copy + Display + Finite,
+    T::Err: Display,
+{
+    let v: T = text.trim().parse().map_err(|e| format!("{e}"))?;
+    check(v, lo, lo_open, hi)
+}
+
+fn check<T: PartialOrd + Copy + Display + Finite>(
+    v: T,
+    lo: T,
+    lo_open: bool,
+    hi: T,
+) -> Result<T, String> {
+    if !v.finite() {
+        return Err("not a finite number".to_owned());
+    }
+    let above = if lo_open { v > lo } else { v >= lo };
+    if above && v <= hi {
+        Ok(v)
+    } else {
+        let open = if lo_open { "(" } else { "[" };
+        Err(format!("{v} is outside {open}{lo}, {hi}]"))
+    }
+}
+
+/// Numbers that may be NaN or infinite.
+trait Finite {
+    fn finite(&self) -> bool;
+}
+
+impl Finite for f64 {
+    fn finite(&self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl Finite for f32 {
+    fn finite(&self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl Finite for usize {
+    fn finite(&self) -> bool {
+        true
+    }
+}
+
+/// Parser of an `f64` option in `[lo, hi]`, finite.
+pub fn f64_in(
+    lo: f64,
+    hi: f64,
+) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static {
+    move |s| parse_in(s, lo, false, hi)
+}
+
+/// Parser of an `f64` option in `(lo, hi]`, finite (a duration or a rate
+/// that must be positive: `f64_above(0.0, ...)`).
+pub fn f64_above(
+    lo: f64,
+    hi: f64,
+) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static {
+    move |s| parse_in(s, lo, true, hi)
+}
+
+/// Parser of an `f32` option in `(lo, hi]`, finite.
+pub fn f32_above(
+    lo: f32,
+    hi: f32,
+) -> impl Fn(&str) -> Result<f32, String> + Clone + Send + Sync + 'static {
+    move |s| parse_in(s, lo, true, hi)
+}
+
+/// Parser of a `usize` option in `[lo, hi]`.
+pub fn usize_in(
+    lo: usize,
+    hi: usize,
+) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    move |s| parse_in(s, lo, false, hi)
+}
+
+/// [`f64_in`]'s check for a value that did not come from the command line;
+/// the error names `option`.
+///
+/// ```
+/// use host_sim::cli::check_f64;
+/// assert!(check_f64("--holdout", 0.3, 0.0, 0.95).is_ok());
+/// let e = check_f64("--holdout", f64::NAN, 0.0, 0.95).unwrap_err();
+/// assert_eq!(e.to_string(), "--holdout: not a finite number");
+/// ```
+///
+/// # Errors
+/// `v` is NaN, infinite or outside `[lo, hi]`.
+pub fn check_f64(option: &str, v: f64, lo: f64, hi: f64) -> anyhow::Result<f64> {
+    check(v, lo, false, hi).map_err(|e| anyhow::anyhow!("{option}: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parsers_refuse_non_finite_and_out_of_range_values() {
+        let p = f64_in(0.0, 1.0);
+        assert_eq!(p("0.5"), Ok(0.5));
+        assert_eq!(p("0"), Ok(0.0));
+        assert_eq!(p("1"), Ok(1.0));
+        for bad in ["NaN", "inf", "-inf"] {
+            assert_eq!(p(bad), Err("not a finite number".to_owned()), "{bad}");
+        }
+        assert_eq!(p("1e9"), Err("1000000000 is outside [0, 1]".to_owned()));
+        assert!(p("abc").is_err());
+        let q = f64_above(0.0, 10.0);
+        assert_eq!(q("0"), Err("0 is outside (0, 10]".to_owned()));
+        assert_eq!(q("1.4e-45"), Ok(1.4e-45));
+        assert!(f32_above(0.0, 1.0)("NaN").is_err());
+        assert_eq!(usize_in(1, 4)("0"), Err("0 is outside [1, 4]".to_owned()));
+        assert_eq!(usize_in(1, 4)("4"), Ok(4));
+    }
+}

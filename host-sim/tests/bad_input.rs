@@ -1,0 +1,620 @@
+//! The host tools on bad input and bad output paths, through the command
+//! line: each case is a clear error (or a warning) naming the file, the line
+//! and the option, a non-zero exit, and nothing half-written.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn run(cmd: &mut Command) -> Output {
+    cmd.output().expect("host-sim runs")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Runs `cmd`, which must succeed; returns its stderr.
+fn run_ok(cmd: &mut Command) -> String {
+    let out = run(cmd);
+    assert!(
+        out.status.success(),
+        "host-sim failed: {}\n{}",
+        stderr(&out),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    stderr(&out)
+}
+
+/// Runs `cmd`, which must fail; returns its stderr.
+fn run_err(cmd: &mut Command) -> String {
+    let out = run(cmd);
+    assert!(
+        !out.status.success(),
+        "host-sim succeeded: {}\n{}",
+        stderr(&out),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    stderr(&out)
+}
+
+/// A simulated run of `scenario` (`seconds` long, tuned gains) written by
+/// `host-sim simulate` to `dir/name`.
+fn simulated(dir: &Path, scenario: &str, seconds: f64, name: &str) -> PathBuf {
+    let path = dir.join(name);
+    run_ok(
+        host_sim()
+            .args(["simulate", "--tuned-gains", "--scenario", scenario])
+            .arg("--duration")
+            .arg(seconds.to_string())
+            .arg("--out")
+            .arg(&path),
+    );
+    path
+}
+
+#[cfg(unix)]
+fn mode(p: &Path) -> u32 {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::metadata(p).unwrap().permissions().mode() & 0o777
+}
+
+fn dir_entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+// --- Outputs -------------------------------------------------------------
+
+#[test]
+fn residual_writes_neither_output_when_one_cannot_be_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = simulated(d, "track-motor", 3.0, "run.csv");
+    let config = d.join("c.toml");
+    std::fs::write(&config, "# old\n").unwrap();
+    let json = d.join("nodir").join("x.json");
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--model", "jae", "--log"])
+            .arg(&log)
+            .arg("--config-out")
+            .arg(&config)
+            .arg("--json")
+            .arg(&json),
+    );
+    assert!(err.contains(&json.display().to_string()), "{err}");
+    assert_eq!(std::fs::read_to_string(&config).unwrap(), "# old\n");
+    assert_eq!(dir_entries(d), ["c.toml", "run.csv"]);
+}
+
+#[cfg(unix)]
+#[test]
+fn outputs_refuse_a_fifo_and_new_files_are_mode_0644() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fifo = d.join("pipe.csv");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let err = run_err(
+        host_sim()
+            .args(["simulate", "--scenario", "track-motor", "--duration", "0.5"])
+            .arg("--out")
+            .arg(&fifo),
+    );
+    assert!(
+        err.contains(&fifo.display().to_string()) && err.contains("FIFO"),
+        "{err}"
+    );
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+
+    let log = simulated(d, "track-motor", 3.0, "run.csv");
+    let config = d.join("c.toml");
+    let json = d.join("r.json");
+    run_ok(
+        host_sim()
+            .args(["residual", "--model", "jae", "--log"])
+            .arg(&log)
+            .arg("--config-out")
+            .arg(&config)
+            .arg("--json")
+            .arg(&json),
+    );
+    for p in [&log, &config, &json] {
+        assert_eq!(mode(p), 0o644, "{}", p.display());
+    }
+}
+
+// --- import --------------------------------------------------------------
+
+/// A synthetic MRDLab run: `header` lines (without `%`), then one data line
+/// per time in `t_s` (every other field a small count).
+fn mrdlab_text(header: &[&str], t_s: &[f64]) -> String {
+    let mut s = String::new();
+    for h in header {
+        s.push_str(&format!("%{h}\n"));
+    }
+    for (k, t) in t_s.iter().enumerate() {
+        s.push_str(&format!("{t:e},{k},0.5,0.1,{k},0.2,0,0.1,{},0\n", 3 * k));
+    }
+    s
+}
+
+fn import(input: &Path, out: &Path) -> Output {
+    run(host_sim()
+        .args(["import", "mrdlab"])
+        .arg(input)
+        .arg("--out")
+        .arg(out))
+}
+
+#[test]
+fn import_reads_a_header_with_non_ascii_text_before_a_number() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("22.TXT");
+    let t: Vec<f64> = (0..20).map(|k| k as f64 * 1e-3).collect();
+    let header = ["input sine at ≈0.30 Hz, amplitude of ±30.00 degrees"];
+    std::fs::write(&input, mrdlab_text(&header, &t)).unwrap();
+    let out = import(&input, &dir.path().join("o.csv"));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stdout.contains("(0.3 Hz"), "{stdout}");
+}
+
+#[test]
+fn import_writes_sub_nanosecond_times_its_reader_accepts() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    let t: Vec<f64> = (0..20).map(|k| 5.0 + k as f64 * 2e-10).collect();
+    std::fs::write(&input, mrdlab_text(&[], &t)).unwrap();
+    let csv = dir.path().join("o.csv");
+    let out = import(&input, &csv);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let back = host_sim::log::Log::read_with(&csv, &host_sim::import::mrdlab_schema())
+        .expect("the reader accepts what import wrote");
+    assert_eq!(back.len(), 20);
+}
+
+#[test]
+fn import_errors_name_the_input_file_and_line_not_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    let t: Vec<f64> = (0..20).map(|k| k as f64 * 1e-3).collect();
+    // A finite first motor count that makes the next ones overflow once
+    // rebased and scaled to radians.
+    let text = mrdlab_text(&["a header line"], &t).replacen(",0,0\n", ",-1.7e308,0\n", 1);
+    std::fs::write(&input, text).unwrap();
+    let csv = dir.path().join("o.csv");
+    let out = import(&input, &csv);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    // The second data row is on line 3 of the input.
+    assert!(
+        err.contains(&format!(
+            "{}:3: column \"9: motor encoder\"",
+            input.display()
+        )),
+        "{err}"
+    );
+    assert!(!err.contains("o.csv"), "{err}");
+    assert!(!csv.exists());
+}
+
+#[test]
+fn a_huge_cell_is_not_copied_into_the_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    let t: Vec<f64> = (0..20).map(|k| k as f64 * 1e-3).collect();
+    let huge = "9".repeat(1_000_000) + "x";
+    let text = mrdlab_text(&[], &t).replacen("0.5,", &format!("{huge},"), 1);
+    std::fs::write(&input, text).unwrap();
+    let out = import(&input, &dir.path().join("o.csv"));
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.len() < 400, "{} bytes of stderr", err.len());
+    assert!(err.contains("…\" (1000001 bytes) is not a number"), "{err}");
+    assert!(
+        err.contains("run.TXT:1: column \"3: input torque\""),
+        "{err}"
+    );
+}
+
+// --- Durations, rates and numeric options --------------------------------
+
+#[test]
+fn simulate_and_trace_refuse_a_duration_beyond_the_tick_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("run.csv");
+    let err = run_err(
+        host_sim()
+            .args([
+                "simulate",
+                "--scenario",
+                "track-motor",
+                "--duration",
+                "1e12",
+            ])
+            .arg("--out")
+            .arg(&csv),
+    );
+    assert!(
+        err.contains("--duration 1000000000000") && err.contains("at most 1000000 ticks"),
+        "{err}"
+    );
+    let err = run_err(
+        host_sim()
+            .args([
+                "simulate",
+                "--scenario",
+                "loading",
+                "--duration-scale",
+                "1e6",
+            ])
+            .arg("--out")
+            .arg(&csv),
+    );
+    assert!(
+        err.contains("--duration-scale") && err.contains("at most 1000000 ticks"),
+        "{err}"
+    );
+    let bin = dir.path().join("trace.bin");
+    for opt in ["--duration-s", "--relax-s"] {
+        let err = run_err(host_sim().args(["trace", opt, "1e12", "--out"]).arg(&bin));
+        assert!(
+            err.contains(opt) && err.contains("at most 1000000 ticks"),
+            "{err}"
+        );
+    }
+    assert!(dir_entries(dir.path()).is_empty());
+}
+
+/// A decoded defmt text: a start record at `rate_hz`, then `ticks` tick
+/// records.
+fn telemetry_text(rate_hz: f32, ticks: u32) -> String {
+    use cable_joint::telemetry::{Record, StartRecord, TickRecord, FORMAT_VERSION, MAX_RECORD_LEN};
+    let mut records = vec![Record::Start(StartRecord {
+        version: FORMAT_VERSION,
+        control_rate_hz: rate_hz,
+        decimation: 1,
+    })];
+    records.extend((1..=ticks).map(|k| {
+        Record::Tick(TickRecord {
+            tick: k,
+            ..Default::default()
+        })
+    }));
+    let mut text = String::from("INFO  firmware up\n");
+    for r in &records {
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let bytes: Vec<String> = r.encode(&mut buf).iter().map(|b| b.to_string()).collect();
+        text.push_str(&format!("0.000500 INFO  tlm [{}]\n", bytes.join(", ")));
+    }
+    text
+}
+
+#[test]
+fn ingest_refuses_an_impossible_rate_and_a_log_too_short_to_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("tlm.txt");
+    let csv = dir.path().join("run.csv");
+    std::fs::write(&input, telemetry_text(1.4e-45, 20)).unwrap();
+    let err = run_err(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert!(
+        err.contains(&format!("{}: ", input.display()))
+            && err.contains("control rate of 0.000000000000000000000000000000000000000000001 Hz")
+            && err.contains("between 100 and 20000 Hz"),
+        "{err}"
+    );
+    std::fs::write(&input, telemetry_text(2000.0, 1)).unwrap();
+    let err = run_err(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert!(
+        err.contains(&format!("{}: 1 tick records", input.display())),
+        "{err}"
+    );
+    assert!(!csv.exists());
+    // The same stream, long enough, is a log the other commands read.
+    std::fs::write(&input, telemetry_text(2000.0, 20)).unwrap();
+    run_ok(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert_eq!(host_sim::log::Log::read(&csv).unwrap().len(), 20);
+}
+
+#[test]
+fn every_numeric_option_refuses_non_finite_and_out_of_range_values() {
+    // (subcommand and its required arguments, option, a bad finite value)
+    let cases: &[(&[&str], &str, &str)] = &[
+        (&["simulate", "--scenario", "loading"], "--angle-deg", "1e9"),
+        (&["simulate", "--scenario", "loading"], "--mass-g", "-5"),
+        (&["simulate", "--scenario", "loading"], "--duration", "-1"),
+        (
+            &["simulate", "--scenario", "loading"],
+            "--duration-scale",
+            "0",
+        ),
+        (&["trace"], "--duration-s", "0"),
+        (&["trace"], "--relax-s", "-1"),
+        (&["trace"], "--load-n", "1e9"),
+        (&["trace"], "--load-at-s", "-1"),
+        (&["trace"], "--drive-fault-at-s", "1e300"),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--skip-start-s",
+            "-1",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--min-joint-vel-rad-s",
+            "-1",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--holdoff-s",
+            "-1",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--max-pct-sigma",
+            "0",
+        ),
+        (
+            &[
+                "identify",
+                "--procedure",
+                "jae",
+                "--log",
+                "a.csv",
+                "--config-out",
+                "c.toml",
+            ],
+            "--post-filter-hz",
+            "1e9",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--holdout",
+            "1",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--min-gain",
+            "2",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--t-max",
+            "0",
+        ),
+        (
+            &["residual", "--model", "jae", "--log", "a.csv"],
+            "--settle",
+            "-1",
+        ),
+        (&["report"], "--duration-scale", "0"),
+        (&["payload"], "--accel-lag-ms", "1e9"),
+        (&["payload"], "--lowpass-hz", "1e9"),
+        (&["payload"], "--creep-taus", "0"),
+        (&["payload"], "--tare-s", "-1"),
+    ];
+    for (cmd, opt, bad) in cases {
+        for value in ["NaN", "inf", bad] {
+            let err = run_err(host_sim().args(*cmd).arg(format!("{opt}={value}")));
+            assert!(
+                err.contains(&format!("invalid value '{value}' for '{opt}")),
+                "{cmd:?} {opt} {value}: {err}"
+            );
+        }
+    }
+    // Integer options: out of range (a non-number is refused by the parser).
+    for (opt, bad) in [
+        ("--max-terms", "99"),
+        ("--patience", "1e9"),
+        ("--decimate", "0"),
+    ] {
+        let err = run_err(
+            host_sim()
+                .args(["residual", "--model", "jae", "--log", "a.csv"])
+                .args([opt, bad]),
+        );
+        assert!(
+            err.contains(&format!("invalid value '{bad}' for '{opt}")),
+            "{opt}: {err}"
+        );
+    }
+}
+
+// --- Rows left out ---------------------------------------------------------
+
+/// `log` with column `col` set to `value` (`None`: not measured) on data
+/// row `row`, written to `dir/name`.
+fn with_cell(log: &Path, col: &str, row: usize, value: Option<f64>, name: &str) -> PathBuf {
+    let mut l = host_sim::log::Log::read(log).unwrap();
+    let mut c = l.col_opt(col).unwrap();
+    c[row] = value;
+    l.set_col_opt(col, &c).unwrap();
+    let path = log.with_file_name(name);
+    l.write(&path).unwrap();
+    path
+}
+
+/// Rows the fit named `model` reports on stdout (`model: N rows, ...`).
+fn fit_rows(stdout: &str, model: &str) -> usize {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with(model))
+        .unwrap_or_else(|| panic!("no `{model}` line in {stdout}"));
+    line[model.len()..]
+        .trim_start_matches(|c: char| !c.is_ascii_digit())
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+fn identify(log: &Path, procedure: &str) -> Output {
+    let out = run(host_sim()
+        .args(["identify", "--procedure", procedure, "--log"])
+        .arg(log)
+        .arg("--config-out")
+        .arg(log.with_extension("toml")));
+    assert!(out.status.success(), "{}", stderr(&out));
+    out
+}
+
+#[test]
+fn identify_leaves_out_one_row_for_an_empty_theta_rad_cell_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = simulated(dir.path(), "jae-ident", 3.0, "jae.csv");
+    let gap = with_cell(&clean, "theta_rad", 1000, None, "gap.csv");
+    let model = "JAE (Eq. 25-26):";
+    let n_clean = fit_rows(
+        &String::from_utf8_lossy(&identify(&clean, "jae").stdout),
+        model,
+    );
+    let out = identify(&gap, "jae");
+    let n_gap = fit_rows(&String::from_utf8_lossy(&out.stdout), model);
+    assert_eq!(n_gap, n_clean - 1);
+    let err = stderr(&out);
+    assert!(
+        err.contains(&format!(
+            "warning: {}: the JAE fit uses {n_gap} of",
+            gap.display()
+        )) && err
+            .contains("1 with column theta_rad not measured or not finite (first at line 1002)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn identify_warns_when_a_replay_fault_leaves_rows_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = simulated(dir.path(), "tension-ident", 3.0, "ten.csv");
+    let big = with_cell(&clean, "i_ref_a", 3000, Some(1e308), "big.csv");
+    let err = stderr(&identify(&big, "tension"));
+    assert!(
+        err.contains(&format!("warning: {}: the tension fit uses", big.display()))
+            && err.contains("from where the replay latched")
+            && err.contains("column i_ref_a = 1e308 on line 3002"),
+        "{err}"
+    );
+    assert!(!stderr(&identify(&clean, "tension")).contains("warning"));
+}
+
+#[test]
+fn residual_names_left_out_rows_and_why_there_are_no_validation_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
+    let gap = with_cell(&fit, "theta_rad", 500, None, "gap.csv");
+    let out = run(host_sim()
+        .args(["residual", "--model", "jae", "--log"])
+        .arg(&gap));
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "warning: gap.csv: column theta_rad is not measured on 1 of 6000 rows (first at line 502)"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    // A validation log without a single magnetic-encoder reading.
+    let mut l = host_sim::log::Log::read(&fit).unwrap();
+    l.set_col_opt("theta_rad", &vec![None; l.len()]).unwrap();
+    let blind = dir.path().join("blind.csv");
+    l.write(&blind).unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--model", "jae", "--log"])
+            .arg(&fit)
+            .arg("--validate")
+            .arg(&blind),
+    );
+    assert!(
+        err.contains("no validation rows: blind.csv: lines 2..6001 (6000 rows), none with a finite theta_rad"),
+        "{err}"
+    );
+}
+
+#[test]
+fn residual_names_the_file_and_line_of_times_too_large_for_a_sample_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run.TXT");
+    // Increasing times whose differences from the first overflow.
+    let mut t = vec![-1.7e308];
+    t.extend((0..19).map(|k| 1.7e308 * (1.0 + k as f64 * 1e-9)));
+    std::fs::write(&input, mrdlab_text(&[], &t)).unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--target", "theta_rad", "--log"])
+            .arg(&input),
+    );
+    assert!(
+        err.contains(&format!("{}:2: column \"1: time\"", input.display()))
+            && err.contains("is not a finite number"),
+        "{err}"
+    );
+    assert!(!err.contains("NaN"), "{err}");
+}
+
+#[test]
+fn estimate_warns_about_rows_without_a_reference_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulated(dir.path(), "loading", 4.0, "load.csv");
+    let gap = with_cell(&log, "f_ext_n", 100, None, "gap.csv");
+    let out = run(host_sim()
+        .args(["estimate", "--log"])
+        .arg(&gap)
+        .arg("--out")
+        .arg(dir.path().join("est.csv")));
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    let rows = host_sim::log::Log::read(&gap).unwrap().len();
+    assert!(
+        err.contains(&format!(
+            "warning: {}: column f_ext_n is not measured on 1 of {rows} rows (first at line 102)",
+            gap.display()
+        )),
+        "{err}"
+    );
+}

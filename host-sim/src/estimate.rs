@@ -196,7 +196,12 @@ pub fn row_loss_warnings(name: &str, s: &EstimateSummary) -> Vec<String> {
         let at = s
             .first_fault
             .as_ref()
-            .map(|(k, code, text)| format!(" ({text}, code {code}, at line {})", k + 2))
+            .map(|(k, code, text)| {
+                format!(
+                    " ({text}, code {code}, at line {})",
+                    crate::log::line_of_row(*k)
+                )
+            })
             .unwrap_or_default();
         w.push(format!(
             "warning: {name}: {} of {} rows are left out of the comparison with the reference: \
@@ -217,7 +222,7 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
             let _ = writeln!(
                 t,
                 "  fault latched at row {} (code {code}: {text}); estimates after it are the idle replay's",
-                k + 2
+                crate::log::line_of_row(*k)
             );
         }
         None => {

@@ -706,11 +706,6 @@ struct LossNotes {
     warned: std::sync::atomic::AtomicBool,
 }
 
-/// 1-based line of 0-based data row `row` of a log read from a file.
-fn line_of(row: usize) -> usize {
-    row + 2
-}
-
 impl LossNotes {
     fn new(log: &Log, t: &[f64], fault: &[f64]) -> Self {
         let fault = fault.iter().position(|f| *f != 0.0).map(|k| {
@@ -728,13 +723,13 @@ impl LossNotes {
                     format!(
                         "; column {c} = {:e} on line {} is beyond the core's f32 range",
                         log.col(c).map_or(0.0, |v| v[r]),
-                        line_of(r)
+                        crate::log::line_of_row(r)
                     )
                 })
                 .unwrap_or_default();
             format!(
                 "the replay latched {name} at line {} (t = {} s){cause}",
-                line_of(k),
+                crate::log::line_of_row(k),
                 t[k]
             )
         });
@@ -1129,7 +1124,7 @@ fn warn_row_loss(p: &Prepared, loss: &RowLoss, target: Target, opts: &IdentOptio
         why.push(format!(
             "{} with column {col} not measured or not finite (first at line {})",
             loss.not_finite,
-            line_of(row)
+            crate::log::line_of_row(row)
         ));
     }
     let mut text = format!(
@@ -1142,7 +1137,7 @@ fn warn_row_loss(p: &Prepared, loss: &RowLoss, target: Target, opts: &IdentOptio
         text.push_str(&format!(
             ". Column theta_rad is not measured on {rows} row(s) (first at line {}), so the \
              joint angle of this log is the JAE estimate theta_hat_rad, not the magnetic encoder",
-            line_of(first)
+            crate::log::line_of_row(first)
         ));
     }
     eprintln!("{text}");

@@ -550,7 +550,7 @@ impl Log {
     /// # Errors
     /// The first violation found.
     pub fn validate(&self, schema: &Schema, file: &str) -> Result<(), LogError> {
-        self.validate_at(schema, file, |row| row + 2, 1)
+        self.validate_at(schema, file, line_of_row, 1)
     }
 
     /// `line_of(row)` maps a 0-based row to its file line; `header_line` is
@@ -751,7 +751,7 @@ impl Log {
             log.parse_row(name, line_no, text, &required)?;
             check_time(&log, line_no)?;
         }
-        log.validate_at(schema, name, |row| row + 2, 1)?;
+        log.validate_at(schema, name, line_of_row, 1)?;
         Ok(log)
     }
 
@@ -849,7 +849,7 @@ impl Log {
             for (row, v) in col.values.iter().enumerate() {
                 if col.is_measured(row) && !v.is_finite() {
                     return Err(LogError::new(file, LogErrorKind::NotFinite(format!("{v}")))
-                        .at_line(row + 2)
+                        .at_line(line_of_row(row))
                         .in_column(col.name.as_str()));
                 }
             }
@@ -935,6 +935,12 @@ impl Log {
 
 fn output_err(e: OutputError) -> LogError {
     LogError::new(e.path.display().to_string(), LogErrorKind::Io(e.error))
+}
+
+/// 1-based line of 0-based data row `row` of a log read from a file (the
+/// header is line 1; see [`Log::read`] on blank lines).
+pub fn line_of_row(row: usize) -> usize {
+    row + 2
 }
 
 #[cfg(test)]

@@ -543,7 +543,7 @@ fn core_run(
                 "warning: {}: the replay latched {name} at line {} (t = {} s): {} of {n} rows \
                  are neither fitted nor judged",
                 nl.name,
-                k + 2,
+                crate::log::line_of_row(k),
                 t_s[k],
                 fault.iter().filter(|f| **f != 0.0).count()
             );
@@ -721,7 +721,7 @@ fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
              those rows are neither fitted nor judged",
             target.iter().filter(|v| !v.is_finite()).count(),
             target.len(),
-            k + 2
+            crate::log::line_of_row(k)
         );
     }
 }

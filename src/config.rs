@@ -9,6 +9,7 @@
 
 use core::fmt;
 
+use crate::math;
 use crate::model::AddedTerms;
 use crate::units::Scales;
 
@@ -372,6 +373,32 @@ pub struct FaultLimits {
     /// loses its stiffness on that side and the JAE's cable model no longer
     /// holds. 0 switches the check off (a decoupled motor, homing).
     pub min_tension_fraction: f32,
+    /// With the drive enabled, a measured current beyond this is
+    /// [`crate::Fault::OverCurrent`], A: the drive limits at
+    /// `machine.current_limit_a` (2 A), so 12.5 % above it means it is not
+    /// (and 2.25 A stays inside the monitor's ±2.5 A, where the rail check
+    /// takes over).
+    pub max_current_a: f32,
+    /// Continuous current the winding can carry, A. The I²t state (the
+    /// measured current squared, low-passed with
+    /// [`FaultLimits::thermal_time_constant_s`]) above its square is
+    /// [`crate::Fault::I2t`]. Default 1.2 A: the order of a Maxon RE25 20 W
+    /// winding's rated torque (about 28 mN·m) over its `K_m`; take your
+    /// motor's datasheet value.
+    pub continuous_current_a: f32,
+    /// Thermal time constant of the winding, s (RE25 class: about 12 s).
+    /// From cold, the I²t fault trips after `-tau ln(1 - (I_c / I)^2)` at a
+    /// constant current `I > I_c` (5.4 s at 2 A with the defaults).
+    pub thermal_time_constant_s: f32,
+    /// With the drive enabled, the measured current minus the reference of
+    /// the last tick, low-passed over [`FaultLimits::current_error_time_s`],
+    /// beyond this is [`crate::Fault::CurrentTracking`], A. 0 switches the
+    /// check off (replays of logs from a drive that was not this one).
+    pub max_current_error_a: f32,
+    /// Time constant of the current-tracking error's low-pass, s: long
+    /// against the drive's current loop (about 0.1–0.2 ms) and the monitor's
+    /// noise, short against anything a broken lead does to the joint.
+    pub current_error_time_s: f32,
 }
 
 impl Default for FaultLimits {
@@ -381,6 +408,11 @@ impl Default for FaultLimits {
             max_motor_speed_rad_s: 1200.0,
             max_joint_angle_rad: 1.6,
             min_tension_fraction: 0.2,
+            max_current_a: 2.25,
+            continuous_current_a: 1.2,
+            thermal_time_constant_s: 12.0,
+            max_current_error_a: 0.5,
+            current_error_time_s: 0.02,
         }
     }
 }
@@ -497,14 +529,19 @@ fn within(
     }
 }
 
-fn finite(field: &'static str, v: f32) -> Result<(), ConfigError> {
-    if v.is_finite() {
+/// Finite with `|v| <= max`: coefficients whose sign the fit decides, bounded
+/// far beyond any physical value so that products with any sensor reading
+/// stay finite in `f32`.
+fn magnitude(
+    field: &'static str,
+    v: f32,
+    max: f32,
+    expected: &'static str,
+) -> Result<(), ConfigError> {
+    if v.is_finite() && v.abs() <= max {
         Ok(())
     } else {
-        Err(ConfigError {
-            field,
-            expected: "finite",
-        })
+        Err(ConfigError { field, expected })
     }
 }
 
@@ -548,6 +585,22 @@ impl Config {
                 *bw = derived_hz;
             }
         }
+        // The discrete PD position loop needs kp T < 2 (1 - kd) (see
+        // `validate`); at a rate too slow for the gain, derive half of that.
+        let cc = &mut c.cascade;
+        let period_s = 1.0 / rate_hz;
+        if cc.kd_pos < 1.0
+            && cc.kp_pos_1_s * period_s >= 2.0 * (1.0 - cc.kd_pos)
+            && period_s.is_finite()
+        {
+            let to = (1.0 - cc.kd_pos) / period_s;
+            let _ = changes.push(RateAdjustment {
+                field: "cascade.kp_pos_1_s",
+                from: cc.kp_pos_1_s,
+                to,
+            });
+            cc.kp_pos_1_s = to;
+        }
         (c, changes)
     }
 
@@ -563,15 +616,76 @@ impl Config {
             });
         }
         let m = &self.machine;
-        positive("machine.torque_constant_nm_a", m.torque_constant_nm_a)?;
-        positive("machine.rotor_inertia_kg_m2", m.rotor_inertia_kg_m2)?;
-        positive("machine.gear_ratio", m.gear_ratio)?;
-        positive("machine.rope_wheel_radius_m", m.rope_wheel_radius_m)?;
-        positive("machine.pulley_radius_m", m.pulley_radius_m)?;
-        positive("machine.gripper_length_m", m.gripper_length_m)?;
-        non_negative("machine.spring_n_m", m.spring_n_m)?;
-        non_negative("machine.preload_n", m.preload_n)?;
-        positive("machine.current_limit_a", m.current_limit_a)?;
+        // Ranges spanning every motor, gear and cable a joint of this kind
+        // could use, several decades each side of the prototype's values.
+        let ranges = [
+            (
+                "machine.torque_constant_nm_a",
+                m.torque_constant_nm_a,
+                1e-4,
+                10.0,
+                "between 1e-4 and 10 N·m/A",
+            ),
+            (
+                "machine.rotor_inertia_kg_m2",
+                m.rotor_inertia_kg_m2,
+                1e-10,
+                1e-2,
+                "between 1e-10 and 1e-2 kg·m²",
+            ),
+            (
+                "machine.gear_ratio",
+                m.gear_ratio,
+                0.01,
+                1e4,
+                "between 0.01 and 10000",
+            ),
+            (
+                "machine.rope_wheel_radius_m",
+                m.rope_wheel_radius_m,
+                1e-4,
+                1.0,
+                "between 0.1 mm and 1 m",
+            ),
+            (
+                "machine.pulley_radius_m",
+                m.pulley_radius_m,
+                1e-4,
+                1.0,
+                "between 0.1 mm and 1 m",
+            ),
+            (
+                "machine.gripper_length_m",
+                m.gripper_length_m,
+                1e-4,
+                1.0,
+                "between 0.1 mm and 1 m",
+            ),
+            (
+                "machine.spring_n_m",
+                m.spring_n_m,
+                0.0,
+                1e7,
+                "between 0 and 1e7 N/m",
+            ),
+            (
+                "machine.preload_n",
+                m.preload_n,
+                0.0,
+                1e4,
+                "between 0 and 10000 N",
+            ),
+            (
+                "machine.current_limit_a",
+                m.current_limit_a,
+                0.01,
+                100.0,
+                "between 0.01 and 100 A",
+            ),
+        ];
+        for (field, v, lo, hi, expected) in ranges {
+            within(field, v, lo..=hi, expected)?;
+        }
 
         let s = &self.scales;
         positive("scales.grating_m_per_count", s.grating_m_per_count)?;
@@ -587,8 +701,42 @@ impl Config {
                 expected: "> 0",
             });
         }
-        positive("scales.adc_a_per_code", s.adc_a_per_code)?;
-        positive("scales.dac_a_per_code", s.dac_a_per_code)?;
+        if s.motor_counts_per_rev > 1_000_000 || s.magnetic_counts_per_rev > 1_000_000 {
+            return Err(ConfigError {
+                field: if s.motor_counts_per_rev > 1_000_000 {
+                    "scales.motor_counts_per_rev"
+                } else {
+                    "scales.magnetic_counts_per_rev"
+                },
+                expected: "at most 1000000 counts per revolution",
+            });
+        }
+        within(
+            "scales.grating_m_per_count",
+            s.grating_m_per_count,
+            1e-9..=1e-3,
+            "between 1 nm and 1 mm per count",
+        )?;
+        within(
+            "scales.adc_a_per_code",
+            s.adc_a_per_code,
+            1e-6..=1.0,
+            "between 1e-6 and 1 A per code",
+        )?;
+        within(
+            "scales.dac_a_per_code",
+            s.dac_a_per_code,
+            1e-6..=1.0,
+            "between 1e-6 and 1 A per code",
+        )?;
+        // A wider band would flag ordinary currents as a rail (and beyond
+        // half the range the band's arithmetic would wrap).
+        if s.adc_rail_margin_codes > 1023 {
+            return Err(ConfigError {
+                field: "scales.adc_rail_margin_codes",
+                expected: "at most 1023 (a quarter of the 12-bit range)",
+            });
+        }
         within(
             "scales.adc_zero_code",
             s.adc_zero_code,
@@ -619,15 +767,27 @@ impl Config {
                 });
             }
         }
-        positive("differentiators.damping", d.damping)?;
+        within(
+            "differentiators.damping",
+            d.damping,
+            0.1..=10.0,
+            "between 0.1 and 10",
+        )?;
 
         let j = &self.jae;
-        finite("jae.c_acc_rad_s2_m", j.c_acc_rad_s2_m)?;
-        finite("jae.c_vel_rad_s_m", j.c_vel_rad_s_m)?;
-        finite("jae.c_sign_rad", j.c_sign_rad)?;
+        const COEF: &str = "finite, magnitude at most 1e6";
+        magnitude("jae.c_acc_rad_s2_m", j.c_acc_rad_s2_m, 1e6, COEF)?;
+        magnitude("jae.c_vel_rad_s_m", j.c_vel_rad_s_m, 1e6, COEF)?;
+        magnitude("jae.c_sign_rad", j.c_sign_rad, 1e6, COEF)?;
         positive("jae.c_pos_rad_m", j.c_pos_rad_m)?;
-        finite("jae.offset_rad", j.offset_rad)?;
-        positive("jae.sign_switch_m_s", j.sign_switch_m_s)?;
+        magnitude("jae.c_pos_rad_m", j.c_pos_rad_m, 1e6, COEF)?;
+        magnitude("jae.offset_rad", j.offset_rad, math::PI, "within ±pi rad")?;
+        within(
+            "jae.sign_switch_m_s",
+            j.sign_switch_m_s,
+            1e-9..=1.0,
+            "between 1e-9 and 1 m/s",
+        )?;
         if let Err(expected) = j.added.validate() {
             return Err(ConfigError {
                 field: "jae.added",
@@ -651,6 +811,67 @@ impl Config {
                 expected: "at most machine.current_limit_a",
             });
         }
+        // The position loop is a discrete integrator around the velocity
+        // loop: e[k+1] = e[k] - T (kp e[k] + kd (e[k] - e[k-1]) / T). Jury's
+        // test: stable iff kd < 1 and kp T < 2 (1 - kd).
+        if c.kd_pos >= 1.0 {
+            return Err(ConfigError {
+                field: "cascade.kd_pos",
+                expected: "below 1 (the discrete PD loop is unstable beyond)",
+            });
+        }
+        if c.kp_pos_1_s * self.period_s() >= 2.0 * (1.0 - c.kd_pos) {
+            return Err(ConfigError {
+                field: "cascade.kp_pos_1_s",
+                expected: "below 2 (1 - kd_pos) / T (the discrete PD loop is unstable beyond)",
+            });
+        }
+        // One count of motor-velocity (2 pi / (counts T)) or motor-angle
+        // resolution must not ask for more than the whole current: beyond
+        // that the loop is bang-bang on quantisation noise.
+        let count_rad = 2.0 * math::PI / s.motor_counts_per_rev as f32;
+        if c.kp_vel_a_s_rad * count_rad / self.period_s() > c.current_limit_a {
+            return Err(ConfigError {
+                field: "cascade.kp_vel_a_s_rad",
+                expected: "at most current_limit_a per count of motor-velocity resolution",
+            });
+        }
+        if c.ki_vel_a_rad * count_rad > c.current_limit_a {
+            return Err(ConfigError {
+                field: "cascade.ki_vel_a_rad",
+                expected: "at most current_limit_a per count of motor angle",
+            });
+        }
+        if c.vel_limit_rad_s > self.limits.max_motor_speed_rad_s {
+            return Err(ConfigError {
+                field: "cascade.vel_limit_rad_s",
+                expected: "at most limits.max_motor_speed_rad_s (else a command trips Overspeed)",
+            });
+        }
+        within(
+            "cascade.vel_feedforward",
+            c.vel_feedforward,
+            0.0..=2.0,
+            "within 0..=2",
+        )?;
+        if c.jae_blend_hz > 0.125 * self.control_rate_hz {
+            return Err(ConfigError {
+                field: "cascade.jae_blend_hz",
+                expected: "below a quarter of the Nyquist rate",
+            });
+        }
+        within(
+            "cascade.hold_deadband_rad",
+            c.hold_deadband_rad,
+            0.0..=0.1,
+            "within 0..=0.1 rad",
+        )?;
+        if self.limits.max_current_a <= c.current_limit_a {
+            return Err(ConfigError {
+                field: "limits.max_current_a",
+                expected: "above cascade.current_limit_a",
+            });
+        }
 
         let o = &self.dob;
         positive("dob.cutoff_rad_s", o.cutoff_rad_s)?;
@@ -660,15 +881,36 @@ impl Config {
                 expected: "below the control rate (g*T <= 1)",
             });
         }
-        non_negative("dob.viscous_nm_s_rad", o.viscous_nm_s_rad)?;
+        within(
+            "dob.viscous_nm_s_rad",
+            o.viscous_nm_s_rad,
+            0.0..=1.0,
+            "within 0..=1 N·m·s/rad",
+        )?;
 
         let t = &self.tension;
-        finite("tension.f_sc1_n", t.f_sc1_n)?;
-        finite("tension.f_cp2_n", t.f_cp2_n)?;
-        finite("tension.k_s_n_m", t.k_s_n_m)?;
-        finite("tension.f_0_n", t.f_0_n)?;
-        positive("tension.sign_switch_x1_m_s", t.sign_switch_x1_m_s)?;
-        positive("tension.sign_switch_x2_m_s", t.sign_switch_x2_m_s)?;
+        const FORCE: &str = "finite, magnitude at most 10000 N";
+        magnitude("tension.f_sc1_n", t.f_sc1_n, 1e4, FORCE)?;
+        magnitude("tension.f_cp2_n", t.f_cp2_n, 1e4, FORCE)?;
+        magnitude(
+            "tension.k_s_n_m",
+            t.k_s_n_m,
+            1e8,
+            "finite, magnitude at most 1e8 N/m",
+        )?;
+        magnitude("tension.f_0_n", t.f_0_n, 1e4, FORCE)?;
+        within(
+            "tension.sign_switch_x1_m_s",
+            t.sign_switch_x1_m_s,
+            1e-9..=1.0,
+            "between 1e-9 and 1 m/s",
+        )?;
+        within(
+            "tension.sign_switch_x2_m_s",
+            t.sign_switch_x2_m_s,
+            1e-9..=1.0,
+            "between 1e-9 and 1 m/s",
+        )?;
         if let Err(expected) = t.added.validate() {
             return Err(ConfigError {
                 field: "tension.added",
@@ -676,11 +918,27 @@ impl Config {
             });
         }
 
-        positive("stretch.cable1_n_m", self.stretch.cable1_n_m)?;
-        positive("stretch.cable2_n_m", self.stretch.cable2_n_m)?;
+        const STIFF: &str = "between 1 and 1e8 N/m";
+        within(
+            "stretch.cable1_n_m",
+            self.stretch.cable1_n_m,
+            1.0..=1e8,
+            STIFF,
+        )?;
+        within(
+            "stretch.cable2_n_m",
+            self.stretch.cable2_n_m,
+            1.0..=1e8,
+            STIFF,
+        )?;
 
         let f = &self.fusion;
-        non_negative("fusion.pin_coulomb_nm", f.pin_coulomb_nm)?;
+        within(
+            "fusion.pin_coulomb_nm",
+            f.pin_coulomb_nm,
+            0.0..=10.0,
+            "within 0..=10 N·m",
+        )?;
         within(
             "fusion.static_over_kinetic",
             f.static_over_kinetic,
@@ -693,31 +951,91 @@ impl Config {
             0.0..=1.0,
             "within 0..=1",
         )?;
-        non_negative("fusion.jae_error_rad", f.jae_error_rad)?;
+        within(
+            "fusion.jae_error_rad",
+            f.jae_error_rad,
+            0.0..=1.0,
+            "within 0..=1 rad",
+        )?;
         within(
             "fusion.creep_window_s",
             f.creep_window_s,
             self.period_s()..=10.0,
             "between one control period and 10 s",
         )?;
-        positive("fusion.creep_distance_m", f.creep_distance_m)?;
+        within(
+            "fusion.creep_distance_m",
+            f.creep_distance_m,
+            1e-9..=1e-2,
+            "between 1 nm and 10 mm",
+        )?;
 
         self.limits.validate()
     }
 }
 
 impl FaultLimits {
-    /// Check the fault limits alone (see `Controller::set_limits`).
+    /// Check the fault limits alone (see `Controller::set_limits`). Every
+    /// limit has a physical range: a jump or speed limit beyond it would
+    /// never trip, an angle limit below it would trip at rest.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let l = self;
-        positive("limits.max_grating_speed_m_s", l.max_grating_speed_m_s)?;
-        positive("limits.max_motor_speed_rad_s", l.max_motor_speed_rad_s)?;
-        positive("limits.max_joint_angle_rad", l.max_joint_angle_rad)?;
+        // A cable-driven slider or a geared RE25 cannot move faster; the
+        // bounds also keep the per-tick count limits inside `i32`.
+        within(
+            "limits.max_grating_speed_m_s",
+            l.max_grating_speed_m_s,
+            1e-3..=10.0,
+            "between 0.001 and 10 m/s",
+        )?;
+        within(
+            "limits.max_motor_speed_rad_s",
+            l.max_motor_speed_rad_s,
+            1.0..=5000.0,
+            "between 1 and 5000 rad/s",
+        )?;
+        // At least one degree; at most the widened range homing uses.
+        within(
+            "limits.max_joint_angle_rad",
+            l.max_joint_angle_rad,
+            0.0175..=10.0,
+            "between 0.0175 and 10 rad",
+        )?;
         within(
             "limits.min_tension_fraction",
             l.min_tension_fraction,
             0.0..1.0,
             "within 0..1 (0 = off)",
+        )?;
+        within(
+            "limits.max_current_a",
+            l.max_current_a,
+            0.01..=100.0,
+            "between 0.01 and 100 A",
+        )?;
+        within(
+            "limits.continuous_current_a",
+            l.continuous_current_a,
+            0.01..=100.0,
+            "between 0.01 and 100 A",
+        )?;
+        within(
+            "limits.thermal_time_constant_s",
+            l.thermal_time_constant_s,
+            0.1..=3600.0,
+            "between 0.1 and 3600 s",
+        )?;
+        within(
+            "limits.max_current_error_a",
+            l.max_current_error_a,
+            0.0..=100.0,
+            "between 0 (off) and 100 A",
+        )?;
+        within(
+            "limits.current_error_time_s",
+            l.current_error_time_s,
+            1e-4..=10.0,
+            "between 0.0001 and 10 s",
         )?;
         Ok(())
     }

@@ -227,6 +227,10 @@ struct Derived {
     max_grating_step: i32,
     max_motor_step: i32,
     max_magnetic_step: i32,
+    /// Per-tick weight of the I²t low-pass, `T / tau_thermal`.
+    i2t_weight: f32,
+    /// Per-tick weight of the current-error low-pass, `T / tau_error`.
+    current_error_weight: f32,
 }
 
 impl Derived {
@@ -247,6 +251,8 @@ impl Derived {
             max_grating_step: 0,
             max_motor_step: 0,
             max_magnetic_step: 0,
+            i2t_weight: 0.0,
+            current_error_weight: 0.0,
         };
         derived.set_steps(c);
         derived
@@ -263,9 +269,14 @@ impl Derived {
             c.limits.max_motor_speed_rad_s / self.motor_per_joint.max(f32::MIN_POSITIVE);
         let magnetic =
             4.0 * joint_rad_s * period_s * s.magnetic_counts_per_rev as f32 / (2.0 * math::PI);
-        self.max_grating_step = grating as i32 + 2;
-        self.max_motor_step = motor as i32 + 2;
-        self.max_magnetic_step = magnetic as i32 + 2;
+        // `validate` bounds the speeds and scales, so these fit an `i32`
+        // with room; saturate anyway (a wrapped limit would disable the check).
+        self.max_grating_step = (grating as i32).saturating_add(2);
+        self.max_motor_step = (motor as i32).saturating_add(2);
+        self.max_magnetic_step = (magnetic as i32).saturating_add(2);
+        let l = &c.limits;
+        self.i2t_weight = (period_s / l.thermal_time_constant_s).min(1.0);
+        self.current_error_weight = (period_s / l.current_error_time_s).min(1.0);
     }
 }
 
@@ -293,6 +304,13 @@ pub struct State {
     /// Low-passed cable stretch `theta_hat - theta_motor` (feedback blend), rad.
     stretch_rad: f32,
     last_current_a: f32,
+    /// The drive was enabled by the last step (the current checks apply).
+    drive_was_enabled: bool,
+    /// I²t state: the measured current squared, low-passed with the
+    /// winding's thermal time constant, A².
+    i2t_a2: f32,
+    /// Low-passed current-tracking error, A.
+    current_error_a: f32,
     tick: u32,
     command_tick: u32,
     primed: bool,
@@ -381,8 +399,19 @@ impl Controller {
         }
     }
 
+    /// Does the cause of a fault persist in the controller's own state? The
+    /// winding's I²t state above (90 % of the continuous current)²: after an
+    /// I²t fault it must cool first (2.5 s with no current at the default
+    /// 12 s time constant). The board adds its own causes (the drive's
+    /// fault line).
+    pub fn fault_cause_persists(&self) -> bool {
+        let ic = 0.9 * self.config.limits.continuous_current_a;
+        self.state.i2t_a2 > ic * ic
+    }
+
     /// Clear a latched fault and fall back to [`Mode::Idle`]; the operator
-    /// must command a mode again.
+    /// must command a mode again. Callers check
+    /// [`Controller::fault_cause_persists`] first.
     pub fn clear_fault(&mut self) {
         self.state.fault = None;
         self.set_command(Command::default());
@@ -393,6 +422,8 @@ impl Controller {
     pub fn set_origin(&mut self, raw: &RawSample) {
         let fault = self.state.fault;
         let tick = self.state.tick;
+        // The winding does not cool down because the counters were zeroed.
+        let i2t_a2 = self.state.i2t_a2;
         // Reset in place, field by field after the default: this runs on a
         // control tick (homing), so no second copy of the state.
         self.state = State::default();
@@ -406,6 +437,7 @@ impl Controller {
             magnetic,
         };
         st.fault = fault;
+        st.i2t_a2 = i2t_a2;
         st.tick = tick;
         st.command_tick = tick;
         st.primed = false;
@@ -470,6 +502,26 @@ impl Controller {
         let phi = d.motor_obs.update(&mut st.phi, phi_rad);
         if math::abs(phi.vel) > cfg.limits.max_motor_speed_rad_s {
             fault = fault.or(Some(Fault::Overspeed));
+        }
+        // Current protection: only while this controller drives the motor
+        // (a replayed log or a disabled drive is not ours to judge). The
+        // I²t state integrates always, as the winding does.
+        let l = &cfg.limits;
+        st.i2t_a2 += d.i2t_weight * (i_meas_a * i_meas_a - st.i2t_a2);
+        if st.drive_was_enabled {
+            if math::abs(i_meas_a) > l.max_current_a {
+                fault = fault.or(Some(Fault::OverCurrent));
+            }
+            if st.i2t_a2 > l.continuous_current_a * l.continuous_current_a {
+                fault = fault.or(Some(Fault::I2t));
+            }
+            let error_a = math::abs(i_meas_a - st.last_current_a);
+            st.current_error_a += d.current_error_weight * (error_a - st.current_error_a);
+            if l.max_current_error_a > 0.0 && st.current_error_a > l.max_current_error_a {
+                fault = fault.or(Some(Fault::CurrentTracking));
+            }
+        } else {
+            st.current_error_a = 0.0;
         }
         timer.mark(Stage::Sensing);
 
@@ -655,6 +707,7 @@ impl Controller {
             st.cascade = CascadeState::default();
         }
         st.last_current_a = current_ref_a;
+        st.drive_was_enabled = enabled;
         st.tick = st.tick.wrapping_add(1);
         timer.mark(Stage::Cascade);
         Output {
@@ -844,6 +897,118 @@ mod tests {
             assert_eq!(out.fault, None);
             assert!((out.est.phi_rad - c.config().scales.motor_rad(k as i32 * 3)).abs() < 1e-5);
         }
+    }
+
+    /// A sample at rest with the current monitor reading `amps`.
+    fn reading(c: &Controller, amps: f32) -> RawSample {
+        let s = &c.config().scales;
+        RawSample {
+            current: AdcCode((amps / s.adc_a_per_code + s.adc_zero_code).round() as u16),
+            ..Default::default()
+        }
+    }
+
+    fn holding(config: Config) -> Controller {
+        let mut c = Controller::new(config).unwrap();
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        });
+        c
+    }
+
+    #[test]
+    fn over_current_is_a_fault_only_with_the_drive_enabled() {
+        let mut idle = Controller::new(Config::default()).unwrap();
+        let high = reading(&idle, 2.4);
+        for _ in 0..10 {
+            assert_eq!(idle.step(&high).fault, None, "not ours to judge");
+        }
+        let mut c = holding(Config::default());
+        let out = c.step(&reading(&c, 0.0));
+        assert!(out.drive_enable);
+        let out = c.step(&reading(&c, 2.2));
+        assert_eq!(out.fault, None, "below the 2.25 A limit");
+        let out = c.step(&high);
+        assert_eq!(out.fault, Some(Fault::OverCurrent));
+        assert!(!out.drive_enable);
+        assert_eq!(out.current_ref_a, 0.0);
+    }
+
+    /// From cold at a constant 1.5 A (continuous 1.2 A, tau 12 s) the I²t
+    /// state crosses 1.2² at `-12 ln(1 - (1.2 / 1.5)²)` = 12.26 s; after the
+    /// fault a clear waits until the winding has cooled below 90 % of its
+    /// rating.
+    #[test]
+    fn i2t_trips_when_the_winding_would_overheat_and_blocks_the_clear() {
+        let mut cfg = Config::default();
+        cfg.limits.max_current_error_a = 0.0; // the monitor is not the drive here
+        let mut c = holding(cfg);
+        let hot = reading(&c, 1.5);
+        let amps = c.config().scales.adc_a(hot.current);
+        let expected_s = -12.0 * libm::logf(1.0 - (1.2 / amps) * (1.2 / amps));
+        let mut tripped_s = None;
+        for k in 0..40_000u32 {
+            let out = c.step(&hot);
+            if out.fault.is_some() {
+                assert_eq!(out.fault, Some(Fault::I2t));
+                assert!(!out.drive_enable);
+                tripped_s = Some(k as f32 * c.period_s());
+                break;
+            }
+        }
+        let t = tripped_s.expect("I²t must trip");
+        assert!(
+            (t - expected_s).abs() < 0.05,
+            "{t} s, expected {expected_s} s"
+        );
+        assert!(c.fault_cause_persists(), "still hot");
+        let cold = reading(&c, 0.0);
+        let mut cooled_s = None;
+        for k in 0..20_000u32 {
+            c.step(&cold);
+            if !c.fault_cause_persists() {
+                cooled_s = Some(k as f32 * c.period_s());
+                break;
+            }
+        }
+        // 1.44 A² decays to (0.9 · 1.2)² = 1.1664 A² in 12 ln(1.44 / 1.1664) s.
+        let cooled = cooled_s.expect("the winding cools");
+        assert!((cooled - 2.53).abs() < 0.05, "{cooled} s");
+    }
+
+    #[test]
+    fn a_current_that_does_not_follow_the_reference_is_a_fault() {
+        // A drive that follows: the monitor reads the last reference back.
+        let mut c = holding(Config::default());
+        let mut raw = reading(&c, 0.0);
+        raw.motor = MotorCount(500); // away from the hold: the loop pushes
+        for _ in 0..2000 {
+            let out = c.step(&raw);
+            assert_eq!(out.fault, None);
+            raw.current = reading(&c, out.current_ref_a).current;
+        }
+        // A broken lead: the monitor reads zero while the loop asks for
+        // current. Low-passed over 20 ms, the 0.5 A limit is crossed within
+        // -0.02 ln(1 - 0.5 / |i_ref|) s.
+        let mut c = holding(Config::default());
+        let mut broken = reading(&c, 0.0);
+        broken.motor = MotorCount(500);
+        let mut at = None;
+        let mut i_ref = 0.0f32;
+        for k in 0..200u32 {
+            let out = c.step(&broken);
+            if out.fault.is_some() {
+                assert_eq!(out.fault, Some(Fault::CurrentTracking));
+                assert!(!out.drive_enable);
+                at = Some(k);
+                break;
+            }
+            i_ref = out.current_ref_a;
+        }
+        let k = at.expect("the tracking check must trip");
+        assert!(i_ref.abs() > 0.5, "the loop asked for {i_ref} A");
+        assert!(k < 40, "within 20 ms: tick {k}");
     }
 
     #[test]

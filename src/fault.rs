@@ -19,8 +19,6 @@ pub enum Sensor {
     Motor,
     /// Magnetic joint encoder.
     Magnetic,
-    /// Drive current monitor (ADC).
-    Current,
 }
 
 /// A latched fault. Codes are stable (`code()`), 0 means "no fault".
@@ -37,6 +35,18 @@ pub enum Fault {
     AngleRange,
     /// The motor's velocity exceeded its limit.
     Overspeed,
+    /// The measured current exceeded `limits.max_current_a` with the drive
+    /// enabled: the drive is not limiting its current.
+    OverCurrent,
+    /// The winding's I²t state (the measured current squared, low-passed
+    /// with the winding's thermal time constant) exceeded the square of the
+    /// continuous current: the winding is overheating.
+    I2t,
+    /// The measured current did not follow the reference
+    /// (`limits.max_current_error_a`, low-passed over
+    /// `limits.current_error_time_s`): a broken motor lead, a drive that
+    /// ignores its reference, or a supply that cannot deliver.
+    CurrentTracking,
     /// Cable 1's tension, read off its stretch, fell below
     /// `limits.min_tension_fraction` of the preload: the cable is going
     /// slack or broke.
@@ -50,8 +60,18 @@ pub enum Fault {
     OriginDuringMotion,
     /// Start-up sensor check failed or homing did not find the origin.
     Homing,
-    /// The firmware panicked (reported by the panic handler).
+    /// A program that asks for a heartbeat received no request within its
+    /// `command_timeout_s` (the host or the link is gone).
+    CommandTimeout,
+    /// The firmware panicked; reported at the next boot from a word kept in
+    /// RAM through the reset.
     Panic,
+    /// A HardFault (bad memory access, stack overflow into flip-link's
+    /// guard); reported at the next boot like a panic.
+    HardFault,
+    /// The independent watchdog reset the MCU: the control task stopped
+    /// completing its ticks. Reported at the next boot.
+    Watchdog,
 }
 
 impl Fault {
@@ -62,17 +82,25 @@ impl Fault {
             Fault::EncoderJump(Sensor::Grating2) => 2,
             Fault::EncoderJump(Sensor::Motor) => 3,
             Fault::EncoderJump(Sensor::Magnetic) => 4,
-            Fault::EncoderJump(Sensor::Current) => 5,
+            // 5 is retired (a current-monitor "jump": the monitor has no
+            // physical slew bound tighter than its range, so it was never
+            // raised); never reuse it.
             Fault::AdcRail => 10,
             Fault::NonFinite => 11,
             Fault::AngleRange => 12,
             Fault::Overspeed => 13,
             Fault::TransmissionSlack => 14,
+            Fault::OverCurrent => 15,
+            Fault::I2t => 16,
+            Fault::CurrentTracking => 17,
             Fault::Overrun => 20,
             Fault::DriveFault => 21,
             Fault::OriginDuringMotion => 22,
             Fault::Homing => 23,
+            Fault::CommandTimeout => 24,
             Fault::Panic => 30,
+            Fault::HardFault => 31,
+            Fault::Watchdog => 32,
         }
     }
 
@@ -83,17 +111,22 @@ impl Fault {
             2 => Fault::EncoderJump(Sensor::Grating2),
             3 => Fault::EncoderJump(Sensor::Motor),
             4 => Fault::EncoderJump(Sensor::Magnetic),
-            5 => Fault::EncoderJump(Sensor::Current),
             10 => Fault::AdcRail,
             11 => Fault::NonFinite,
             12 => Fault::AngleRange,
             13 => Fault::Overspeed,
             14 => Fault::TransmissionSlack,
+            15 => Fault::OverCurrent,
+            16 => Fault::I2t,
+            17 => Fault::CurrentTracking,
             20 => Fault::Overrun,
             21 => Fault::DriveFault,
             22 => Fault::OriginDuringMotion,
             23 => Fault::Homing,
+            24 => Fault::CommandTimeout,
             30 => Fault::Panic,
+            31 => Fault::HardFault,
+            32 => Fault::Watchdog,
             _ => return None,
         })
     }
@@ -115,12 +148,18 @@ impl fmt::Display for Fault {
             Fault::NonFinite => f.write_str("non-finite value in a filter or estimator"),
             Fault::AngleRange => f.write_str("joint-angle estimate out of mechanical range"),
             Fault::Overspeed => f.write_str("motor overspeed"),
+            Fault::OverCurrent => f.write_str("measured current above its limit"),
+            Fault::I2t => f.write_str("winding I2t above its continuous rating"),
+            Fault::CurrentTracking => f.write_str("measured current does not follow the reference"),
             Fault::TransmissionSlack => f.write_str("cable slack: cable-1 tension below its limit"),
             Fault::Overrun => f.write_str("control tick overran its deadline"),
             Fault::DriveFault => f.write_str("drive reported a fault"),
             Fault::OriginDuringMotion => f.write_str("origin switch hit during motion"),
             Fault::Homing => f.write_str("start-up check or homing failed"),
-            Fault::Panic => f.write_str("firmware panic"),
+            Fault::CommandTimeout => f.write_str("no request within the program's command timeout"),
+            Fault::Panic => f.write_str("firmware panic (before the last reset)"),
+            Fault::HardFault => f.write_str("HardFault (before the last reset)"),
+            Fault::Watchdog => f.write_str("watchdog reset: the control task stopped"),
         }
     }
 }
@@ -139,7 +178,8 @@ mod tests {
                 seen[code as usize] = true;
             }
         }
-        assert_eq!(seen.iter().filter(|s| **s).count(), 15);
+        assert_eq!(seen.iter().filter(|s| **s).count(), 20);
+        assert_eq!(Fault::from_code(5), None, "code 5 is retired");
         assert_eq!(Fault::from_code(0), None);
         assert_eq!(Fault::code_of(None), 0);
     }

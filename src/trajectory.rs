@@ -55,6 +55,42 @@ pub struct Reference {
 const COMPLEX: [(f32, f32); 3] = [(0.5, 1.0), (0.3, 2.3), (0.2, 3.7)];
 
 impl Trajectory {
+    /// Check an operator's trajectory before it reaches the control path:
+    /// every value finite, angles within ±10 rad (the widest range homing
+    /// uses), frequencies within 0 < f <= 100 Hz (far above the joint's
+    /// bandwidth), durations within 0..=1e5 s. Returns what is wrong.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        let angle = |a: f32| a.is_finite() && a.abs() <= 10.0;
+        let freq = |f: f32| f.is_finite() && f > 0.0 && f <= 100.0;
+        let ok = match *self {
+            Trajectory::Hold { angle_rad } => angle(angle_rad),
+            Trajectory::Sine {
+                offset_rad,
+                amplitude_rad,
+                freq_hz,
+            } => angle(offset_rad) && angle(amplitude_rad) && freq(freq_hz),
+            Trajectory::PointToPoint {
+                from_rad,
+                to_rad,
+                duration_s,
+            } => {
+                angle(from_rad)
+                    && angle(to_rad)
+                    && duration_s.is_finite()
+                    && (0.0..=1e5).contains(&duration_s)
+            }
+            Trajectory::Complex {
+                amplitude_rad,
+                base_freq_hz,
+            } => angle(amplitude_rad) && freq(base_freq_hz),
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err("finite, angles within ±10 rad, 0 < frequency <= 100 Hz, 0 <= duration <= 1e5 s")
+        }
+    }
+
     /// Evaluate at `t_s` seconds after the command started (`t_s >= 0`).
     pub fn at(&self, t_s: f32) -> Reference {
         let t_s = if t_s > 0.0 { t_s } else { 0.0 };

@@ -15,7 +15,7 @@
 //! |---|---|---|---|
 //! | `drive_fault`, `origin_switch` | EXTI1, EXTI2 | 4 | cut the drive at once (BSRR), leave the fault for the control task |
 //! | `control` | TIM6 update | 3 | one control period; a miss is `Fault::Overrun` (latched, drive cut) |
-//! | `telemetry`, `command` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; requests queue (4) |
+//! | `telemetry`, `command` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; requests queue (4). The RTT logger never blocks and takes no critical section (defmt-rtt `disable-blocking-mode`, `drop-on-contention`), so logging can never mask the tasks above |
 //! | `idle` | – | 0 | `wfi` |
 //!
 //! Settings: `board::firmware_config()` (the core's datasheet defaults at
@@ -71,6 +71,33 @@ static EVENTS: cable_joint::board::Events = cable_joint::board::Events::new();
 #[cfg(all(target_os = "none", feature = "qemu"))]
 static DONE: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
 
+/// Two words of RAM that the start-up code leaves alone (cortex-m-rt's
+/// `.uninit`): a panic or HardFault handler writes its fault here before the
+/// reset, and the next boot reads it (`cable_joint::board::boot`).
+#[cfg(target_os = "none")]
+#[link_section = ".uninit.BOOT_NOTE"]
+static mut BOOT_NOTE: core::mem::MaybeUninit<[u32; 2]> = core::mem::MaybeUninit::uninit();
+
+/// Leave `fault` for the next boot.
+#[cfg(target_os = "none")]
+fn write_boot_note(fault: cable_joint::Fault) {
+    let words = cable_joint::board::boot::record(fault);
+    // SAFETY: a volatile store of two plain words to a static no other code
+    // touches while a handler runs (the handlers never return).
+    unsafe { core::ptr::write_volatile(core::ptr::addr_of_mut!(BOOT_NOTE).cast(), words) };
+}
+
+/// Read and erase the note left before the last reset.
+#[cfg(target_os = "none")]
+fn take_boot_note() -> Option<cable_joint::Fault> {
+    let note = core::ptr::addr_of_mut!(BOOT_NOTE).cast::<[u32; 2]>();
+    // SAFETY: init runs once, before any task or handler; the words may hold
+    // power-up noise, which `recorded` rejects by its check word.
+    let words = unsafe { core::ptr::read_volatile(note) };
+    unsafe { core::ptr::write_volatile(note, [0, 0]) };
+    cable_joint::board::boot::recorded(words)
+}
+
 /// Log one telemetry record as a `tlm [bytes]` line.
 #[cfg(target_os = "none")]
 fn log_record(record: &cable_joint::telemetry::Record) {
@@ -81,6 +108,7 @@ fn log_record(record: &cable_joint::telemetry::Record) {
 #[cfg(target_os = "none")]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART1, USART2])]
 mod app {
+    use cable_joint::board::boot::boot_fault;
     use cable_joint::board::{
         firmware_config, on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine,
         Program, Request,
@@ -88,7 +116,7 @@ mod app {
     use cable_joint::telemetry::Record;
     use heapless::spsc::{Consumer, Producer, Queue};
 
-    use super::{board, log_record, EVENTS};
+    use super::{board, log_record, take_boot_note, EVENTS};
 
     #[shared]
     struct Shared {}
@@ -100,6 +128,7 @@ mod app {
         counter: board::Counter,
         drive: DriveEnable<board::DrivePin>,
         tick: board::TickTimer,
+        watchdog: board::Watchdog,
         requests_rx: Consumer<'static, Request>,
         requests_tx: Producer<'static, Request>,
         telemetry_tx: Producer<'static, Record>,
@@ -114,12 +143,24 @@ mod app {
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let config = firmware_config();
+        // Why the last reset happened, before anything can overwrite it.
+        let note = take_boot_note();
+        let watchdog_reset = board::take_watchdog_reset_flag();
         // Drive disabled first, then clocks, sensors and the control timer.
         let mut b = board::init(cx.device, cx.core, config.control_rate_hz);
-        let control = match ControlLoop::new(config, board::TELEMETRY_DECIMATION) {
+        let mut control = match ControlLoop::new(config, board::TELEMETRY_DECIMATION) {
             Ok(c) => c,
             Err(e) => panic!("invalid built-in configuration: {}", e.field),
         };
+        if let Some(fault) = boot_fault(note, watchdog_reset) {
+            // The drive stays off until an operator clears it.
+            control.report_boot_fault(fault);
+            defmt::error!(
+                "last reset: fault {=u8} ({}); drive off until cleared",
+                fault.code(),
+                defmt::Display2Format(&fault)
+            );
+        }
         // An already asserted fault line has no edge to report it.
         let origin = b.origin.asserted();
         let fault = b.drive_fault.asserted();
@@ -144,6 +185,7 @@ mod app {
                 counter: b.counter,
                 drive: b.drive,
                 tick: b.tick,
+                watchdog: b.watchdog,
                 requests_rx,
                 requests_tx,
                 telemetry_tx,
@@ -171,7 +213,7 @@ mod app {
     /// drive is disabled immediately; from the next tick on the output is
     /// zero until an operator `Request::ClearFault`.
     #[task(binds = TIM6_DAC, priority = 3, local = [
-        control, front_end, counter, drive, tick, requests_rx, telemetry_tx,
+        control, front_end, counter, drive, tick, watchdog, requests_rx, telemetry_tx,
         dropped: u32 = 0,
     ])]
     fn control(cx: control::Context) {
@@ -181,6 +223,7 @@ mod app {
             counter,
             drive,
             tick,
+            watchdog,
             requests_rx,
             telemetry_tx,
             dropped,
@@ -198,6 +241,11 @@ mod app {
         }
         if tick.overran() {
             control.overrun(drive);
+        } else {
+            // Only a tick that completed in time feeds the watchdog: a hung
+            // or starved control task resets the MCU (drive off through the
+            // enable line's pull-down), reported at the next boot.
+            watchdog.feed();
         }
         #[cfg(feature = "qemu")]
         if front_end.finished() {
@@ -299,21 +347,33 @@ mod app {
     }
 }
 
-/// Panic: the drive is disabled before anything else, then the message is
-/// logged and the core stops (`udf` on hardware, a semihosting failure exit
-/// under QEMU).
+/// Set by the first panic: a panic inside the panic handler's logging goes
+/// straight to the halt.
+#[cfg(target_os = "none")]
+static PANICKING: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
+/// Panic: the drive is disabled before anything else, the fault is left for
+/// the next boot, the message is logged (dropped if the logger is busy: the
+/// RTT logger never blocks and never masks interrupts), then
+/// `board::halt_failure` (hardware: stop for an attached debugger, else
+/// reset; QEMU: a semihosting failure exit).
 #[cfg(target_os = "none")]
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     board::kill_drive();
-    defmt::error!("panic: {}", defmt::Display2Format(info));
+    write_boot_note(cable_joint::Fault::Panic);
+    if !PANICKING.swap(true, core::sync::atomic::Ordering::SeqCst) {
+        defmt::error!("panic: {}", defmt::Display2Format(info));
+    }
     board::halt_failure()
 }
 
-/// HardFault: drive disabled, then stop (failure exit under QEMU).
+/// HardFault: drive disabled, the fault left for the next boot, then as a
+/// panic.
 #[cfg(target_os = "none")]
 #[cortex_m_rt::exception]
 unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
     board::kill_drive();
+    write_boot_note(cable_joint::Fault::HardFault);
     board::halt_failure()
 }

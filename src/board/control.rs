@@ -32,9 +32,14 @@ pub enum Request {
     /// New parameters (e.g. identified ones); filters keep their state.
     SetConfig(Config),
     /// Clear the latched fault and start again from the check and homing.
+    /// Refused while a cause persists: the drive's fault line asserted, a
+    /// fault waiting to be latched, the winding's I²t above its rating.
     ClearFault,
     /// One telemetry record every this many ticks (at least 1).
     SetDecimation(u32),
+    /// Nothing but "the host is still there" (resets a program's command
+    /// timeout, as every request does).
+    Heartbeat,
 }
 
 impl Request {
@@ -46,7 +51,12 @@ impl Request {
                 field: "telemetry.decimation",
                 expected: ">= 1",
             }),
-            _ => Ok(()),
+            Request::SetCommand(c) => c.trajectory.validate().map_err(|expected| ConfigError {
+                field: "command.trajectory",
+                expected,
+            }),
+            Request::Program(p) => p.validate(),
+            Request::ClearFault | Request::SetDecimation(_) | Request::Heartbeat => Ok(()),
         }
     }
 }
@@ -118,7 +128,15 @@ impl ControlLoop {
         }
     }
 
-    fn apply(&mut self, request: Request) {
+    /// Latch a fault found at boot (the reset's cause: a panic, a HardFault
+    /// or the watchdog, see [`super::boot`]): the drive stays off until an
+    /// operator clears it.
+    pub fn report_boot_fault(&mut self, fault: Fault) {
+        self.ctrl.report_fault(fault);
+    }
+
+    fn apply(&mut self, request: Request, events: &Events) {
+        self.seq.request_seen();
         let accepted = match request {
             Request::Program(p) => {
                 self.seq.start(&mut self.ctrl, p);
@@ -139,14 +157,22 @@ impl ControlLoop {
                     && self.seq.set_config(&mut self.ctrl, c).is_ok()
             }
             Request::ClearFault => {
-                self.ctrl.clear_fault();
-                self.seq.restart(&mut self.ctrl);
-                true
+                // A clear never clears what it did not see: a fault still
+                // waiting in `events` is latched right after this request.
+                let cause_persists = events.drive_fault_level()
+                    || events.fault_pending()
+                    || self.ctrl.fault_cause_persists();
+                if !cause_persists {
+                    self.ctrl.clear_fault();
+                    self.seq.restart(&mut self.ctrl);
+                }
+                !cause_persists
             }
             Request::SetDecimation(n) => {
                 self.decimation = n.max(1);
                 true
             }
+            Request::Heartbeat => true,
         };
         if !accepted {
             self.rejected = self.rejected.saturating_add(1);
@@ -169,11 +195,16 @@ impl ControlLoop {
     {
         let t0 = counter.now();
         let raw = fe.sample();
+        // Level-sensitive: the EXTI task sees edges only, and a line that
+        // stays asserted (or was asserted at a clear) raises no new edge.
+        events.set_drive_fault_level(fe.drive_fault_asserted());
+        // The request first, then the faults: a fault that arrived before a
+        // clear is latched after it, never cleared with it.
+        if let Some(r) = request {
+            self.apply(r, events);
+        }
         if let Some(fault) = events.take_fault() {
             self.ctrl.report_fault(fault);
-        }
-        if let Some(r) = request {
-            self.apply(r);
         }
         let edge = events.take_origin_edge();
         let origin = self
@@ -239,19 +270,26 @@ mod tests {
         samples: u32,
         dac: Option<DacCode>,
         writes: u32,
+        /// Level of the drive's fault line.
+        fault_line: bool,
     }
 
     impl SensorFrontEnd for Still {
         fn sample(&mut self) -> RawSample {
             self.samples += 1;
+            // A drive that follows its reference: the monitor reads the last
+            // DAC code back (ADC and DAC share their default scales).
             RawSample {
-                current: AdcCode(2048),
+                current: AdcCode(self.dac.map_or(2048, |d| d.0)),
                 ..Default::default()
             }
         }
         fn write_current(&mut self, dac: DacCode) {
             self.dac = Some(dac);
             self.writes += 1;
+        }
+        fn drive_fault_asserted(&mut self) -> bool {
+            self.fault_line
         }
     }
 
@@ -319,6 +357,184 @@ mod tests {
         assert_eq!((o.output.fault, cl.phase()), (None, Phase::Check));
     }
 
+    /// Program the loop and tick until homing enables the drive (the
+    /// `Still` front end never shows an origin edge, so homing runs its
+    /// search with the drive on).
+    fn start_driving(
+        cl: &mut ControlLoop,
+        fe: &mut Still,
+        drive: &mut DriveEnable<MockOut>,
+        events: &Events,
+        program: Program,
+    ) {
+        cl.tick(
+            fe,
+            drive,
+            events,
+            Some(Request::Program(program)),
+            &mut NoCycles,
+        );
+        for _ in 0..400 {
+            if cl
+                .tick(fe, drive, events, None, &mut NoCycles)
+                .record
+                .drive_enable
+            {
+                return;
+            }
+        }
+        panic!("homing never enabled the drive");
+    }
+
+    #[test]
+    fn clear_is_refused_while_the_drive_fault_line_stays_asserted() {
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        let mut fe = Still::default();
+        let pin = MockOut::default();
+        let mut drive = DriveEnable::new(pin.clone());
+        let events = Events::new();
+        start_driving(&mut cl, &mut fe, &mut drive, &events, Program::default());
+        let highs = pin.high_count();
+        // The line goes low and stays low; its one edge is long handled (no
+        // event waits): only the level tells.
+        fe.fault_line = true;
+        let o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+        assert_eq!(
+            o.output.fault,
+            Some(Fault::DriveFault),
+            "latched from the level"
+        );
+        assert!(!o.record.drive_enable && !pin.is_high());
+        for k in 0..300 {
+            let req = (k % 50 == 0).then_some(Request::ClearFault);
+            let o = cl.tick(&mut fe, &mut drive, &events, req, &mut NoCycles);
+            assert_eq!(o.output.fault, Some(Fault::DriveFault), "tick {k}");
+            assert!(!o.record.drive_enable);
+        }
+        assert_eq!(pin.high_count(), highs, "never re-enabled while asserted");
+        assert_eq!(cl.rejected_requests(), 6, "every clear refused");
+        // The line releases: the clear is accepted and homing starts over.
+        fe.fault_line = false;
+        cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+        let o = cl.tick(
+            &mut fe,
+            &mut drive,
+            &events,
+            Some(Request::ClearFault),
+            &mut NoCycles,
+        );
+        assert_eq!((o.output.fault, cl.phase()), (None, Phase::Check));
+        assert_eq!(cl.rejected_requests(), 6);
+    }
+
+    #[test]
+    fn a_fault_arriving_just_before_a_clear_is_latched_after_it() {
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        let mut fe = Still::default();
+        let mut drive = DriveEnable::new(MockOut::default());
+        let events = Events::new();
+        start_driving(&mut cl, &mut fe, &mut drive, &events, Program::default());
+        cl.overrun(&mut drive);
+        // A fault task leaves a fault between the last tick and the one that
+        // carries the operator's clear.
+        events.raise(Fault::OriginDuringMotion);
+        let o = cl.tick(
+            &mut fe,
+            &mut drive,
+            &events,
+            Some(Request::ClearFault),
+            &mut NoCycles,
+        );
+        assert_eq!(cl.rejected_requests(), 1, "refused: a fault was waiting");
+        assert_eq!(o.output.fault, Some(Fault::Overrun));
+        assert!(!o.record.drive_enable);
+        // Nothing waits now: the next clear goes through, and the pending
+        // fault was not lost before it (first fault wins in the latch).
+        let o = cl.tick(
+            &mut fe,
+            &mut drive,
+            &events,
+            Some(Request::ClearFault),
+            &mut NoCycles,
+        );
+        assert_eq!(o.output.fault, None);
+        assert_eq!(cl.phase(), Phase::Check);
+    }
+
+    #[test]
+    fn a_host_program_without_requests_times_out_with_the_drive_off() {
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        let mut fe = Still::default();
+        let pin = MockOut::default();
+        let mut drive = DriveEnable::new(pin.clone());
+        let events = Events::new();
+        let program = Program {
+            command_timeout_s: 0.1,
+            ..Program::default()
+        };
+        start_driving(&mut cl, &mut fe, &mut drive, &events, program);
+        // Heartbeats every 0.05 s keep it going for a second.
+        for k in 0..2000u32 {
+            let req = (k % 100 == 99).then_some(Request::Heartbeat);
+            let o = cl.tick(&mut fe, &mut drive, &events, req, &mut NoCycles);
+            assert_eq!(o.output.fault, None, "tick {k}");
+        }
+        // Silence: the fault comes after 0.1 s (200 ticks), not before.
+        let mut faulted_at = None;
+        for k in 0..400u32 {
+            let o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+            if o.output.fault.is_some() {
+                assert_eq!(o.output.fault, Some(Fault::CommandTimeout));
+                assert!(!o.record.drive_enable && !pin.is_high());
+                faulted_at = Some(k);
+                break;
+            }
+        }
+        let k = faulted_at.expect("the timeout must trip");
+        assert!((195..=205).contains(&k), "after 0.1 s: tick {k}");
+        assert_eq!(cl.phase(), Phase::Failed);
+        // The built-in program has no timeout.
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        start_driving(&mut cl, &mut fe, &mut drive, &events, Program::default());
+        for _ in 0..1000 {
+            let o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+            assert_eq!(o.output.fault, None);
+        }
+    }
+
+    #[test]
+    fn a_fault_from_before_the_reset_keeps_the_drive_off_until_cleared() {
+        let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
+        let mut fe = Still::default();
+        let pin = MockOut::default();
+        let mut drive = DriveEnable::new(pin.clone());
+        let events = Events::new();
+        let boot = crate::board::boot::boot_fault(None, true);
+        cl.report_boot_fault(boot.unwrap());
+        cl.tick(
+            &mut fe,
+            &mut drive,
+            &events,
+            Some(Request::Program(Program::default())),
+            &mut NoCycles,
+        );
+        for _ in 0..400 {
+            let o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
+            assert_eq!(o.record.fault, Fault::Watchdog.code());
+            assert!(!o.record.drive_enable);
+        }
+        assert_eq!(cl.phase(), Phase::Failed);
+        assert_eq!(pin.high_count(), 0);
+        let o = cl.tick(
+            &mut fe,
+            &mut drive,
+            &events,
+            Some(Request::ClearFault),
+            &mut NoCycles,
+        );
+        assert_eq!((o.output.fault, cl.phase()), (None, Phase::Check));
+    }
+
     #[test]
     fn overrun_latches_and_cuts_the_drive() {
         let mut cl = ControlLoop::new(Config::default(), 1).unwrap();
@@ -334,6 +550,31 @@ mod tests {
     #[test]
     fn requests_are_validated_and_commands_wait_for_homing() {
         assert!(Request::SetDecimation(0).validate().is_err());
+        let nan_hold = Command {
+            mode: Mode::JointClosedLoop,
+            trajectory: crate::trajectory::Trajectory::Hold {
+                angle_rad: f32::NAN,
+            },
+        };
+        assert_eq!(
+            Request::SetCommand(nan_hold).validate().unwrap_err().field,
+            "command.trajectory"
+        );
+        let mut p = Program::default();
+        p.homing.speed_rad_s = 0.0;
+        assert_eq!(
+            Request::Program(p).validate().unwrap_err().field,
+            "homing.speed_rad_s"
+        );
+        p = Program {
+            command_timeout_s: -1.0,
+            ..Program::default()
+        };
+        assert_eq!(
+            Request::Program(p).validate().unwrap_err().field,
+            "program.command_timeout_s"
+        );
+        assert!(Request::Program(Program::default()).validate().is_ok());
         let mut bad = Config::default();
         bad.machine.gear_ratio = 0.0;
         assert_eq!(

@@ -30,6 +30,10 @@ pub trait SensorFrontEnd {
     /// Write the current reference to the DAC (applied by the hardware at the
     /// next control-timer update, so the output instant does not jitter).
     fn write_current(&mut self, dac: DacCode);
+    /// Is the drive's fault line asserted *now*? Read every tick: the EXTI
+    /// task sees only edges, and a line that stays asserted raises none.
+    /// A line that cannot be read counts as asserted.
+    fn drive_fault_asserted(&mut self) -> bool;
 }
 
 /// Cuts the drive enable line from any priority, without owning the pin (on
@@ -126,6 +130,16 @@ impl Events {
         self.drive_fault_level.load(Ordering::SeqCst)
     }
 
+    /// Record the drive fault line's level as the control task read it this
+    /// tick; an asserted line leaves [`Fault::DriveFault`] (level-sensitive:
+    /// it is raised again every tick while the line stays asserted).
+    pub fn set_drive_fault_level(&self, asserted: bool) {
+        self.drive_fault_level.store(asserted, Ordering::SeqCst);
+        if asserted {
+            self.raise(Fault::DriveFault);
+        }
+    }
+
     /// Both input levels, for telemetry.
     pub fn inputs(&self) -> Inputs {
         Inputs::new(self.origin_level(), self.drive_fault_level())
@@ -211,7 +225,8 @@ impl<P: OutputPin> DriveEnable<P> {
         d
     }
 
-    /// Enable the drive if `want` and no fault is waiting in `events`.
+    /// Enable the drive if `want`, no fault is waiting in `events` and the
+    /// drive's fault line is not asserted.
     ///
     /// A fault task may cut the line between the check and the write; the
     /// line is checked again after enabling and cut if a fault arrived, so an
@@ -219,7 +234,8 @@ impl<P: OutputPin> DriveEnable<P> {
     /// between the write and the re-check (far below a drive's enable-input
     /// filter time). Returns the level left on the line.
     pub fn apply(&mut self, want: bool, events: &Events) -> bool {
-        if !want || events.fault_pending() {
+        let blocked = |e: &Events| e.fault_pending() || e.drive_fault_level();
+        if !want || blocked(events) {
             self.disable();
             return false;
         }
@@ -227,7 +243,7 @@ impl<P: OutputPin> DriveEnable<P> {
             self.disable();
             return false;
         }
-        if events.fault_pending() {
+        if blocked(events) {
             self.disable();
             return false;
         }

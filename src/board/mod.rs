@@ -16,6 +16,8 @@
 //! * [`control`]: one control tick ([`ControlLoop::tick`]): sample, apply
 //!   pending requests and events, `Controller::step_timed`, DAC, drive line,
 //!   telemetry record.
+//! * [`boot`]: the fault a panic, HardFault or watchdog reset left for the
+//!   next boot.
 //! * [`timing`]: per-stage cycle stamps ([`StageStamps`]) over a
 //!   [`CycleCounter`] (DWT on hardware, TIM2 under QEMU).
 //! * [`trace`]: the recorded sensor trace the QEMU build replays
@@ -25,6 +27,7 @@
 //! Register-level code (clocks, timers, ADC, DAC, EXTI, the panic handler) is
 //! in the firmware binary's own modules, the only code that touches registers.
 
+pub mod boot;
 pub mod control;
 pub mod io;
 pub mod sequencer;

@@ -63,6 +63,30 @@ impl Default for HomingConfig {
     }
 }
 
+impl HomingConfig {
+    /// Check every field (the command task's check of a program).
+    pub fn validate(&self) -> Result<(), crate::ConfigError> {
+        let err = |field, expected| Err(crate::ConfigError { field, expected });
+        let in_range = |v: f32, lo: f32, hi: f32| v.is_finite() && v >= lo && v <= hi;
+        if !in_range(self.check_s, 0.0, 10.0) {
+            return err("homing.check_s", "within 0..=10 s");
+        }
+        if !in_range(self.max_idle_current_a, 0.0, 10.0) {
+            return err("homing.max_idle_current_a", "within 0..=10 A");
+        }
+        if !in_range(math::abs(self.search_rad), 0.01, 5.0) {
+            return err("homing.search_rad", "a magnitude within 0.01..=5 rad");
+        }
+        if !in_range(self.speed_rad_s, 0.01, 20.0) {
+            return err("homing.speed_rad_s", "within 0.01..=20 rad/s");
+        }
+        if !in_range(self.origin_tolerance_rad, 0.0, 1.0) {
+            return err("homing.origin_tolerance_rad", "within 0..=1 rad");
+        }
+        Ok(())
+    }
+}
+
 /// What the firmware does after start-up.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Program {
@@ -70,6 +94,11 @@ pub struct Program {
     pub homing: HomingConfig,
     /// Command run once homed.
     pub command: Command,
+    /// A host-driven program sets this: with no request (any request,
+    /// [`super::Request::Heartbeat`] at least) for this long, s, the program
+    /// ends with [`Fault::CommandTimeout`] and the drive off. 0 = off, for
+    /// autonomous programs (the built-in one).
+    pub command_timeout_s: f32,
 }
 
 impl Default for Program {
@@ -78,6 +107,7 @@ impl Default for Program {
     fn default() -> Self {
         Self {
             homing: HomingConfig::default(),
+            command_timeout_s: 0.0,
             command: Command {
                 mode: Mode::JointClosedLoop,
                 trajectory: Trajectory::PointToPoint {
@@ -87,6 +117,28 @@ impl Default for Program {
                 },
             },
         }
+    }
+}
+
+impl Program {
+    /// Check the homing settings, the command's trajectory and the timeout.
+    pub fn validate(&self) -> Result<(), crate::ConfigError> {
+        self.homing.validate()?;
+        self.command
+            .trajectory
+            .validate()
+            .map_err(|expected| crate::ConfigError {
+                field: "program.command.trajectory",
+                expected,
+            })?;
+        let t = self.command_timeout_s;
+        if !(t.is_finite() && (0.0..=3600.0).contains(&t)) {
+            return Err(crate::ConfigError {
+                field: "program.command_timeout_s",
+                expected: "within 0 (off)..=3600 s",
+            });
+        }
+        Ok(())
     }
 }
 
@@ -146,6 +198,8 @@ pub struct Sequencer {
     last_ref_rad: f32,
     /// The user's joint-angle range and slack limit while homing widens them.
     user_limits: Option<(f32, f32)>,
+    /// Ticks since the last operator request (command timeout).
+    ticks_since_request: u32,
 }
 
 /// Ticks in `s` seconds at `period_s`, at least one.
@@ -167,6 +221,11 @@ impl Sequencer {
     /// Program in force.
     pub fn program(&self) -> Option<&Program> {
         self.program.as_ref()
+    }
+
+    /// An operator request arrived (any request resets the command timeout).
+    pub fn request_seen(&mut self) {
+        self.ticks_since_request = 0;
     }
 
     /// (Re)start the sequence with `program`: drive disabled, check first.
@@ -265,6 +324,15 @@ impl Sequencer {
         let program = self.program?;
         let h = &program.homing;
         self.ticks_in_phase = self.ticks_in_phase.saturating_add(1);
+        self.ticks_since_request = self.ticks_since_request.saturating_add(1);
+        let active = !matches!(self.phase, Phase::Waiting | Phase::Failed);
+        if active
+            && program.command_timeout_s > 0.0
+            && self.ticks_since_request > ticks(program.command_timeout_s, ctrl.period_s())
+        {
+            self.fail_with(ctrl, Fault::CommandTimeout);
+            return None;
+        }
         match self.phase {
             Phase::Waiting | Phase::Running | Phase::Failed => None,
             Phase::Check => {
@@ -312,8 +380,14 @@ impl Sequencer {
     }
 
     fn fail(&mut self, ctrl: &mut Controller) {
+        self.fail_with(ctrl, Fault::Homing);
+    }
+
+    /// End the program: `fault` latched (unless one already is), command
+    /// idle, phase [`Phase::Failed`].
+    fn fail_with(&mut self, ctrl: &mut Controller, fault: Fault) {
         self.restore_range(ctrl);
-        ctrl.report_fault(Fault::Homing);
+        ctrl.report_fault(fault);
         ctrl.set_command(Command::default());
         self.enter(Phase::Failed);
     }
@@ -352,6 +426,15 @@ mod tests {
     use crate::units::{AdcCode, GratingCount};
     use crate::Config;
 
+    /// The default configuration without the current-tracking check: these
+    /// tests step the controller on a fixed sample, a motor that never
+    /// draws the current it is given.
+    fn config() -> Config {
+        let mut c = Config::default();
+        c.limits.max_current_error_a = 0.0;
+        c
+    }
+
     fn rest() -> RawSample {
         RawSample {
             current: AdcCode(2048),
@@ -376,7 +459,7 @@ mod tests {
 
     #[test]
     fn check_then_homing_then_program_on_the_edge() {
-        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut ctrl = Controller::new(config()).unwrap();
         let mut seq = Sequencer::default();
         let events = Events::new();
         let raw = rest();
@@ -426,7 +509,7 @@ mod tests {
 
     #[test]
     fn no_edge_within_the_search_is_a_homing_fault() {
-        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut ctrl = Controller::new(config()).unwrap();
         let mut seq = Sequencer::default();
         let events = Events::new();
         let program = Program::default();
@@ -451,7 +534,7 @@ mod tests {
 
     #[test]
     fn start_on_the_switch_leaves_it_first() {
-        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut ctrl = Controller::new(config()).unwrap();
         let mut seq = Sequencer::default();
         let events = Events::new();
         seq.start(&mut ctrl, Program::default());
@@ -471,7 +554,7 @@ mod tests {
 
     #[test]
     fn current_with_the_drive_off_fails_the_check() {
-        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut ctrl = Controller::new(config()).unwrap();
         let mut seq = Sequencer::default();
         let events = Events::new();
         seq.start(&mut ctrl, Program::default());
@@ -485,7 +568,7 @@ mod tests {
 
     #[test]
     fn range_check_is_widened_while_homing_and_restored_on_the_edge() {
-        let mut ctrl = Controller::new(Config::default()).unwrap();
+        let mut ctrl = Controller::new(config()).unwrap();
         let mut seq = Sequencer::default();
         let events = Events::new();
         let user = ctrl.config().limits;
@@ -506,7 +589,7 @@ mod tests {
         assert!(user.min_tension_fraction > 0.0);
         // A parameter update while homing keeps the widened range in force
         // and becomes the range restored afterwards.
-        let mut c = Config::default();
+        let mut c = config();
         c.limits.max_joint_angle_rad = 1.2;
         c.limits.min_tension_fraction = 0.3;
         c.jae.offset_rad = 0.01;

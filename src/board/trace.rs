@@ -243,6 +243,11 @@ impl<S: FnMut(Inputs, Inputs)> SensorFrontEnd for ReplayFrontEnd<'_, S> {
     fn write_current(&mut self, dac: DacCode) {
         self.last_dac = Some(dac);
     }
+
+    fn drive_fault_asserted(&mut self) -> bool {
+        // The levels of the sample just played.
+        self.prev.drive_fault()
+    }
 }
 
 /// An input pin whose level the [`Harness`] sets.
@@ -295,6 +300,7 @@ impl DriveKill for KillCount {
 struct OneShot {
     raw: RawSample,
     dac: Option<DacCode>,
+    drive_fault: bool,
 }
 
 impl SensorFrontEnd for OneShot {
@@ -303,6 +309,9 @@ impl SensorFrontEnd for OneShot {
     }
     fn write_current(&mut self, dac: DacCode) {
         self.dac = Some(dac);
+    }
+    fn drive_fault_asserted(&mut self) -> bool {
+        self.drive_fault
     }
 }
 
@@ -362,6 +371,7 @@ impl Harness {
         let mut fe = OneShot {
             raw: sample.raw,
             dac: None,
+            drive_fault: now.drive_fault(),
         };
         self.control.tick(
             &mut fe,
@@ -455,13 +465,18 @@ mod tests {
             inputs: Inputs(0),
         };
         let mut origins = Vec::new();
+        // The drive follows its reference: the monitor reads the last DAC
+        // code back (same scales by default).
+        let mut dac = 2048;
         for k in 0..400u32 {
             let mut s = rest;
+            s.raw.current = AdcCode(dac);
             if k >= 300 {
                 s.inputs = Inputs(Inputs::ORIGIN);
             }
             let req = (k == 0).then_some(Request::Program(Program::default()));
             let o = h.tick(&s, req);
+            dac = o.record.dac.0;
             if let Some(o) = o.origin {
                 origins.push(o.tick);
             }
@@ -471,6 +486,7 @@ mod tests {
         assert!(h.drive_enabled(), "running the program");
         // A drive fault edge cuts and latches.
         let mut s = rest;
+        s.raw.current = AdcCode(dac);
         s.inputs = Inputs(Inputs::ORIGIN | Inputs::DRIVE_FAULT);
         let o = h.tick(&s, None);
         assert_eq!(h.kills(), 1);

@@ -18,6 +18,7 @@
 //! | ADC trigger | TIM8 CC1 → TRGO | – | same period as TIM6, fires 3 µs before its update |
 //! | cycle counter | DWT CYCCNT | – | per-stage cycles in telemetry |
 //! | debug / RTT | SWD | PA13, PA14 | probe-rs |
+//! | watchdog | IWDG (LSI, 17–47 kHz) | – | fed by every tick that completes in time; frozen while a debugger halts the core |
 //!
 //! TIM6's TRGO cannot trigger the ADC on the F407 (RM0090 Table 69 lists no
 //! TIM6 event), so TIM8 runs at TIM6's period from the same 84 MHz count
@@ -36,6 +37,7 @@ use stm32f4xx_hal::{
     prelude::*,
     qei::Qei,
     rcc::{Config as RccConfig, Enable, Reset},
+    watchdog::IndependentWatchdog,
 };
 
 /// One telemetry record every this many ticks (200 Hz at 2 kHz).
@@ -92,6 +94,45 @@ impl SensorFrontEnd for FrontEnd {
             .dhr12r1()
             .write(|w| w.daccdhr().set(dac.0 & 0x0fff));
     }
+
+    #[inline]
+    fn drive_fault_asserted(&mut self) -> bool {
+        // SAFETY: a read of GPIOD's input data register (no side effect);
+        // the EXTI task owns the pin, this reads only its level. PD1 is
+        // active low.
+        let idr = unsafe { (*pac::GPIOD::ptr()).idr().read().bits() };
+        idr & (1 << 1) == 0
+    }
+}
+
+/// The independent watchdog, fed by the control task.
+pub struct Watchdog(IndependentWatchdog);
+
+impl Watchdog {
+    /// Reload the watchdog's counter.
+    #[inline(always)]
+    pub fn feed(&mut self) {
+        self.0.feed();
+    }
+}
+
+/// Watchdog timeout for a control rate, ms: six periods at the LSI's
+/// nominal 32 kHz and at least 5 ms. The LSI may run at 17–47 kHz
+/// (datasheet), so the real timeout is 0.68–1.9 times this: at least four
+/// periods, never a false reset from one late tick.
+fn watchdog_timeout_ms(rate_hz: f32) -> u32 {
+    ((6000.0 / rate_hz) as u32).max(5)
+}
+
+/// Did the independent watchdog cause the last reset? Clears the reset
+/// flags (call once, first thing in init).
+pub fn take_watchdog_reset_flag() -> bool {
+    // SAFETY: RCC_CSR's reset flags are read, then cleared by RMVF; nothing
+    // else uses them and init runs before any task.
+    let rcc = unsafe { &*pac::RCC::ptr() };
+    let by_watchdog = rcc.csr().read().iwdgrstf().bit_is_set();
+    rcc.csr().modify(|_, w| w.rmvf().set_bit());
+    by_watchdog
 }
 
 /// DWT cycle counter.
@@ -179,6 +220,8 @@ pub struct Board {
     pub origin: InputLine<OriginPin>,
     /// Control timer.
     pub tick: TickTimer,
+    /// Independent watchdog, running.
+    pub watchdog: Watchdog,
 }
 
 /// Bring the board up: drive disabled first, then clocks, sensors, inputs,
@@ -283,6 +326,12 @@ pub fn init(dp: pac::Peripherals, mut cp: cortex_m::Peripherals, rate_hz: f32) -
     tim8.cr1().write(|w| w.cen().set_bit());
     tim6.cr1().write(|w| w.cen().set_bit());
 
+    // The watchdog last: from now on only completed ticks keep the MCU
+    // running. Frozen while a debugger halts the core (breakpoints).
+    let mut iwdg = IndependentWatchdog::new(dp.IWDG);
+    iwdg.stop_on_debug(&dp.DBGMCU, true);
+    iwdg.start(watchdog_timeout_ms(rate_hz).millis());
+
     Board {
         front_end,
         counter: Counter,
@@ -290,10 +339,18 @@ pub fn init(dp: pac::Peripherals, mut cp: cortex_m::Peripherals, rate_hz: f32) -
         drive_fault: InputLine::new(fault_pin, true),
         origin: InputLine::new(origin_pin, false),
         tick: TickTimer { tim: tim6 },
+        watchdog: Watchdog(iwdg),
     }
 }
 
-/// Stop after a panic or a fault: `udf` (probe-rs reports it and stops).
+/// After a panic or HardFault (drive already off, boot note written): with a
+/// debugger attached, `udf` (probe-rs stops and shows the backtrace);
+/// otherwise reset, and the next boot reports the fault and keeps the drive
+/// off until an operator clears it.
 pub fn halt_failure() -> ! {
-    cortex_m::asm::udf()
+    if cortex_m::peripheral::DCB::is_debugger_attached() {
+        cortex_m::asm::udf()
+    } else {
+        cortex_m::peripheral::SCB::sys_reset()
+    }
 }

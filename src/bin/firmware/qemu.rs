@@ -121,6 +121,27 @@ impl SensorFrontEnd for FrontEnd {
     fn write_current(&mut self, dac: DacCode) {
         self.replay.write_current(dac);
     }
+
+    #[inline]
+    fn drive_fault_asserted(&mut self) -> bool {
+        self.replay.drive_fault_asserted()
+    }
+}
+
+/// QEMU's netduinoplus2 does not model the IWDG: feeding is a no-op here
+/// (the hardware build runs the real one; its logic, the boot report, is
+/// tested on the host).
+pub struct Watchdog;
+
+impl Watchdog {
+    /// Nothing to feed.
+    #[inline(always)]
+    pub fn feed(&mut self) {}
+}
+
+/// No watchdog, so never a watchdog reset.
+pub fn take_watchdog_reset_flag() -> bool {
+    false
 }
 
 fn trace() -> Option<Trace<'static>> {
@@ -209,6 +230,8 @@ pub struct Board {
     pub origin: InputLine<OriginPin>,
     /// Tick source.
     pub tick: TickTimer,
+    /// No-op watchdog.
+    pub watchdog: Watchdog,
 }
 
 /// Bring the virtual board up: drive disabled, trace checked against the
@@ -242,6 +265,7 @@ pub fn init(dp: pac::Peripherals, _cp: cortex_m::Peripherals, rate_hz: f32) -> B
         drive_fault: InputLine::new(ReplayPin(&FAULT_LEVEL), false),
         origin: InputLine::new(ReplayPin(&ORIGIN_LEVEL), false),
         tick: TickTimer { seen: 0 },
+        watchdog: Watchdog,
     }
 }
 

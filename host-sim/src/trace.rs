@@ -163,9 +163,44 @@ fn boot_relative(raw: &RawSample, boot: &RawSample) -> RawSample {
     }
 }
 
+/// What a scenario does to the closed loop, tick by tick: fault injection
+/// for the fault tests. Every method has the neutral default.
+pub trait Inject {
+    /// Change what the board reads this tick (a counter glitch, an ADC
+    /// stuck at a rail, an input line).
+    fn sample(&mut self, _tick: usize, _t_s: f64, _sample: &mut TraceSample) {}
+    /// The operator's request this tick (default: the built-in program at
+    /// tick 0).
+    fn request(&mut self, tick: usize) -> Option<Request> {
+        (tick == 0).then_some(Request::Program(Program::default()))
+    }
+    /// Before the tick runs (e.g. the previous tick overran).
+    fn before_tick(&mut self, _tick: usize, _harness: &mut Harness) {}
+    /// The current the winding really gets for the drive's `commanded_a`
+    /// (a broken lead: none).
+    fn applied_current(&mut self, _tick: usize, commanded_a: f64) -> f64 {
+        commanded_a
+    }
+}
+
+/// The closed loop as it is.
+pub struct NoInjection;
+
+impl Inject for NoInjection {}
+
 /// Run the closed loop and record it.
 pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorded> {
-    let config = firmware_config();
+    record_with(plant, opts, firmware_config(), &mut NoInjection)
+}
+
+/// Run the closed loop with `config` in the firmware logic and `inject`
+/// acting on it, and record it.
+pub fn record_with(
+    plant: PlantParams,
+    opts: &TraceOptions,
+    config: cable_joint::Config,
+    inject: &mut dyn Inject,
+) -> anyhow::Result<Recorded> {
     anyhow::ensure!(
         opts.duration_s.is_finite() && opts.duration_s > 0.0,
         "--duration-s must be > 0"
@@ -206,11 +241,13 @@ pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorde
             theta >= 0.0,
             opts.drive_fault_at_s >= 0.0 && t_s >= opts.drive_fault_at_s,
         );
-        let sample = TraceSample { raw, inputs };
-        let request = (k == 0).then_some(Request::Program(Program::default()));
+        let mut sample = TraceSample { raw, inputs };
+        inject.sample(k, t_s, &mut sample);
+        let request = inject.request(k);
+        inject.before_tick(k, &mut harness);
         let outcome = harness.tick(&sample, request);
         let current_a = if harness.drive_enabled() {
-            scales.dac_a(outcome.output.dac) as f64
+            inject.applied_current(k, scales.dac_a(outcome.output.dac) as f64)
         } else {
             0.0
         };

@@ -356,6 +356,12 @@ impl Harness {
         self.drive.is_enabled()
     }
 
+    /// The control task overran its deadline (the firmware's check after a
+    /// tick): latch [`crate::Fault::Overrun`] and cut the drive.
+    pub fn overrun(&mut self) {
+        self.control.overrun(&mut self.drive);
+    }
+
     /// One tick on `sample`, with an optional operator request.
     pub fn tick(&mut self, sample: &TraceSample, request: Option<Request>) -> TickOutcome {
         let now = sample.inputs;

@@ -130,7 +130,7 @@ pub fn take_watchdog_reset_flag() -> bool {
     // SAFETY: RCC_CSR's reset flags are read, then cleared by RMVF; nothing
     // else uses them and init runs before any task.
     let rcc = unsafe { &*pac::RCC::ptr() };
-    let by_watchdog = rcc.csr().read().iwdgrstf().bit_is_set();
+    let by_watchdog = rcc.csr().read().wdgrstf().bit_is_set(); // bit 29, IWDGRSTF
     rcc.csr().modify(|_, w| w.rmvf().set_bit());
     by_watchdog
 }

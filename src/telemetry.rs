@@ -28,7 +28,7 @@ use crate::fault::Fault;
 use crate::units::{AdcCode, DacCode, GratingCount, MagneticCount, MotorCount};
 
 /// Version of the byte layout (carried by [`StartRecord`]).
-pub const FORMAT_VERSION: u8 = 1;
+pub const FORMAT_VERSION: u8 = 2;
 
 /// Marker that starts a telemetry line in the decoded defmt text.
 pub const LINE_MARKER: &str = "tlm ";
@@ -81,6 +81,12 @@ pub struct TickRecord {
     pub theta_hat_rad: f32,
     /// Estimated external tip force (DOB), N.
     pub f_ext_hat_n: f32,
+    /// Fused tip-force estimate, N (since format version 2).
+    pub f_ext_fused_n: f32,
+    /// Lower end of the fused estimate's bound, N (version 2).
+    pub f_ext_lo_n: f32,
+    /// Upper end of the fused estimate's bound, N (version 2).
+    pub f_ext_hi_n: f32,
     /// Mode in force ([`Mode::code`]).
     pub mode: u8,
     /// Latched fault ([`Fault::code_of`], 0 = none).
@@ -271,7 +277,7 @@ impl OriginRecord {
 
 impl TickRecord {
     /// Encoded length, bytes.
-    pub const LEN: usize = 1 + 4 + RAW_LEN + 1 + 2 + 4 * 4 + 4 + 4 + 2 * 4;
+    pub const LEN: usize = 1 + 4 + RAW_LEN + 1 + 2 + 7 * 4 + 4 + 4 + 2 * 4;
 
     /// Mode decoded from [`TickRecord::mode`].
     pub fn mode(&self) -> Option<Mode> {
@@ -333,6 +339,9 @@ impl Record {
                 w.f32(t.theta_ref_rad);
                 w.f32(t.theta_hat_rad);
                 w.f32(t.f_ext_hat_n);
+                w.f32(t.f_ext_fused_n);
+                w.f32(t.f_ext_lo_n);
+                w.f32(t.f_ext_hi_n);
                 w.u8(t.mode);
                 w.u8(t.fault);
                 w.u8(t.drive_enable as u8);
@@ -388,6 +397,9 @@ impl Record {
                 theta_ref_rad: r.f32(),
                 theta_hat_rad: r.f32(),
                 f_ext_hat_n: r.f32(),
+                f_ext_fused_n: r.f32(),
+                f_ext_lo_n: r.f32(),
+                f_ext_hi_n: r.f32(),
                 mode: r.u8(),
                 fault: r.u8(),
                 drive_enable: r.u8() != 0,
@@ -458,6 +470,9 @@ mod tests {
             theta_ref_rad: 0.25,
             theta_hat_rad: f32::from_bits(0x0000_0001), // a denormal survives
             f_ext_hat_n: -0.0,
+            f_ext_fused_n: 1.5,
+            f_ext_lo_n: f32::NEG_INFINITY,
+            f_ext_hi_n: 3.25,
             mode: Mode::JointClosedLoop.code(),
             fault: Fault::Overrun.code(),
             drive_enable: true,

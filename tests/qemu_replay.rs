@@ -128,6 +128,9 @@ fn differences(fw: &TickRecord, host: &TickRecord) -> Vec<String> {
     f("theta_ref_rad", fw.theta_ref_rad, host.theta_ref_rad);
     f("theta_hat_rad", fw.theta_hat_rad, host.theta_hat_rad);
     f("f_ext_hat_n", fw.f_ext_hat_n, host.f_ext_hat_n);
+    f("f_ext_fused_n", fw.f_ext_fused_n, host.f_ext_fused_n);
+    f("f_ext_lo_n", fw.f_ext_lo_n, host.f_ext_lo_n);
+    f("f_ext_hi_n", fw.f_ext_hi_n, host.f_ext_hi_n);
     let ints = [
         ("tick", fw.tick as i64, host.tick as i64),
         ("dac", fw.dac.0 as i64, host.dac.0 as i64),

@@ -14,7 +14,8 @@
 //! 1030 rad/s of the motor, near its speed limit; lower the decimation for
 //! faster motion). Output columns: DESIGN.md §2's `t_s`, `x1_m`, `x2_m`,
 //! `phi_rad`, `i_ref_a`, `i_meas_a`, (`theta_rad` with `--magnetic`),
-//! `theta_ref_rad`, then `theta_hat_rad`, `f_ext_hat_n`, `dac_code`, `mode`,
+//! `theta_ref_rad`, then `theta_hat_rad`, `f_ext_hat_n`, `f_ext_fused_n`,
+//! `f_ext_lo_n`, `f_ext_hi_n`, `dac_code`, `mode`,
 //! `fault_code`, `drive_enable`, `fw_phase`, `origin_switch`,
 //! `drive_fault_line`, `tick` and the cycle counts `cycles`,
 //! `cycles_sensing`, `cycles_jae`, `cycles_dob`, `cycles_cascade`.
@@ -93,6 +94,9 @@ pub fn columns(opts: &LogOptions) -> Vec<&'static str> {
         "theta_ref_rad",
         "theta_hat_rad",
         "f_ext_hat_n",
+        "f_ext_fused_n",
+        "f_ext_lo_n",
+        "f_ext_hi_n",
         "dac_code",
         "mode",
         "fault_code",
@@ -183,11 +187,14 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
     Ok(log)
 }
 
-fn tick_columns(t: &TickRecord) -> [f64; 16] {
+fn tick_columns(t: &TickRecord) -> [f64; 19] {
     [
         t.theta_ref_rad as f64,
         t.theta_hat_rad as f64,
         t.f_ext_hat_n as f64,
+        t.f_ext_fused_n as f64,
+        t.f_ext_lo_n as f64,
+        t.f_ext_hi_n as f64,
         t.dac.0 as f64,
         t.mode as f64,
         t.fault as f64,

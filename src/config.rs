@@ -516,7 +516,7 @@ fn non_negative(field: &'static str, v: f32) -> Result<(), ConfigError> {
     }
 }
 
-fn within(
+pub(crate) fn within(
     field: &'static str,
     v: f32,
     range: impl core::ops::RangeBounds<f32>,

@@ -258,8 +258,10 @@ impl Derived {
         derived
     }
 
-    /// Largest possible counter step per tick from the fault limits, plus two
-    /// counts of jitter (cheap: no filter redesign).
+    /// The constants the fault checks use, from the fault limits (cheap: no
+    /// filter redesign): the largest possible counter step per tick plus two
+    /// counts of jitter, and the per-tick weights of the I²t and
+    /// current-error low-passes.
     fn set_steps(&mut self, c: &Config) {
         let (s, period_s) = (&c.scales, self.period_s);
         let grating = c.limits.max_grating_speed_m_s * period_s / s.grating_m_per_count;

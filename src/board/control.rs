@@ -327,20 +327,8 @@ mod tests {
         let pin = MockOut::default();
         let mut drive = DriveEnable::new(pin.clone());
         let events = Events::new();
-        cl.tick(
-            &mut fe,
-            &mut drive,
-            &events,
-            Some(Request::Program(Program::default())),
-            &mut NoCycles,
-        );
-        // Run until homing enables the drive.
-        let mut o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
-        while !o.record.drive_enable {
-            o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
-            assert!(o.record.tick < 200, "homing should enable the drive");
-        }
-        assert_eq!(o.output.mode, Mode::MotorPosition);
+        start_driving(&mut cl, &mut fe, &mut drive, &events, Program::default());
+        assert_eq!(cl.controller().command().mode, Mode::MotorPosition);
         assert!(pin.is_high());
         events.raise(Fault::DriveFault);
         let o = cl.tick(&mut fe, &mut drive, &events, None, &mut NoCycles);
@@ -377,7 +365,7 @@ mod tests {
             Some(Request::Program(program)),
             &mut NoCycles,
         );
-        for _ in 0..400 {
+        for _ in 0..200 {
             if cl
                 .tick(fe, drive, events, None, &mut NoCycles)
                 .record
@@ -386,7 +374,7 @@ mod tests {
                 return;
             }
         }
-        panic!("homing never enabled the drive");
+        panic!("homing should enable the drive within 200 ticks");
     }
 
     #[test]

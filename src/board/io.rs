@@ -160,10 +160,7 @@ impl Events {
     /// armed (an asserted drive fault line has no edge to report it).
     pub fn init_levels(&self, origin: bool, drive_fault: bool) {
         self.origin_level.store(origin, Ordering::SeqCst);
-        self.drive_fault_level.store(drive_fault, Ordering::SeqCst);
-        if drive_fault {
-            self.raise(Fault::DriveFault);
-        }
+        self.set_drive_fault_level(drive_fault);
     }
 }
 
@@ -175,10 +172,9 @@ pub fn on_drive_fault_edge<P: InputPin, K: DriveKill>(
     events: &Events,
 ) -> Option<Fault> {
     let asserted = line.asserted();
-    events.drive_fault_level.store(asserted, Ordering::SeqCst);
+    events.set_drive_fault_level(asserted);
     if asserted {
         kill.kill();
-        events.raise(Fault::DriveFault);
         Some(Fault::DriveFault)
     } else {
         None

@@ -28,6 +28,7 @@
 //!    farther than [`HomingConfig::origin_tolerance_rad`] from zero (by the
 //!    joint estimate) is [`Fault::OriginDuringMotion`].
 
+use crate::config::within;
 use crate::controller::{Command, Controller, Mode, Output, RawSample};
 use crate::fault::Fault;
 use crate::math;
@@ -66,24 +67,36 @@ impl Default for HomingConfig {
 impl HomingConfig {
     /// Check every field (the command task's check of a program).
     pub fn validate(&self) -> Result<(), crate::ConfigError> {
-        let err = |field, expected| Err(crate::ConfigError { field, expected });
-        let in_range = |v: f32, lo: f32, hi: f32| v.is_finite() && v >= lo && v <= hi;
-        if !in_range(self.check_s, 0.0, 10.0) {
-            return err("homing.check_s", "within 0..=10 s");
-        }
-        if !in_range(self.max_idle_current_a, 0.0, 10.0) {
-            return err("homing.max_idle_current_a", "within 0..=10 A");
-        }
-        if !in_range(math::abs(self.search_rad), 0.01, 5.0) {
-            return err("homing.search_rad", "a magnitude within 0.01..=5 rad");
-        }
-        if !in_range(self.speed_rad_s, 0.01, 20.0) {
-            return err("homing.speed_rad_s", "within 0.01..=20 rad/s");
-        }
-        if !in_range(self.origin_tolerance_rad, 0.0, 1.0) {
-            return err("homing.origin_tolerance_rad", "within 0..=1 rad");
-        }
-        Ok(())
+        within(
+            "homing.check_s",
+            self.check_s,
+            0.0..=10.0,
+            "within 0..=10 s",
+        )?;
+        within(
+            "homing.max_idle_current_a",
+            self.max_idle_current_a,
+            0.0..=10.0,
+            "within 0..=10 A",
+        )?;
+        within(
+            "homing.search_rad",
+            math::abs(self.search_rad),
+            0.01..=5.0,
+            "a magnitude within 0.01..=5 rad",
+        )?;
+        within(
+            "homing.speed_rad_s",
+            self.speed_rad_s,
+            0.01..=20.0,
+            "within 0.01..=20 rad/s",
+        )?;
+        within(
+            "homing.origin_tolerance_rad",
+            self.origin_tolerance_rad,
+            0.0..=1.0,
+            "within 0..=1 rad",
+        )
     }
 }
 
@@ -131,14 +144,12 @@ impl Program {
                 field: "program.command.trajectory",
                 expected,
             })?;
-        let t = self.command_timeout_s;
-        if !(t.is_finite() && (0.0..=3600.0).contains(&t)) {
-            return Err(crate::ConfigError {
-                field: "program.command_timeout_s",
-                expected: "within 0 (off)..=3600 s",
-            });
-        }
-        Ok(())
+        within(
+            "program.command_timeout_s",
+            self.command_timeout_s,
+            0.0..=3600.0,
+            "within 0 (off)..=3600 s",
+        )
     }
 }
 

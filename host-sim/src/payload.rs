@@ -226,7 +226,9 @@ pub const ORIENT_COLS: [&str; 9] = [
     "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33",
 ];
 
-/// Load `<dir>/<prefix>_{wrench,accel,orientations}.csv` (timestamps in µs).
+/// Load `<dir>/<prefix>_{wrench,accel,orientations}.csv` (timestamps in µs,
+/// rebased to s after the first wrench sample; a time that is no longer
+/// finite and increasing once rebased is an error naming the file and line).
 pub fn load_run(dir: &Path, prefix: &str) -> Result<Run> {
     let p = |s: &str| dir.join(format!("{prefix}_{s}.csv"));
     let (tw, w) = read_columns(&p("wrench"), WRENCH_COLS, Some("t"), 10)?;
@@ -238,13 +240,49 @@ pub fn load_run(dir: &Path, prefix: &str) -> Result<Run> {
         to.unwrap_or_default(),
     );
     let t0 = tw[0];
-    let s = |t: Vec<f64>| t.into_iter().map(|x| (x - t0) * 1e-6).collect();
     Ok(Run {
         name: prefix.to_owned(),
-        wrench: Stream { t_s: s(tw), v: w },
-        accel_g: Stream { t_s: s(ta), v: a },
-        orient: Stream { t_s: s(to), v: o },
+        wrench: Stream {
+            t_s: rebase_us(&p("wrench"), &tw, t0)?,
+            v: w,
+        },
+        accel_g: Stream {
+            t_s: rebase_us(&p("accel"), &ta, t0)?,
+            v: a,
+        },
+        orient: Stream {
+            t_s: rebase_us(&p("orientations"), &to, t0)?,
+            v: o,
+        },
     })
+}
+
+/// Times in µs to s since `t0_us` (the first wrench sample).
+///
+/// # Errors
+/// A time that is not finite, or no longer after the previous one, once
+/// rebased (times too large or too far from `t0_us` for an `f64`), naming
+/// the file and the line.
+fn rebase_us(path: &Path, t_us: &[f64], t0_us: f64) -> Result<Vec<f64>> {
+    let t_s: Vec<f64> = t_us.iter().map(|x| (x - t0_us) * 1e-6).collect();
+    for k in 0..t_s.len() {
+        let what = if !t_s[k].is_finite() {
+            "not a finite time"
+        } else if k > 0 && t_s[k] <= t_s[k - 1] {
+            "not after the previous sample's"
+        } else {
+            continue;
+        };
+        bail!(
+            "{}:{}: column \"t\": {:e} µs is {:e} s after the first wrench sample: {what} (times too \
+             large or too far apart)",
+            path.display(),
+            crate::log::line_of_row(k),
+            t_us[k],
+            t_s[k],
+        );
+    }
+    Ok(t_s)
 }
 
 /// The static calibration poses.
@@ -275,14 +313,26 @@ pub fn load_static_poses(path: &Path) -> Result<StaticPoses> {
 }
 
 /// Per-axis standard deviation of `0-steady-state_wrench.csv` (sensor at
-/// rest), N and N·m.
+/// rest), N and N·m. An axis whose deviation overflows (finite but huge
+/// cells) is an error naming the file and the column.
 pub fn steady_state_noise(path: &Path) -> Result<[f64; 6]> {
     let (_, w) = read_columns(path, WRENCH_COLS, None, 10)?;
     let n = w.len() as f64;
-    Ok(std::array::from_fn(|k| {
+    let sd: [f64; 6] = std::array::from_fn(|k| {
         let m = w.iter().map(|r| r[k]).sum::<f64>() / n;
         (w.iter().map(|r| (r[k] - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-    }))
+    });
+    // Finite cells can still overflow the sum or the squares; an infinite
+    // standard deviation would silently give its axis a zero weight.
+    if let Some(k) = sd.iter().position(|s| !s.is_finite()) {
+        bail!(
+            "{}: column \"{}\": the standard deviation is {}: values too large",
+            path.display(),
+            WRENCH_COLS[k],
+            sd[k]
+        );
+    }
+    Ok(sd)
 }
 
 // ---------------------------------------------------------- conventions

@@ -9,7 +9,9 @@
 //! targets in `host-sim/fuzz/` (see `docs/fuzzing.md`). Every file under
 //! `tests/data/fuzz/<target>/` (inputs that once failed) is replayed too.
 //!
-//! `PROPTEST_CASES` overrides the case counts below.
+//! The runs are deterministic (a fixed seed) so that CI is repeatable;
+//! `PROPTEST_RNG_SEED=<n>` explores other inputs and `PROPTEST_CASES`
+//! overrides the case counts below.
 
 mod fuzz_support;
 
@@ -26,7 +28,7 @@ use host_sim::ingest::parse_stream;
 use host_sim::log::{Log, Schema, REQUIRED_COLUMNS};
 use host_sim::plant::PlantParams;
 use proptest::prelude::*;
-use proptest::test_runner::Config as ProptestConfig;
+use proptest::test_runner::{Config as ProptestConfig, RngSeed};
 
 /// Cases per property for the cheap parsers (in-memory, one pass).
 const CASES: u32 = 256;
@@ -43,6 +45,10 @@ fn cases(n: u32) -> ProptestConfig {
         // A failure is kept as a regression test in tests/data/fuzz/, not
         // in proptest's own files.
         failure_persistence: None,
+        rng_seed: match std::env::var("PROPTEST_RNG_SEED") {
+            Ok(v) => RngSeed::Fixed(v.parse().expect("PROPTEST_RNG_SEED is a number")),
+            Err(_) => RngSeed::Fixed(10),
+        },
         ..ProptestConfig::default()
     }
 }
@@ -565,6 +571,40 @@ fn kept_crashes_and_seeds_do_not_fail() {
         assert!(seeds > 0, "no seed for {target}");
         eprintln!("{target}: {n} kept inputs, {seeds} seeds replayed");
     }
+}
+
+/// The two KUKA inputs the property tests found (kept in
+/// `tests/data/fuzz/kuka/`), with the messages they now give.
+#[test]
+fn kuka_overflows_are_errors_naming_file_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    for f in oracle::KUKA_FILES {
+        std::fs::write(dir.path().join(f), oracle::kuka_head(f)).unwrap();
+    }
+    let kept = |name: &str| std::fs::read(regression_dir("kuka").join(name)).unwrap()[1..].to_vec();
+
+    let noise = dir.path().join(oracle::KUKA_FILES[4]);
+    std::fs::write(&noise, kept("noise_overflow")).unwrap();
+    let msg = format!(
+        "{:#}",
+        host_sim::payload::steady_state_noise(&noise).unwrap_err()
+    );
+    assert!(
+        msg.starts_with(&format!("{}: column \"fz\": ", noise.display())),
+        "{msg}"
+    );
+
+    let wrench = dir.path().join(oracle::KUKA_FILES[0]);
+    std::fs::write(&wrench, kept("time_rebase_collapses")).unwrap();
+    let msg = format!(
+        "{:#}",
+        host_sim::payload::load_run(dir.path(), "1-baseline").unwrap_err()
+    );
+    assert!(
+        msg.starts_with(&format!("{}:4: column \"t\": ", wrench.display())),
+        "{msg}"
+    );
+    assert!(msg.len() < 300, "{msg}");
 }
 
 // --- CSV log -------------------------------------------------------------------

@@ -302,11 +302,11 @@ fn check_stream<const N: usize>(s: &payload::Stream<N>, what: &str) {
     assert_eq!(s.t_s.len(), s.v.len(), "{what}: times and values");
     assert!(s.len() >= 10, "{what}: {} samples accepted", s.len());
     for (k, t) in s.t_s.iter().enumerate() {
-        assert!(t.is_finite(), "{what}: t_s[{k}] = {t}");
+        assert!(t.is_finite(), "{what}: t_s[{k}] = {t:e}");
         if k > 0 {
             assert!(
                 *t > s.t_s[k - 1],
-                "{what}: t_s[{k}] = {t} after {} (accepted, not increasing)",
+                "{what}: t_s[{k}] = {t:e} after {:e} (accepted, not increasing)",
                 s.t_s[k - 1]
             );
         }
@@ -509,23 +509,26 @@ pub const TARGETS: [(&str, Oracle); 6] = [
     ("trace", trace),
 ];
 
-/// Runs `oracle` on every file of `dir` (the kept crashes); the number of
-/// files run.
+/// Runs `oracle` on every file of `dir` (kept crashes or seeds; `*.md`
+/// skipped); the number of files run.
+///
+/// # Panics
+/// After all files ran, naming every file that failed.
 pub fn replay_dir(dir: &Path, oracle: Oracle) -> usize {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return 0;
     };
     let mut files: Vec<PathBuf> = entries.map(|e| e.unwrap().path()).collect();
     files.sort();
-    let mut n = 0;
-    for f in files.iter().filter(|f| f.is_file()) {
-        if f.extension().is_some_and(|e| e == "md") {
-            continue;
-        }
-        let data = std::fs::read(f).unwrap();
-        let outcome = std::panic::catch_unwind(|| oracle(&data));
-        assert!(outcome.is_ok(), "regression input {} fails", f.display());
-        n += 1;
-    }
-    n
+    files.retain(|f| f.is_file() && f.extension().is_none_or(|e| e != "md"));
+    let failed: Vec<String> = files
+        .iter()
+        .filter(|f| {
+            let data = std::fs::read(f).unwrap();
+            std::panic::catch_unwind(|| oracle(&data)).is_err()
+        })
+        .map(|f| f.display().to_string())
+        .collect();
+    assert!(failed.is_empty(), "inputs that fail: {failed:#?}");
+    files.len()
 }

@@ -77,7 +77,7 @@ use serde::Serialize;
 
 use crate::cli;
 use crate::derive::{config_for_log, derive};
-use crate::log::Log;
+use crate::log::{toml_error, Log};
 use crate::output::Outputs;
 
 /// Most regressors one model has (model B, Eq. 23).
@@ -1737,7 +1737,7 @@ pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading configuration {}", path.display()))?;
     let config: Config = toml::from_str(&text)
-        .map_err(|e| anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+        .map_err(|e| anyhow!("{}: {}", path.display(), toml_error(&text, &e)))?;
     config
         .validate()
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;

@@ -31,7 +31,7 @@ use cable_joint::telemetry::{parse_line, Record, StartRecord, TickRecord};
 use cable_joint::units::{Extender16, GratingCount, Scales};
 use cable_joint::Config;
 
-use crate::log::{Log, DEFAULT_MIN_ROWS};
+use crate::log::{toml_error, Log, DEFAULT_MIN_ROWS};
 
 /// Arguments of `host-sim ingest`.
 #[derive(clap::Args, Debug, Clone)]
@@ -291,8 +291,8 @@ pub fn load_config(path: Option<&Path>) -> anyhow::Result<Config> {
     };
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let config: Config =
-        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let config: Config = toml::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), toml_error(&text, &e)))?;
     config
         .validate()
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;

@@ -210,6 +210,59 @@ pub fn quoted(text: &str) -> String {
     }
 }
 
+/// Most characters of a TOML error's message, and of the line it quotes,
+/// that [`toml_error`] keeps.
+pub const MAX_TOML_CHARS: usize = 160;
+
+/// `text` cut after `max` characters, with an ellipsis.
+fn cut(text: &str, max: usize) -> String {
+    match text.char_indices().nth(max) {
+        None => text.to_owned(),
+        Some((at, _)) => format!("{}…", &text[..at]),
+    }
+}
+
+/// Each line of `text` cut after [`MAX_TOML_CHARS`], joined with `; `.
+fn cut_lines(text: &str) -> String {
+    let lines: Vec<String> = text
+        .trim_end()
+        .lines()
+        .map(|l| cut(l, MAX_TOML_CHARS))
+        .collect();
+    lines.join("; ")
+}
+
+/// A TOML error about `text` as `line L, column C: what (in `the line`)`:
+/// the `toml` crate's own message repeats the whole offending line, so a
+/// huge value would flood the terminal; here the message and the line are
+/// cut after [`MAX_TOML_CHARS`] characters.
+///
+/// ```
+/// use host_sim::log::toml_error;
+/// let text = format!("[jae]\nc_pos_rad_m = \"{}\"\n", "9".repeat(100_000));
+/// let e = toml::from_str::<cable_joint::Config>(&text).unwrap_err();
+/// let msg = toml_error(&text, &e);
+/// assert!(msg.starts_with("line 2, column 15: "), "{msg}");
+/// assert!(msg.contains("c_pos_rad_m"), "{msg}");
+/// assert!(msg.len() < 400, "{msg}");
+/// ```
+pub fn toml_error(text: &str, e: &toml::de::Error) -> String {
+    let Some(before) = e.span().and_then(|s| text.get(..s.start)) else {
+        // No place in `text` (an error from a merged `toml::Value`): the
+        // message alone, which then names the key.
+        return cut_lines(&e.to_string());
+    };
+    let what = cut_lines(e.message());
+    let line = before.matches('\n').count() + 1;
+    let start = before.rfind('\n').map_or(0, |i| i + 1);
+    let column = before[start..].chars().count() + 1;
+    let source = text[start..].lines().next().unwrap_or("").trim_end();
+    format!(
+        "line {line}, column {column}: {what} (in `{}`)",
+        cut(source, MAX_TOML_CHARS)
+    )
+}
+
 impl fmt::Display for LogError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.file)?;

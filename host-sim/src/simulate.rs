@@ -21,6 +21,7 @@ use anyhow::Context;
 use cable_joint::Config;
 
 use crate::cli;
+use crate::log::toml_error;
 use crate::output::Outputs;
 use crate::plant::{merge_toml, PlantParams};
 use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
@@ -109,13 +110,12 @@ fn read(path: &PathBuf) -> anyhow::Result<String> {
 /// Load a controller configuration from TOML, merged onto the defaults.
 pub fn load_config(path: &PathBuf) -> anyhow::Result<Config> {
     let text = read(path)?;
-    let user: toml::Value =
-        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let toml_err =
+        |e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), toml_error(&text, &e));
+    let user: toml::Value = toml::from_str(&text).map_err(toml_err)?;
     let mut merged = toml::Value::try_from(Config::default())?;
     merge_toml(&mut merged, user);
-    let config: Config = merged
-        .try_into()
-        .with_context(|| format!("in {}", path.display()))?;
+    let config: Config = merged.try_into().map_err(toml_err)?;
     config
         .validate()
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;

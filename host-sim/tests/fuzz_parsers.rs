@@ -607,6 +607,35 @@ fn kuka_overflows_are_errors_naming_file_line_and_column() {
     assert!(msg.len() < 300, "{msg}");
 }
 
+/// A huge value in a configuration file is not copied into the message
+/// (the `toml` crate's own message repeats the whole line): every loader
+/// names the file, the line and the key, in a few hundred bytes.
+#[test]
+fn config_errors_do_not_copy_a_huge_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.toml");
+    for text in [
+        format!("[jae]\nc_pos_rad_m = \"{}\"\n", "9".repeat(100_000)),
+        format!("[jae]\nc_pos_rad_m = {}\n", "x".repeat(100_000)),
+    ] {
+        std::fs::write(&path, &text).unwrap();
+        let errors = [
+            host_sim::ident::load_config(&path).unwrap_err(),
+            host_sim::simulate::load_config(&path).unwrap_err(),
+            host_sim::ingest::load_config(Some(&path)).unwrap_err(),
+            host_sim::residual::read_config(&path).unwrap_err(),
+        ];
+        for e in errors {
+            let msg = format!("{e:#}");
+            assert!(msg.len() < 500, "{} bytes: {}", msg.len(), &msg[..500]);
+            assert!(msg.contains(&path.display().to_string()), "{msg}");
+            assert!(msg.contains("c_pos_rad_m"), "{msg}");
+        }
+        let msg = format!("{:#}", PlantParams::from_toml_str(&text).unwrap_err());
+        assert!(msg.len() < 500, "{} bytes", msg.len());
+    }
+}
+
 // --- CSV log -------------------------------------------------------------------
 
 fn log_name() -> impl Strategy<Value = String> {

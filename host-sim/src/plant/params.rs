@@ -429,10 +429,11 @@ impl PlantParams {
     /// keeps the *slider-1* defaults for its other fields; an unknown key is
     /// an error.
     pub fn from_toml_str(text: &str) -> anyhow::Result<Self> {
-        let user: toml::Value = toml::from_str(text)?;
+        let toml_err = |e: toml::de::Error| anyhow::anyhow!(crate::log::toml_error(text, &e));
+        let user: toml::Value = toml::from_str(text).map_err(toml_err)?;
         let mut merged = toml::Value::try_from(Self::default())?;
         merge_toml(&mut merged, user);
-        Ok(merged.try_into()?)
+        merged.try_into().map_err(toml_err)
     }
 
     /// The parameters as TOML.

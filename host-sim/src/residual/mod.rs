@@ -281,8 +281,9 @@ pub fn config_with(a: &Analysis, base: &Config) -> Result<Config> {
 pub fn read_config(path: &std::path::Path) -> Result<Config> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let cfg: Config =
-        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let cfg: Config = toml::from_str(&text).map_err(|e| {
+        anyhow::anyhow!("{}: {}", path.display(), crate::log::toml_error(&text, &e))
+    })?;
     cfg.validate()
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(cfg)

@@ -36,7 +36,12 @@ cargo fuzz build -s none -a --target-dir "$tdir"
 
 # The targets write their path-only inputs (TOML, KUKA) to a scratch
 # directory; keep those under one directory removed at the end.
-scratch="$(mktemp -d)"
+# In memory where possible: rewriting a file on ext4 waits for the disk.
+if [ -d /dev/shm ] && [ -w /dev/shm ]; then
+  scratch="$(mktemp -d -p /dev/shm)"
+else
+  scratch="$(mktemp -d)"
+fi
 trap 'rm -rf "$scratch"' EXIT
 
 summary=()

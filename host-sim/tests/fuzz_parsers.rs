@@ -391,20 +391,23 @@ fn f32_bits() -> impl Strategy<Value = f32> {
 fn tick_record() -> impl Strategy<Value = TickRecord> {
     (
         (any::<u32>(), raw_sample(), any::<u8>(), any::<u16>()),
-        (f32_bits(), f32_bits(), f32_bits(), f32_bits()),
+        prop::array::uniform7(f32_bits()),
         (any::<[u8; 2]>(), any::<bool>(), any::<u8>(), any::<u32>()),
         any::<[u16; 4]>(),
     )
         .prop_map(
-            |((tick, raw, inputs, dac), (i, r, h, f), (mf, de, phase, cycles), st)| TickRecord {
+            |((tick, raw, inputs, dac), f, (mf, de, phase, cycles), st)| TickRecord {
                 tick,
                 raw,
                 inputs: Inputs(inputs),
                 dac: DacCode(dac),
-                current_ref_a: i,
-                theta_ref_rad: r,
-                theta_hat_rad: h,
-                f_ext_hat_n: f,
+                current_ref_a: f[0],
+                theta_ref_rad: f[1],
+                theta_hat_rad: f[2],
+                f_ext_hat_n: f[3],
+                f_ext_fused_n: f[4],
+                f_ext_lo_n: f[5],
+                f_ext_hi_n: f[6],
                 mode: mf[0],
                 fault: mf[1],
                 drive_enable: de,

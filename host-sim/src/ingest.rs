@@ -68,10 +68,36 @@ pub fn parse_stream(reader: impl Read, name: &str) -> anyhow::Result<Vec<Record>
     for (i, line) in BufReader::new(reader).lines().enumerate() {
         let line = line.with_context(|| format!("{name}:{}: reading", i + 1))?;
         if let Some(rec) = parse_line(&line) {
-            out.push(rec.map_err(|e| anyhow::anyhow!("{name}:{}: {e}", i + 1))?);
+            let rec = rec.map_err(|e| anyhow::anyhow!("{name}:{}: {e}", i + 1))?;
+            if let Record::Tick(t) = &rec {
+                if let Some((field, v)) = non_finite_field(t) {
+                    bail!(
+                        "{name}:{}: tick {}: {field} is {v}; the firmware never sends a \
+                         non-finite value (it faults instead), so this record is corrupt",
+                        i + 1,
+                        t.tick
+                    );
+                }
+            }
+            out.push(rec);
         }
     }
     Ok(out)
+}
+
+/// The first real-valued field of a tick record that is NaN or infinite.
+fn non_finite_field(t: &TickRecord) -> Option<(&'static str, f32)> {
+    [
+        ("current_ref_a", t.current_ref_a),
+        ("theta_ref_rad", t.theta_ref_rad),
+        ("theta_hat_rad", t.theta_hat_rad),
+        ("f_ext_hat_n", t.f_ext_hat_n),
+        ("f_ext_fused_n", t.f_ext_fused_n),
+        ("f_ext_lo_n", t.f_ext_lo_n),
+        ("f_ext_hi_n", t.f_ext_hi_n),
+    ]
+    .into_iter()
+    .find(|(_, v)| !v.is_finite())
 }
 
 /// Read a stream from a file (`-` for standard input).
@@ -437,6 +463,15 @@ mod tests {
     fn bad_streams_are_errors_naming_the_line() {
         let err = parse_stream("INFO hello\ntlm [3, 1]\n".as_bytes(), "run.txt").unwrap_err();
         assert!(err.to_string().starts_with("run.txt:2:"), "{err}");
+        let mut nan = tick(10, 0, 0);
+        nan.f_ext_lo_n = f32::NAN;
+        let text = format!("INFO hello\n{}\n", line(&Record::Tick(nan)));
+        let err = parse_stream(text.as_bytes(), "run.txt").unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("run.txt:2: tick 10: f_ext_lo_n is NaN"),
+            "{err}"
+        );
         let back = [Record::Tick(tick(10, 0, 0)), Record::Tick(tick(10, 0, 0))];
         let err = to_log(&back, &Config::default(), &LogOptions::default()).unwrap_err();
         assert!(err.to_string().contains("restarted"), "{err}");

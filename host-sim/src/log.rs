@@ -109,6 +109,9 @@ pub enum LogErrorKind {
     NotFinite(String),
     /// An empty cell ("not measured") in a required column.
     NotMeasured,
+    /// A one-column log whose last row is not measured: its CSV would end in
+    /// blank lines, which a reader cannot tell from trailing blank lines.
+    UnmeasuredLastRow,
     /// Time does not increase strictly from the previous row.
     NonIncreasingTime {
         /// Time on the previous row, s.
@@ -290,6 +293,11 @@ impl fmt::Display for LogError {
             LogErrorKind::NotMeasured => {
                 write!(f, "empty cell (not measured) in a required column")
             }
+            LogErrorKind::UnmeasuredLastRow => write!(
+                f,
+                "the last row of a one-column log is not measured; as CSV it would be a \
+                 blank line, read back as no row at all (drop the row or add a column)"
+            ),
             LogErrorKind::NonIncreasingTime { prev_s, this_s } => write!(
                 f,
                 "time does not increase: {this_s} s after {prev_s} s on the previous row"
@@ -897,6 +905,13 @@ impl Log {
     fn check_writable(&self, file: &str) -> Result<(), LogError> {
         if self.cols.is_empty() {
             return Err(LogError::new(file, LogErrorKind::EmptyFile));
+        }
+        if let ([only], Some(last)) = (self.cols.as_slice(), self.rows.checked_sub(1)) {
+            if !only.is_measured(last) {
+                return Err(LogError::new(file, LogErrorKind::UnmeasuredLastRow)
+                    .at_line(line_of_row(last))
+                    .in_column(only.name.as_str()));
+            }
         }
         for col in &self.cols {
             for (row, v) in col.values.iter().enumerate() {

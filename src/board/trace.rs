@@ -141,7 +141,11 @@ impl<'a> Trace<'a> {
             header[8], header[9], header[10], header[11],
         ]));
         let count = u32::from_le_bytes([header[12], header[13], header[14], header[15]]) as usize;
-        let expected = TRACE_HEADER_LEN + count * TRACE_SAMPLE_LEN;
+        // Saturating: on a 32-bit target a forged count would wrap the product
+        // and could make a short buffer look the right length.
+        let expected = count
+            .saturating_mul(TRACE_SAMPLE_LEN)
+            .saturating_add(TRACE_HEADER_LEN);
         if bytes.len() != expected {
             return Err(TraceError::Length {
                 expected,
@@ -436,6 +440,22 @@ mod tests {
         let mut v2 = bytes.clone();
         v2[4] = 9;
         assert_eq!(Trace::parse(&v2).unwrap_err(), TraceError::Version(9));
+    }
+
+    #[test]
+    fn a_forged_sample_count_is_a_length_error_not_a_wrapped_one() {
+        let mut v = Vec::from(trace_header(2000.0, u32::MAX));
+        v.extend_from_slice(&sample(0, 0).to_bytes());
+        let expected = (u32::MAX as usize)
+            .saturating_mul(TRACE_SAMPLE_LEN)
+            .saturating_add(TRACE_HEADER_LEN);
+        assert_eq!(
+            Trace::parse(&v).unwrap_err(),
+            TraceError::Length {
+                expected,
+                found: v.len()
+            }
+        );
     }
 
     #[test]

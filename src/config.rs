@@ -553,13 +553,26 @@ impl Config {
     }
 
     /// This configuration at another control rate, with every rate-dependent
-    /// setting that the new rate cannot support derived from it: a
-    /// differentiator bandwidth above a quarter of the Nyquist rate (what
-    /// [`Config::validate`] allows) becomes a fifth of it (`rate / 10`). The
-    /// settings in seconds or hertz that the rate can support are kept, so a
-    /// user's choice survives. Returns the changes made, for the caller to
-    /// say what it derived.
-    pub fn at_rate(&self, rate_hz: f32) -> (Config, heapless::Vec<RateAdjustment, 4>) {
+    /// setting that the new rate cannot support derived from it, in order:
+    ///
+    /// 1. a differentiator bandwidth above a quarter of the Nyquist rate (what
+    ///    [`Config::validate`] allows) becomes a fifth of it (`rate / 10`);
+    /// 2. the velocity loop's crossover on the bare rotor, `kp_vel K_m / J_m`,
+    ///    is kept at most the motor observer's bandwidth (the observer is the
+    ///    loop's main lag: beyond it the gain margin falls from about 1.5 to
+    ///    nothing, and the drive current chatters); when it is lowered by a
+    ///    factor `s`, `ki_vel` is lowered by `s²`, which keeps the PI zero at
+    ///    the same fraction of the crossover, and `ki_vel` is kept below
+    ///    `kp_vel` times a tenth of the crossover (the PI zero a decade below
+    ///    it);
+    /// 3. the position loop's gain is kept at most a third of that crossover
+    ///    (the cascade's separation);
+    /// 4. the discrete PD position loop is kept inside Jury's bound.
+    ///
+    /// The settings that the rate can support are kept, so a user's choice
+    /// survives. Returns the changes made, for the caller to say what it
+    /// derived.
+    pub fn at_rate(&self, rate_hz: f32) -> (Config, heapless::Vec<RateAdjustment, 7>) {
         let mut c = *self;
         let mut changes = heapless::Vec::new();
         c.control_rate_hz = rate_hz;
@@ -585,9 +598,47 @@ impl Config {
                 *bw = derived_hz;
             }
         }
+        let cc = &mut c.cascade;
+        let rotor_gain = c.machine.torque_constant_nm_a / c.machine.rotor_inertia_kg_m2;
+        let observer_rad_s = 2.0 * math::PI * c.differentiators.motor_bandwidth_hz;
+        let crossover_rad_s = cc.kp_vel_a_s_rad * rotor_gain;
+        if crossover_rad_s > observer_rad_s && observer_rad_s.is_finite() {
+            let scale = observer_rad_s / crossover_rad_s;
+            for (field, gain, factor) in [
+                ("cascade.kp_vel_a_s_rad", &mut cc.kp_vel_a_s_rad, scale),
+                ("cascade.ki_vel_a_rad", &mut cc.ki_vel_a_rad, scale * scale),
+            ] {
+                let to = *gain * factor;
+                let _ = changes.push(RateAdjustment {
+                    field,
+                    from: *gain,
+                    to,
+                });
+                *gain = to;
+            }
+        }
+        // The PI zero at most a decade below the crossover (ki / kp <= w_c /
+        // 10): nearer, the integrator eats the phase the observer leaves.
+        let ki_max = 0.1 * cc.kp_vel_a_s_rad * cc.kp_vel_a_s_rad * rotor_gain;
+        if cc.ki_vel_a_rad > ki_max {
+            let _ = changes.push(RateAdjustment {
+                field: "cascade.ki_vel_a_rad",
+                from: cc.ki_vel_a_rad,
+                to: ki_max,
+            });
+            cc.ki_vel_a_rad = ki_max;
+        }
+        let position_max_1_s = cc.kp_vel_a_s_rad * rotor_gain / 3.0;
+        if cc.kp_pos_1_s > position_max_1_s && position_max_1_s > 0.0 {
+            let _ = changes.push(RateAdjustment {
+                field: "cascade.kp_pos_1_s",
+                from: cc.kp_pos_1_s,
+                to: position_max_1_s,
+            });
+            cc.kp_pos_1_s = position_max_1_s;
+        }
         // The discrete PD position loop needs kp T < 2 (1 - kd) (see
         // `validate`); at a rate too slow for the gain, derive half of that.
-        let cc = &mut c.cascade;
         let period_s = 1.0 / rate_hz;
         if cc.kd_pos < 1.0
             && cc.kp_pos_1_s * period_s >= 2.0 * (1.0 - cc.kd_pos)
@@ -1064,15 +1115,119 @@ mod tests {
         );
         let (at, changes) = c.at_rate(1000.0);
         at.validate().unwrap();
-        assert_eq!(changes.len(), 1);
-        assert_eq!(changes[0].field, "differentiators.motor_bandwidth_hz");
+        let fields: std::vec::Vec<_> = changes.iter().map(|a| a.field).collect();
+        assert_eq!(
+            fields,
+            [
+                "differentiators.motor_bandwidth_hz",
+                "cascade.kp_vel_a_s_rad",
+                "cascade.ki_vel_a_rad"
+            ]
+        );
         assert_eq!(at.differentiators.motor_bandwidth_hz, 100.0);
+        // Crossover at the observer's 100 Hz: kp = 2 pi 100 J_m / K_m.
+        let kp = 2.0 * crate::math::PI * 100.0 * 1.08e-6 / 23.4e-3;
+        assert!((at.cascade.kp_vel_a_s_rad - kp).abs() < 1e-6 * kp);
         assert_eq!(
             at.differentiators.grating_bandwidth_hz,
             c.differentiators.grating_bandwidth_hz
         );
         let (same, none) = c.at_rate(2000.0);
         assert_eq!((same, none.len()), (c, 0));
+    }
+
+    /// Spectral radius of the bare rotor under the PI velocity loop, fed
+    /// back through the motor's tracking observer (the plant integrates the
+    /// held current over one period), leaving out the one eigenvalue at 1
+    /// (the angle the loop does not regulate).
+    fn velocity_loop_radius(c: &Config, kp_scale: f64) -> f64 {
+        use nalgebra::SMatrix;
+        let t = c.period_s() as f64;
+        let b = (c.machine.torque_constant_nm_a / c.machine.rotor_inertia_kg_m2) as f64;
+        let obs = crate::filter::TrackingObserver::new(
+            c.differentiators.motor_bandwidth_hz,
+            c.period_s(),
+        );
+        let l = obs.gains().map(|g| g as f64);
+        let kp = c.cascade.kp_vel_a_s_rad as f64 * kp_scale;
+        let ki = c.cascade.ki_vel_a_rad as f64;
+        let f = [[1.0, t, 0.5 * t * t], [0.0, 1.0, t], [0.0, 0.0, 1.0]];
+        // State: angle, speed, the observer's previous estimate (3), integral.
+        // This tick's estimate: (I - l H) F x_prev + l angle.
+        let mut est = [[0.0f64; 6]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                est[i][2 + j] = f[i][j] - l[i] * f[0][j];
+            }
+            est[i][0] += l[i];
+        }
+        let mut u = [0.0f64; 6];
+        for j in 0..6 {
+            u[j] = -kp * est[1][j];
+        }
+        u[5] += 1.0;
+        let mut a = SMatrix::<f64, 6, 6>::zeros();
+        for j in 0..6 {
+            let e = |i: usize| if i == j { 1.0 } else { 0.0 };
+            a[(0, j)] = e(0) + t * e(1) + 0.5 * t * t * b * u[j];
+            a[(1, j)] = e(1) + t * b * u[j];
+            for i in 0..3 {
+                a[(2 + i, j)] = est[i][j];
+            }
+            a[(5, j)] = e(5) - ki * t * est[1][j];
+        }
+        let norm = |re: f64, im: f64| libm::sqrt(re * re + im * im);
+        let mut ev: std::vec::Vec<_> = a
+            .complex_eigenvalues()
+            .iter()
+            .map(|z| (z.re, z.im))
+            .collect();
+        ev.sort_by(|x, y| norm(x.0 - 1.0, x.1).total_cmp(&norm(y.0 - 1.0, y.1)));
+        ev[1..].iter().map(|z| norm(z.0, z.1)).fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn at_rate_keeps_the_bare_rotor_velocity_loop_stable_with_margin_at_every_rate() {
+        // Without the derivation the defaults at 1 kHz are within 10 % of
+        // instability (the drive current chatters on the unhooked motor).
+        let (slow, _) = Config::default().at_rate(1000.0);
+        let undrived = Config {
+            cascade: Config::default().cascade,
+            ..slow
+        };
+        assert!(velocity_loop_radius(&undrived, 1.0) < 1.0);
+        assert!(velocity_loop_radius(&undrived, 1.1) >= 1.0);
+        let mut machines = std::vec::Vec::new();
+        for k in [0.3f32, 1.0, 3.0] {
+            for j in [0.3f32, 1.0, 3.0] {
+                let mut c = Config::default();
+                c.machine.torque_constant_nm_a *= k;
+                c.machine.rotor_inertia_kg_m2 *= j;
+                machines.push(c);
+            }
+        }
+        for base in &machines {
+            for rate in [
+                100.0, 150.0, 300.0, 500.0, 1000.0, 1500.0, 2000.0, 5000.0, 20000.0,
+            ] {
+                let (c, _) = base.at_rate(rate);
+                let r = velocity_loop_radius(&c, 1.0);
+                let margin = velocity_loop_radius(&c, 1.4);
+                assert!(
+                    r < 1.0 && margin < 1.0,
+                    "{rate} Hz, K_m {} J_m {}: radius {r}, at 1.4 x kp_vel {margin}",
+                    c.machine.torque_constant_nm_a,
+                    c.machine.rotor_inertia_kg_m2
+                );
+                let w_c = c.cascade.kp_vel_a_s_rad * c.machine.torque_constant_nm_a
+                    / c.machine.rotor_inertia_kg_m2;
+                assert!(
+                    c.cascade.kp_pos_1_s <= w_c / 3.0 * 1.0001,
+                    "{rate} Hz: cascade separation"
+                );
+                c.validate().unwrap();
+            }
+        }
     }
 
     #[test]

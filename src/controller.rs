@@ -282,6 +282,42 @@ impl Derived {
     }
 }
 
+/// A configuration validated and with its filters designed (observer gains,
+/// DOB and fusion constants, in soft `f64` on the MCU: tens of thousands of
+/// instructions). Build it where time does not matter (the firmware's
+/// priority-1 command task); [`Controller::install`] then costs one copy, so
+/// a new configuration never stretches a control tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedConfig {
+    config: Config,
+    derived: Derived,
+}
+
+impl PreparedConfig {
+    /// Validate `config` and design everything derived from it.
+    pub fn new(config: Config) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(Self {
+            derived: Derived::new(&config),
+            config,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Replace only the fault limits (cheap: rescales the jump thresholds and
+    /// the fault low-passes, no filter redesign).
+    pub fn set_limits(&mut self, limits: crate::config::FaultLimits) -> Result<(), ConfigError> {
+        limits.validate()?;
+        self.config.limits = limits;
+        self.derived.set_steps(&self.config);
+        Ok(())
+    }
+}
+
 /// All mutable state of the control path (snapshot-able by the simulator).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct State {
@@ -361,12 +397,20 @@ impl Controller {
     }
 
     /// Replace the configuration (e.g. new identified parameters). Filters
-    /// keep their state; the cascade integrator is kept (bumpless).
+    /// keep their state; the cascade integrator is kept (bumpless). Designs
+    /// the filters here: on the control path use [`PreparedConfig`] and
+    /// [`Controller::install`].
     pub fn set_config(&mut self, config: Config) -> Result<(), ConfigError> {
-        config.validate()?;
-        self.derived = Derived::new(&config);
-        self.config = config;
+        self.install(PreparedConfig::new(config)?);
         Ok(())
+    }
+
+    /// Put a prepared configuration in force (one copy; no validation or
+    /// filter design left to do). Filters keep their state; the cascade
+    /// integrator is kept (bumpless).
+    pub fn install(&mut self, prepared: PreparedConfig) {
+        self.config = prepared.config;
+        self.derived = prepared.derived;
     }
 
     /// Replace only the fault limits: cheap enough to call inside the control

@@ -24,7 +24,9 @@ pub mod telemetry;
 pub mod trajectory;
 pub mod units;
 
-pub use controller::{Command, Controller, Estimates, Mode, Output, RawSample, Stage, StageTimer};
+pub use controller::{
+    Command, Controller, Estimates, Mode, Output, PreparedConfig, RawSample, Stage, StageTimer,
+};
 
 pub use config::{Config, ConfigError};
 

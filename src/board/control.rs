@@ -10,7 +10,7 @@
 use embedded_hal::digital::OutputPin;
 
 use crate::config::{Config, ConfigError};
-use crate::controller::{Command, Controller, Output};
+use crate::controller::{Command, Controller, Output, PreparedConfig};
 use crate::fault::Fault;
 use crate::telemetry::{OriginRecord, StartRecord, TickRecord, FORMAT_VERSION};
 
@@ -29,8 +29,10 @@ pub enum Request {
     Program(Program),
     /// A new mode and trajectory (accepted only once homed).
     SetCommand(Command),
-    /// New parameters (e.g. identified ones); filters keep their state.
-    SetConfig(Config),
+    /// New parameters (e.g. identified ones), validated and with the filters
+    /// designed by the sender (`PreparedConfig::new`, outside the tick);
+    /// filters keep their state.
+    SetConfig(PreparedConfig),
     /// Clear the latched fault and start again from the check and homing.
     /// Refused while a cause persists: the drive's fault line asserted, a
     /// fault waiting to be latched, the winding's I²t above its rating.
@@ -46,7 +48,8 @@ impl Request {
     /// The command task's check before queueing (the hot path never fails).
     pub fn validate(&self) -> Result<(), ConfigError> {
         match self {
-            Request::SetConfig(c) => c.validate(),
+            // Validated when it was prepared.
+            Request::SetConfig(_) => Ok(()),
             Request::SetDecimation(0) => Err(ConfigError {
                 field: "telemetry.decimation",
                 expected: ">= 1",
@@ -153,7 +156,7 @@ impl ControlLoop {
                 // The control timer's period is set at boot: another rate
                 // would make every filter wrong. Validated by the command
                 // task; a failure leaves the old configuration.
-                c.control_rate_hz == self.ctrl.config().control_rate_hz
+                c.config().control_rate_hz == self.ctrl.config().control_rate_hz
                     && self.seq.set_config(&mut self.ctrl, c).is_ok()
             }
             Request::ClearFault => {
@@ -569,7 +572,7 @@ mod tests {
         let mut bad = Config::default();
         bad.machine.gear_ratio = 0.0;
         assert_eq!(
-            Request::SetConfig(bad).validate().unwrap_err().field,
+            PreparedConfig::new(bad).unwrap_err().field,
             "machine.gear_ratio"
         );
         assert!(ControlLoop::new(Config::default(), 0).is_err());
@@ -593,6 +596,7 @@ mod tests {
             control_rate_hz: 4000.0,
             ..Config::default()
         };
+        let fast = PreparedConfig::new(fast).unwrap();
         assert!(Request::SetConfig(fast).validate().is_ok());
         cl.tick(
             &mut fe,
@@ -609,7 +613,7 @@ mod tests {
             &mut fe,
             &mut drive,
             &Events::new(),
-            Some(Request::SetConfig(tuned)),
+            Some(Request::SetConfig(PreparedConfig::new(tuned).unwrap())),
             &mut NoCycles,
         );
         assert_eq!(cl.controller().config().jae.offset_rad, 0.02);

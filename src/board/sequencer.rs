@@ -261,21 +261,23 @@ impl Sequencer {
         self.ticks_in_phase = 0;
     }
 
-    /// Replace the controller's configuration; while homing, the user's
-    /// range is kept aside and the widened one stays in force.
+    /// Put a prepared configuration in force; while homing, the user's
+    /// range is kept aside and the widened one stays in force. Cheap (no
+    /// filter design): called on a control tick.
     pub fn set_config(
         &mut self,
         ctrl: &mut Controller,
-        mut config: crate::Config,
+        mut prepared: crate::PreparedConfig,
     ) -> Result<(), crate::ConfigError> {
-        config.validate()?;
         if let Some(user) = self.user_limits.as_mut() {
-            let l = &mut config.limits;
+            let mut l = prepared.config().limits;
             *user = (l.max_joint_angle_rad, l.min_tension_fraction);
             l.max_joint_angle_rad = ctrl.config().limits.max_joint_angle_rad;
             l.min_tension_fraction = ctrl.config().limits.min_tension_fraction;
+            prepared.set_limits(l)?;
         }
-        ctrl.set_config(config)
+        ctrl.install(prepared);
+        Ok(())
     }
 
     /// Widen the range and slack checks for the search (unknown angle,
@@ -604,7 +606,8 @@ mod tests {
         c.limits.max_joint_angle_rad = 1.2;
         c.limits.min_tension_fraction = 0.3;
         c.jae.offset_rad = 0.01;
-        seq.set_config(&mut ctrl, c).unwrap();
+        seq.set_config(&mut ctrl, crate::PreparedConfig::new(c).unwrap())
+            .unwrap();
         assert_eq!(ctrl.config().limits, widened);
         assert_eq!(ctrl.config().jae.offset_rad, 0.01);
         run(&mut seq, &mut ctrl, &rest(), true, true, &events);
@@ -613,7 +616,10 @@ mod tests {
         assert_eq!(ctrl.config().limits.min_tension_fraction, 0.3);
         let mut bad = Config::default();
         bad.limits.max_joint_angle_rad = -1.0;
-        assert!(seq.set_config(&mut ctrl, bad).is_err());
+        assert_eq!(
+            crate::PreparedConfig::new(bad).unwrap_err().field,
+            "limits.max_joint_angle_rad"
+        );
     }
 
     #[test]

@@ -552,6 +552,13 @@ impl Config {
         1.0 / self.control_rate_hz
     }
 
+    /// The slack check's threshold: `limits.min_tension_fraction` of the
+    /// preload `tension.f_0_n`, N.
+    #[inline]
+    pub fn slack_limit_n(&self) -> f32 {
+        self.limits.min_tension_fraction * self.tension.f_0_n
+    }
+
     /// This configuration at another control rate, with every rate-dependent
     /// setting that the new rate cannot support derived from it, in order:
     ///

@@ -358,8 +358,7 @@ pub struct State {
 /// The controller: configuration, derived constants, command and state.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Controller {
-    config: Config,
-    derived: Derived,
+    prepared: PreparedConfig,
     command: Command,
     state: State,
 }
@@ -367,10 +366,8 @@ pub struct Controller {
 impl Controller {
     /// Validate the configuration and build a controller in [`Mode::Idle`].
     pub fn new(config: Config) -> Result<Self, ConfigError> {
-        config.validate()?;
         Ok(Self {
-            derived: Derived::new(&config),
-            config,
+            prepared: PreparedConfig::new(config)?,
             command: Command::default(),
             state: State::default(),
         })
@@ -378,7 +375,7 @@ impl Controller {
 
     /// The configuration in force.
     pub fn config(&self) -> &Config {
-        &self.config
+        &self.prepared.config
     }
 
     /// The command in force.
@@ -393,7 +390,7 @@ impl Controller {
 
     /// Control period, s.
     pub fn period_s(&self) -> f32 {
-        self.derived.period_s
+        self.prepared.derived.period_s
     }
 
     /// Replace the configuration (e.g. new identified parameters). Filters
@@ -409,20 +406,16 @@ impl Controller {
     /// filter design left to do). Filters keep their state; the cascade
     /// integrator is kept (bumpless).
     pub fn install(&mut self, prepared: PreparedConfig) {
-        self.config = prepared.config;
-        self.derived = prepared.derived;
+        self.prepared = prepared;
     }
 
     /// Replace only the fault limits: cheap enough to call inside the control
     /// tick (no filter redesign, unlike [`Controller::set_config`]).
     pub fn set_limits(&mut self, limits: crate::config::FaultLimits) -> Result<(), ConfigError> {
-        // Checked alone and written in place: the sequencer calls this on a
-        // control tick, where a copy of the whole configuration would cost
-        // hundreds of instructions.
-        limits.validate()?;
-        self.config.limits = limits;
-        self.derived.set_steps(&self.config);
-        Ok(())
+        // Written in place: the sequencer calls this on a control tick,
+        // where a copy of the whole configuration would cost hundreds of
+        // instructions.
+        self.prepared.set_limits(limits)
     }
 
     /// Start a new command; its trajectory time starts now. Leaving
@@ -451,7 +444,7 @@ impl Controller {
     /// 12 s time constant). The board adds its own causes (the drive's
     /// fault line).
     pub fn fault_cause_persists(&self) -> bool {
-        let ic = 0.9 * self.config.limits.continuous_current_a;
+        let ic = 0.9 * self.prepared.config.limits.continuous_current_a;
         self.state.i2t_a2 > ic * ic
     }
 
@@ -491,7 +484,8 @@ impl Controller {
 
     /// Trajectory time of the command in force, s.
     fn command_time_s(&self) -> f32 {
-        self.state.tick.wrapping_sub(self.state.command_tick) as f32 * self.derived.period_s
+        self.state.tick.wrapping_sub(self.state.command_tick) as f32
+            * self.prepared.derived.period_s
     }
 
     /// One control tick (see [`Controller::step_timed`]).
@@ -503,8 +497,8 @@ impl Controller {
     /// One control tick with stage marks for timing.
     pub fn step_timed(&mut self, raw: &RawSample, timer: &mut impl StageTimer) -> Output {
         timer.mark(Stage::Start);
-        let cfg = &self.config;
-        let d = &self.derived;
+        let cfg = &self.prepared.config;
+        let d = &self.prepared.derived;
         let st = &mut self.state;
         let mut fault = None;
 
@@ -653,7 +647,7 @@ impl Controller {
         let tension1_stretch_n = cable1_stretch_n + cfg.tension.f_0_n;
         if st.primed
             && cfg.limits.min_tension_fraction > 0.0
-            && tension1_stretch_n < cfg.limits.min_tension_fraction * cfg.tension.f_0_n
+            && tension1_stretch_n < cfg.slack_limit_n()
         {
             fault = fault.or(Some(Fault::TransmissionSlack));
         }

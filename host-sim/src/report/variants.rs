@@ -238,9 +238,10 @@ impl CaseRec {
     /// message gains what the plant shows, and whether it confirms it.
     fn judge(&mut self, r: &TickRecord, f: Fault) -> String {
         let t = &r.tensions;
+        let cable_slack = t.rope_n.min(t.cable1_n) < self.slack_limit_n;
         let (confirmed, truth) = match f {
             Fault::TransmissionSlack => (
-                t.rope_n.min(t.cable1_n) < self.slack_limit_n,
+                cable_slack,
                 format!(
                     "true tensions: cable 0 {:.2} N, cable 1 {:.2} N, limit {:.2} N",
                     t.rope_n, t.cable1_n, self.slack_limit_n
@@ -249,8 +250,7 @@ impl CaseRec {
             // Out of range, or the transmission lost (a cable slack): the
             // joint is then free to run, and stopping it is right.
             Fault::AngleRange => (
-                r.state.theta_rad.abs() > self.range_rad
-                    || t.rope_n.min(t.cable1_n) < self.slack_limit_n,
+                r.state.theta_rad.abs() > self.range_rad || cable_slack,
                 format!(
                     "true joint angle {:.1}°, limit ±{:.1}°; true tensions: cable 0 {:.2} N, cable 1 {:.2} N",
                     r.state.theta_rad.to_degrees(),
@@ -384,9 +384,7 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
                 };
                 let mut rec = CaseRec {
                     moved: a != 0.0,
-                    slack_limit_n: f64::from(
-                        config.limits.min_tension_fraction * config.tension.f_0_n,
-                    ),
+                    slack_limit_n: f64::from(config.slack_limit_n()),
                     range_rad: f64::from(config.limits.max_joint_angle_rad),
                     ..CaseRec::default()
                 };

@@ -356,6 +356,42 @@ impl FusionConfig {
     }
 }
 
+/// Optional probing motion at a hold ([`crate::probe`]): a sinusoidal dither
+/// of the joint-angle reference that makes stuck friction slip, and the fused
+/// estimate averaged over each whole dither period. Off unless asked; never
+/// in identification runs (the dither would enter the fitted data).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct ProbeConfig {
+    /// Dither the reference whenever the joint holds (reference at rest).
+    pub enabled: bool,
+    /// Joint-angle amplitude of the dither, rad. Against stiction the joint
+    /// does not follow a small dither smoothly: it sticks and jumps, so the
+    /// tip moves by the stick-slip step, not by twice the amplitude (the
+    /// report measures it on every variant). Sweep on four variants at 4 Hz
+    /// (`docs/force.md`): 0.05° and 0.2° gave the same worst-case accuracy
+    /// within 4 points except on one drawn plant, 0.2° with 0.07° to 0.38°
+    /// more tip motion; the default 0.1° lies between them.
+    pub amplitude_rad: f32,
+    /// Dither frequency, Hz (rounded so a period is eight blocks of whole
+    /// ticks). 4 Hz: at 8 Hz (0.1°) the worst case at 0.3 N was 8 to 11
+    /// points lower on the default and slider-1 variants (and about the same
+    /// on two others); at 2 Hz the one-period mean lags a load change by half
+    /// a second.
+    pub frequency_hz: f32,
+}
+
+impl Default for ProbeConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            amplitude_rad: 0.1 * crate::math::PI / 180.0,
+            frequency_hz: 4.0,
+        }
+    }
+}
+
 /// Limits beyond which a reading is impossible (a fault).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -442,6 +478,8 @@ pub struct Config {
     pub stretch: StretchConfig,
     /// Fused force estimate and its bound.
     pub fusion: FusionConfig,
+    /// Optional probing motion at a hold (off by default).
+    pub probe: ProbeConfig,
     /// Fault limits.
     pub limits: FaultLimits,
 }
@@ -459,6 +497,7 @@ impl Default for Config {
             tension: TensionConfig::default(),
             stretch: StretchConfig::default(),
             fusion: FusionConfig::default(),
+            probe: ProbeConfig::default(),
             limits: FaultLimits::default(),
         }
     }
@@ -1026,6 +1065,20 @@ impl Config {
             f.creep_distance_m,
             1e-9..=1e-2,
             "between 1 nm and 10 mm",
+        )?;
+
+        let p = &self.probe;
+        within(
+            "probe.amplitude_rad",
+            p.amplitude_rad,
+            1e-5..=0.035,
+            "between 1e-5 rad and 0.035 rad (2°)",
+        )?;
+        within(
+            "probe.frequency_hz",
+            p.frequency_hz,
+            0.1..=self.control_rate_hz / (2.0 * crate::probe::BLOCKS as f32),
+            "between 0.1 Hz and a sixteenth of the control rate",
         )?;
 
         self.limits.validate()

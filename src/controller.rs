@@ -15,10 +15,11 @@ use crate::config::{Config, ConfigError};
 use crate::dob::{self, Dob, DobOut, DobState, TensionState};
 use crate::fault::{Fault, Sensor};
 use crate::filter::{Kinematics, LowPass1, TrackingObserver};
-use crate::fusion::{Fusion, FusionIn, FusionState};
+use crate::fusion::{self, Fusion, FusionIn, FusionState};
 use crate::jae::{self, JaeState};
 use crate::math;
 use crate::model::{sig, AddedState, Signals};
+use crate::probe::{Probe, ProbeState};
 use crate::trajectory::{Reference, Trajectory};
 use crate::units::{AdcCode, DacCode, Extender16, GratingCount, MagneticCount, MotorCount};
 
@@ -221,6 +222,7 @@ struct Derived {
     motor_obs: TrackingObserver,
     dob: Dob,
     fusion: Fusion,
+    probe: Probe,
     blend: Option<LowPass1>,
     force_lp: LowPass1,
     motor_per_joint: f32,
@@ -244,6 +246,7 @@ impl Derived {
             motor_obs: TrackingObserver::new(d.motor_bandwidth_hz, period_s),
             dob: Dob::new(&c.dob, m, period_s),
             fusion: Fusion::new(c, period_s),
+            probe: Probe::new(&c.probe, period_s),
             force_lp: LowPass1::new(c.dob.cutoff_rad_s, period_s),
             blend: (c.cascade.jae_blend_hz > 0.0)
                 .then(|| LowPass1::new(2.0 * math::PI * c.cascade.jae_blend_hz, period_s)),
@@ -334,6 +337,10 @@ pub struct State {
     tension_terms: AddedState,
     dob: DobState,
     fusion: FusionState,
+    /// Dither phase and its synchronous mean ([`crate::probe`]).
+    probe: ProbeState,
+    /// The last tick dithered (the probe state is reset when a hold ends).
+    probing: bool,
     /// `Q[F_1']`'s Coulomb part (model C's sign terms), N.
     tension_friction_n: f32,
     cascade: CascadeState,
@@ -625,7 +632,7 @@ impl Controller {
             joint_torque_nm / m.gripper_length_m,
         );
         let tension_friction_n = d.force_lp.update(&mut st.tension_friction_n, friction_n);
-        let fused = d.fusion.update(
+        let mut fused = d.fusion.update(
             &mut st.fusion,
             &FusionIn {
                 x1_m,
@@ -655,13 +662,34 @@ impl Controller {
 
         // --- Reference and cascade -------------------------------------------
         let t_cmd = st.tick.wrapping_sub(st.command_tick) as f32 * d.period_s;
-        let reference = match self.command.mode {
+        let mut reference = match self.command.mode {
             Mode::Idle => Reference {
                 angle_rad: theta_hat_rad,
                 vel_rad_s: 0.0,
             },
             _ => self.command.trajectory.at(t_cmd),
         };
+        // Probing: a dither on a hold, and the fused estimate replaced by
+        // its mean over the last whole dither period once one is complete.
+        let probing = d.probe.enabled()
+            && self.command.mode != Mode::Idle
+            && st.fault.is_none()
+            && reference.vel_rad_s == 0.0;
+        if probing {
+            let (angle_rad, vel_rad_s) = d.probe.dither(&st.probe);
+            reference.angle_rad += angle_rad;
+            reference.vel_rad_s += vel_rad_s;
+            let values = [fused.f_ext_n, fused.lo_n, fused.hi_n];
+            if let Some(p) = d.probe.update(&mut st.probe, values) {
+                fused.f_ext_n = p.f_ext_n;
+                fused.lo_n = p.lo_n;
+                fused.hi_n = p.hi_n;
+                fused.flags |= fusion::flags::PROBED;
+            }
+        } else if st.probing {
+            st.probe = ProbeState::default();
+        }
+        st.probing = probing;
         if !st.primed {
             st.stretch_rad = theta_hat_rad - theta_motor_rad;
         }
@@ -955,6 +983,63 @@ mod tests {
             trajectory: Trajectory::Hold { angle_rad: 0.0 },
         });
         c
+    }
+
+    #[test]
+    fn probing_dithers_only_a_held_reference_and_publishes_after_a_settling_period() {
+        let mut config = Config::default();
+        config.probe.enabled = true;
+        // The readings stay at rest whatever the drive asks: no tracking check.
+        config.limits.max_current_error_a = 0.0;
+        let period_ticks = crate::probe::Probe::block_ticks(&config.probe, config.period_s())
+            * crate::probe::BLOCKS as u32;
+        let mut c = holding(config);
+        let probed = |o: &Output| o.est.fusion_flags & crate::fusion::flags::PROBED != 0;
+        let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+        for k in 0..2 * period_ticks - 1 {
+            let o = c.step(&at_rest());
+            assert!(
+                !probed(&o),
+                "published at tick {k}, before two whole periods"
+            );
+            lo = lo.min(o.est.theta_ref_rad);
+            hi = hi.max(o.est.theta_ref_rad);
+        }
+        let amp = config.probe.amplitude_rad;
+        assert!(
+            (hi - amp).abs() < 0.01 * amp && (lo + amp).abs() < 0.01 * amp,
+            "{lo}..{hi}"
+        );
+        let o = c.step(&at_rest());
+        assert!(
+            probed(&o),
+            "the mean is published after the settling period"
+        );
+        assert!(o.est.f_ext_lo_n <= o.est.f_ext_fused_n && o.est.f_ext_fused_n <= o.est.f_ext_hi_n);
+        // A moving reference is not dithered, and the mean starts over.
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Sine {
+                offset_rad: 0.0,
+                amplitude_rad: 0.1,
+                freq_hz: 0.5,
+            },
+        });
+        for _ in 0..10 {
+            let o = c.step(&at_rest());
+            assert!(!probed(&o), "a moving reference is not probed");
+        }
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        });
+        let o = c.step(&at_rest());
+        assert!(!probed(&o), "a new hold settles again before publishing");
+        // Off by default: no dither at all.
+        let mut off = holding(Config::default());
+        for _ in 0..period_ticks {
+            assert_eq!(off.step(&at_rest()).est.theta_ref_rad, 0.0);
+        }
     }
 
     #[test]

@@ -60,6 +60,9 @@ pub mod flags {
     pub const JOINT_STUCK: u8 = 4;
     /// The DOB and stretch intervals do not overlap (models disagree).
     pub const INCONSISTENT: u8 = 8;
+    /// The estimate and bound are the means over the last whole period of
+    /// the probing dither ([`crate::probe`]), not this tick's values.
+    pub const PROBED: u8 = 16;
 }
 
 /// Friction bands and model constants the fusion needs, precomputed from the

@@ -20,6 +20,7 @@ pub mod lsq;
 pub mod math;
 pub mod model;
 pub mod payload;
+pub mod probe;
 pub mod telemetry;
 pub mod trajectory;
 pub mod units;

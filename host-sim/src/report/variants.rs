@@ -169,7 +169,8 @@ pub struct SourceStats {
     pub above_1n_mean_pct: f64,
     /// Worst accuracy at 30 g (0.29 N), %.
     pub at_0n3_min_pct: f64,
-    /// Largest |estimate| in the static no-load regions, N.
+    /// Largest |estimate| in the static no-load regions (the second half of
+    /// each, after the estimate settled), N.
     pub static_noload_n: f64,
     /// Largest |estimate| while moving to 30°/-40° and settling, N.
     pub dynamic_noload_n: f64,
@@ -212,6 +213,9 @@ pub struct VariantResult {
     /// inside its range and both cables taut, any other fault): the false
     /// ones.
     pub false_faults: usize,
+    /// The same protocol with probing on ([`cable_joint::probe`], the
+    /// configuration's default dither).
+    pub probing: Option<Protocol>,
 }
 
 #[derive(Default)]
@@ -219,6 +223,9 @@ struct CaseRec {
     moved: bool,
     stable: [Acc; 4],
     static_noload: [Acc; 4],
+    /// The current no-load region's estimates (its second half goes into
+    /// `static_noload` when the region ends).
+    noload: Vec<[f64; 4]>,
     dynamic: [Acc; 4],
     hold_n: u64,
     hold_in: u64,
@@ -234,6 +241,19 @@ struct CaseRec {
 }
 
 impl CaseRec {
+    /// End of a no-load region: its second half, after every estimate has
+    /// settled (the DOB's `Q`, the probed mean's one-period window), counts
+    /// as static.
+    fn close_noload(&mut self) {
+        let half = self.noload.len() / 2;
+        for v in &self.noload[half..] {
+            for (acc, x) in self.static_noload.iter_mut().zip(v) {
+                acc.push(*x);
+            }
+        }
+        self.noload.clear();
+    }
+
     /// The fault against the plant's truth at the tick it latched: the
     /// message gains what the plant shows, and whether it confirms it.
     fn judge(&mut self, r: &TickRecord, f: Fault) -> String {
@@ -288,6 +308,9 @@ impl Recorder for CaseRec {
             0.5 * f64::from(e.f_ext_lo_n + e.f_ext_hi_n),
         ];
         let p = r.phase;
+        if p != Phase::NoLoad.code() && !self.noload.is_empty() {
+            self.close_noload();
+        }
         let hold = p == Phase::NoLoad.code() || p == Phase::Stable.code();
         if hold {
             self.hold_n += 1;
@@ -300,11 +323,12 @@ impl Recorder for CaseRec {
         for (k, v) in est.iter().enumerate() {
             if p == Phase::Stable.code() {
                 self.stable[k].push(*v);
-            } else if p == Phase::NoLoad.code() {
-                self.static_noload[k].push(*v);
             } else if (p == Phase::Move.code() || p == Phase::Adjust.code()) && self.moved {
                 self.dynamic[k].push(*v);
             }
+        }
+        if p == Phase::NoLoad.code() {
+            self.noload.push(est);
         }
         if p == Phase::Stable.code() {
             self.theta_stable.push(r.state.theta_rad * DEG_PER_RAD);
@@ -335,37 +359,30 @@ fn identified_vs_plant(c: &Config, p: &PlantParams) -> String {
     )
 }
 
-/// Run one variant.
-pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
-    let tag = format!("variant {}", v.name);
-    let mut out = VariantResult {
-        name: v.name.clone(),
-        what: v.what.clone(),
-        rate_hz: v.rate_hz,
-        error: None,
-        notes: Vec::new(),
-        pin_at_tip_n: f64::NAN,
-        sources: Vec::new(),
-        coverage: f64::NAN,
-        mean_bound_width_n: f64::NAN,
-        tip_motion_pp_deg: f64::NAN,
-        cases: 0,
-        faults: Vec::new(),
-        false_faults: 0,
-    };
-    let (base, _) = Config::default().at_rate(v.rate_hz);
-    let config = match identify_config(&v.plant, &base, s, &tag) {
-        Ok((c, notes)) => {
-            out.notes = notes;
-            out.notes.push(identified_vs_plant(&c, &v.plant));
-            out.pin_at_tip_n = f64::from(c.fusion.pin_coulomb_nm / c.machine.gripper_length_m);
-            c
-        }
-        Err(e) => {
-            out.error = Some(format!("{e:#}"));
-            return out;
-        }
-    };
+/// The loading protocol's results for one configuration on one plant.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Protocol {
+    /// Per estimate, in [`SOURCES`] order.
+    pub sources: Vec<SourceStats>,
+    /// Share of hold samples (no-load and stable regions) whose applied
+    /// force lies inside the fused bound.
+    pub coverage: f64,
+    /// Mean width of the bound in the hold samples, N.
+    pub mean_bound_width_n: f64,
+    /// Largest peak-to-peak joint motion in a stable region, °.
+    pub tip_motion_pp_deg: f64,
+    /// Loading cases run.
+    pub cases: usize,
+    /// Faulted cases, described.
+    pub faults: Vec<String>,
+    /// Faults the plant's true state does not confirm.
+    pub false_faults: usize,
+}
+
+/// Run the seed's loading protocol (every angle, weight and direction) on
+/// `plant` with `config`; `label` names the runs (seeds, progress).
+pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &str) -> Protocol {
+    let mut out = Protocol::default();
     let mut above: [Vec<f64>; 4] = Default::default();
     let mut at03: [Vec<f64>; 4] = Default::default();
     let (mut stat, mut dyn_) = ([0.0f64; 4], [0.0f64; 4]);
@@ -374,7 +391,7 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
         for m in MASSES_G {
             for d in [Direction::Pos, Direction::Neg] {
                 out.cases += 1;
-                let label = format!("variant/{}/{a}/{m}/{d:?}", v.name);
+                let case = format!("{label}/{a}/{m}/{d:?}");
                 let opts = ScenarioOptions {
                     duration_scale: s.scale,
                     angle_deg: Some(a),
@@ -390,9 +407,9 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
                 };
                 if let Err(e) = scenario::run(
                     "loading",
-                    v.plant,
-                    config,
-                    Some(run_seed(s.seed, &label)),
+                    *plant,
+                    *config,
+                    Some(run_seed(s.seed, &case)),
                     &opts,
                     &mut rec,
                 ) {
@@ -400,6 +417,7 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
                     out.false_faults += 1;
                     continue;
                 }
+                rec.close_noload();
                 if let Some(f) = rec.fault {
                     out.faults.push(format!("{a}° {m} g {d:?}: {f}"));
                     out.false_faults += usize::from(!rec.fault_confirmed);
@@ -453,12 +471,68 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
     };
     out.mean_bound_width_n = width.summary(1.0).mean;
     out.tip_motion_pp_deg = pp;
+    out
+}
+
+/// Run one variant: identify its configuration, then the protocol passive
+/// and with probing.
+pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
+    let tag = format!("variant {}", v.name);
+    let mut out = VariantResult {
+        name: v.name.clone(),
+        what: v.what.clone(),
+        rate_hz: v.rate_hz,
+        error: None,
+        notes: Vec::new(),
+        pin_at_tip_n: f64::NAN,
+        sources: Vec::new(),
+        coverage: f64::NAN,
+        mean_bound_width_n: f64::NAN,
+        tip_motion_pp_deg: f64::NAN,
+        cases: 0,
+        faults: Vec::new(),
+        false_faults: 0,
+        probing: None,
+    };
+    let (base, _) = Config::default().at_rate(v.rate_hz);
+    let config = match identify_config(&v.plant, &base, s, &tag) {
+        Ok((c, notes)) => {
+            out.notes = notes;
+            out.notes.push(identified_vs_plant(&c, &v.plant));
+            out.pin_at_tip_n = f64::from(c.fusion.pin_coulomb_nm / c.machine.gripper_length_m);
+            c
+        }
+        Err(e) => {
+            out.error = Some(format!("{e:#}"));
+            return out;
+        }
+    };
+    let passive = run_protocol(&v.plant, &config, s, &format!("variant/{}", v.name));
+    out.sources = passive.sources;
+    out.coverage = passive.coverage;
+    out.mean_bound_width_n = passive.mean_bound_width_n;
+    out.tip_motion_pp_deg = passive.tip_motion_pp_deg;
+    out.cases = passive.cases;
+    out.faults = passive.faults;
+    out.false_faults = passive.false_faults;
+    let mut probed = config;
+    probed.probe.enabled = true;
+    out.probing = Some(run_protocol(
+        &v.plant,
+        &probed,
+        s,
+        &format!("variant/{}/probing", v.name),
+    ));
     s.progress.line(
         &tag,
         &format!(
-            "done: coverage {:.1} %, fused worst >= 1 N {:.1} %",
+            "done: coverage {:.1} %, fused worst >= 1 N {:.1} %, with probing {:.1} %",
             100.0 * out.coverage,
-            out.sources.get(2).map_or(f64::NAN, |x| x.above_1n_min_pct)
+            out.sources.get(2).map_or(f64::NAN, |x| x.above_1n_min_pct),
+            out.probing
+                .as_ref()
+                .and_then(|p| p.sources.get(2))
+                .map_or(f64::NAN, |x| x.above_1n_min_pct)
         ),
     );
     out
@@ -530,13 +604,111 @@ pub fn goal_lines(r: &VariantResult) -> Vec<(String, bool)> {
     g
 }
 
+/// The probing goals of the issue, judged per variant: worst case >= 94 %
+/// above 1 N and >= 82 % at 0.3 N, static no-load within ±0.1 N, tip
+/// motion <= 0.5° peak to peak, and no false fault. The issue exempts the
+/// variants whose slider-2 friction is the limit (`limited`): their lines
+/// are still printed.
+pub fn probing_goal_lines(r: &VariantResult) -> Vec<(String, bool)> {
+    let mut g = Vec::new();
+    let Some(p) = r.probing.as_ref().filter(|p| p.sources.len() >= 4) else {
+        g.push(("probing run".to_owned(), false));
+        return g;
+    };
+    let fu = &p.sources[2];
+    g.push((
+        format!(
+            "with probing, fused worst >= 94 % above 1 N ({} %)",
+            pct(fu.above_1n_min_pct)
+        ),
+        fu.above_1n_min_pct >= 94.0,
+    ));
+    g.push((
+        format!(
+            "with probing, fused worst >= 82 % at 0.3 N ({} %)",
+            pct(fu.at_0n3_min_pct)
+        ),
+        fu.at_0n3_min_pct >= 82.0,
+    ));
+    g.push((
+        format!(
+            "with probing, static no-load error within ±0.1 N ({:.3} N)",
+            fu.static_noload_n
+        ),
+        fu.static_noload_n <= 0.1,
+    ));
+    g.push((
+        format!(
+            "with probing, tip motion <= 0.5° peak to peak ({:.3}°)",
+            p.tip_motion_pp_deg
+        ),
+        p.tip_motion_pp_deg <= 0.5,
+    ));
+    g.push((
+        format!(
+            "with probing, no false fault ({} of {} cases faulted, {} false)",
+            p.faults.len(),
+            p.cases,
+            p.false_faults
+        ),
+        p.false_faults == 0,
+    ));
+    g
+}
+
+/// Which run-wide columns a table row fills.
+struct Row {
+    coverage: bool,
+    tip_motion: bool,
+    faults: Option<String>,
+}
+
+/// One row of the variant table: `cells` are the variant, rate and
+/// estimate columns.
+fn table_row(s: &mut String, cells: [&str; 3], st: &SourceStats, p: &Protocol, row: &Row) {
+    use std::fmt::Write as _;
+    let blank = String::new;
+    let _ = writeln!(
+        s,
+        "| {} | {} | {} | {} | {} | {} | {:.3} | {} | {} | {} | {} | {} |",
+        cells[0],
+        cells[1],
+        cells[2],
+        pct(st.above_1n_min_pct),
+        pct(st.above_1n_mean_pct),
+        pct(st.at_0n3_min_pct),
+        st.static_noload_n,
+        if st.dynamic_noload_n > 0.0 {
+            format!("{:.3}", st.dynamic_noload_n)
+        } else {
+            "–".into()
+        },
+        if row.coverage {
+            pct(100.0 * p.coverage)
+        } else {
+            blank()
+        },
+        if row.coverage {
+            format!("{:.2}", p.mean_bound_width_n)
+        } else {
+            blank()
+        },
+        if row.tip_motion {
+            format!("{:.3}", p.tip_motion_pp_deg)
+        } else {
+            blank()
+        },
+        row.faults.clone().unwrap_or_default(),
+    );
+}
+
 /// The Markdown section (the report leads with it).
 pub fn markdown(results: &[VariantResult]) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "## Force estimate on plant variants (passive; probing not built)\n"
+        "## Force estimate on plant variants (passive, and with probing)\n"
     );
     let _ = writeln!(
         s,
@@ -545,7 +717,8 @@ pub fn markdown(results: &[VariantResult]) -> String {
          `theta_hat`. Accuracy `100 (1 - |mean estimate - F| / |F|)` in the stable region; no-load errors are \
          the largest |estimate|; coverage is the share of hold samples (no-load and stable regions) whose \
          applied force lies inside the fused bound `[f_ext_lo_n, f_ext_hi_n]`; tip motion is the largest \
-         peak-to-peak joint angle in a stable region. Command: `cargo run --release -p host-sim`.\n"
+         peak-to-peak joint angle in a stable region. Static no-load is the largest |estimate| over the second \
+         half of each no-load hold (after every estimate settled). Command: `cargo run --release -p host-sim`.\n"
     );
     let _ = writeln!(
         s,
@@ -563,48 +736,38 @@ pub fn markdown(results: &[VariantResult]) -> String {
             );
             continue;
         }
+        let faults =
+            |p: &Protocol| format!("{}/{} ({} false)", p.faults.len(), p.cases, p.false_faults);
+        let passive = Protocol {
+            sources: r.sources.clone(),
+            coverage: r.coverage,
+            mean_bound_width_n: r.mean_bound_width_n,
+            tip_motion_pp_deg: r.tip_motion_pp_deg,
+            cases: r.cases,
+            faults: r.faults.clone(),
+            false_faults: r.false_faults,
+        };
         for (k, st) in r.sources.iter().enumerate() {
             let first = k == 0;
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {} | {} | {} | {:.3} | {} | {} | {} | {} | {} |",
-                if first { r.name.as_str() } else { "" },
-                if first {
-                    format!("{} Hz", r.rate_hz)
-                } else {
-                    String::new()
-                },
-                SOURCES[k],
-                pct(st.above_1n_min_pct),
-                pct(st.above_1n_mean_pct),
-                pct(st.at_0n3_min_pct),
-                st.static_noload_n,
-                if st.dynamic_noload_n > 0.0 {
-                    format!("{:.3}", st.dynamic_noload_n)
-                } else {
-                    "–".into()
-                },
-                if k == 2 {
-                    pct(100.0 * r.coverage)
-                } else {
-                    String::new()
-                },
-                if k == 2 {
-                    format!("{:.2}", r.mean_bound_width_n)
-                } else {
-                    String::new()
-                },
-                if first {
-                    format!("{:.3}", r.tip_motion_pp_deg)
-                } else {
-                    String::new()
-                },
-                if first {
-                    format!("{}/{} ({} false)", r.faults.len(), r.cases, r.false_faults)
-                } else {
-                    String::new()
-                },
-            );
+            let (head, rate) = if first {
+                (r.name.clone(), format!("{} Hz", r.rate_hz))
+            } else {
+                (String::new(), String::new())
+            };
+            let run = Row {
+                coverage: k == 2,
+                tip_motion: first,
+                faults: first.then(|| faults(&passive)),
+            };
+            table_row(&mut s, [&head, &rate, SOURCES[k]], st, &passive, &run);
+        }
+        if let Some(p) = r.probing.as_ref().filter(|p| p.sources.len() >= 4) {
+            let run = Row {
+                coverage: true,
+                tip_motion: true,
+                faults: Some(faults(p)),
+            };
+            table_row(&mut s, ["", "", "fused + probing"], &p.sources[2], p, &run);
         }
     }
     let _ = writeln!(
@@ -631,14 +794,26 @@ pub fn markdown(results: &[VariantResult]) -> String {
         for f in &r.faults {
             let _ = writeln!(s, "  * fault: {f}");
         }
+        for (text, ok) in probing_goal_lines(r) {
+            let _ = writeln!(s, "  * {}: {text}", if ok { "met" } else { "NOT met" });
+        }
+        if let Some(p) = &r.probing {
+            for f in &p.faults {
+                let _ = writeln!(s, "  * fault with probing: {f}");
+            }
+        }
     }
     let _ = writeln!(
         s,
-        "\nNot built yet: active probing (dither / reversal averaging) and the Dahl presliding state in the \
-         estimator; the probing goals are not met. The force scale of the stretch estimate rests on the \
+        "\nProbing (`[probe] enabled = true`, default 0.1° at 4 Hz, `cable_joint::probe`): the row \
+         \"fused + probing\" is the same protocol with the dither on every hold; its estimate is the fused \
+         estimate's mean over the last whole dither period, so it lags a load change by one period (0.25 s), \
+         and its tip motion is the stick-slip of the dithered chain, not twice the amplitude. Not built: the \
+         Dahl presliding state in the estimator. The force scale of the stretch estimate rests on the \
          datasheet spring rate (`machine.spring_n_m`, through `c4`, Eq. 16): no calibration run without a \
          known load can observe it, so a plant whose spring differs (the drawn variants) carries that error \
-         into every stiffness and into the force.\n"
+         into every stiffness, into the force and into the slack check's cable-1 tension (with probing, \
+         draw 11 latched a false slack fault: the stretch read cable 1 at 4.8 N while it carried 9.8 N).\n"
     );
     s
 }

@@ -1,0 +1,254 @@
+//! Active sensing at a hold: a small sinusoidal dither of the joint-angle
+//! reference and a force estimate synchronous to it (issue 9, off unless
+//! [`crate::config::ProbeConfig::enabled`]).
+//!
+//! Why it helps: at standstill a stuck slider or pin can carry any friction
+//! inside its static band, and no passive sensor tells which, so the passive
+//! bound ([`crate::fusion`]) stays as wide as the band. A dither that makes the
+//! chain slip back and forth turns that unknown static friction into kinetic
+//! friction of alternating sign. Over one whole period of the dither the
+//! friction's mean is (for a symmetric band) zero, and so is the mean of every
+//! other periodic term (inertia, the cables' elastic swing), while the
+//! external force, constant over the period, stays. The probed estimate is
+//! therefore the mean of the fused estimate over the last whole period.
+//!
+//! The physics that sets the frequency: the motor inertia reflected to cable
+//! 0, `J_m (z_i / r_m)^2` (about 37 kg on the prototype), against cable 0's
+//! stiffness low-passes the current's effect on slider 1 at a few hertz, so
+//! the dither is a *position* dither slow enough for the cascade to track
+//! (the joint really moves, which is the price: the tip moves by twice the
+//! amplitude peak to peak). The report measures accuracy against tip motion
+//! on every plant variant.
+//!
+//! Cost per tick: a phasor rotation (four multiplications; no
+//! transcendental function, the phasor is reset exactly once per period) and
+//! three additions. The window is exact without a buffer of every sample: the
+//! period is eight blocks of whole ticks, each block's sums go into an
+//! eight-slot ring, and the mean over the ring (one whole period) is
+//! refreshed at every block's end.
+
+use crate::config::ProbeConfig;
+use crate::math;
+
+/// Blocks per dither period (the ring's size).
+pub const BLOCKS: usize = 8;
+
+/// Quantities averaged over a period: the fused point and its bound.
+const VALUES: usize = 3;
+
+/// Constants derived from [`ProbeConfig`] and the control period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Probe {
+    enabled: bool,
+    amplitude_rad: f32,
+    /// `A ω`, rad/s.
+    amplitude_rad_s: f32,
+    /// Phasor rotation per tick, `cos(ω T)`, `sin(ω T)`.
+    rot_cos: f32,
+    rot_sin: f32,
+    /// Ticks per block (the period is [`BLOCKS`] blocks).
+    block_ticks: u32,
+    /// `1 / ticks per period`.
+    inv_period_ticks: f32,
+}
+
+/// State of the dither and of its synchronous mean.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProbeState {
+    /// Phasor `(cos, sin)` of the dither's phase.
+    phasor: (f32, f32),
+    /// Tick within the current block.
+    tick: u32,
+    /// Block within the current period (the phasor is reset at 0).
+    block: usize,
+    /// Sums of the current block.
+    acc: [f32; VALUES],
+    /// Sums of the last [`BLOCKS`] blocks.
+    ring: [[f32; VALUES]; BLOCKS],
+    /// Blocks completed since the hold began (saturating).
+    blocks_done: u32,
+}
+
+impl Default for ProbeState {
+    fn default() -> Self {
+        Self {
+            phasor: (1.0, 0.0),
+            tick: 0,
+            block: 0,
+            acc: [0.0; VALUES],
+            ring: [[0.0; VALUES]; BLOCKS],
+            blocks_done: 0,
+        }
+    }
+}
+
+/// The probed estimate: means over the last whole dither period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProbeOut {
+    /// Mean fused point estimate, N.
+    pub f_ext_n: f32,
+    /// Mean lower end of the fused bound, N.
+    pub lo_n: f32,
+    /// Mean upper end of the fused bound, N.
+    pub hi_n: f32,
+}
+
+impl Probe {
+    /// Ticks per block for `config` at `period_s`: the period rounded to a
+    /// whole number of blocks of whole ticks (at least one tick per block).
+    pub fn block_ticks(config: &ProbeConfig, period_s: f32) -> u32 {
+        let ticks = 1.0 / (config.frequency_hz * period_s * BLOCKS as f32);
+        let rounded = (ticks + 0.5) as u32;
+        rounded.max(1)
+    }
+
+    /// Precompute from the configuration; `period_s` is the control period.
+    /// The frequency actually used is the one whose period is a whole number
+    /// of blocks (see [`Probe::block_ticks`]).
+    pub fn new(config: &ProbeConfig, period_s: f32) -> Self {
+        let block_ticks = Self::block_ticks(config, period_s);
+        let period_ticks = block_ticks * BLOCKS as u32;
+        let step_rad = 2.0 * math::PI / period_ticks as f32;
+        let omega_rad_s = step_rad / period_s;
+        Self {
+            enabled: config.enabled,
+            amplitude_rad: config.amplitude_rad,
+            amplitude_rad_s: config.amplitude_rad * omega_rad_s,
+            rot_cos: math::cos(step_rad),
+            rot_sin: math::sin(step_rad),
+            block_ticks,
+            inv_period_ticks: 1.0 / period_ticks as f32,
+        }
+    }
+
+    /// Whether the probing motion is configured on.
+    pub fn enabled(&self) -> bool {
+        self.enabled
+    }
+
+    /// One tick of a hold with probing on: the dither to add to the
+    /// reference, `(angle, rate)` in rad and rad/s, for this tick.
+    #[inline]
+    pub fn dither(&self, st: &ProbeState) -> (f32, f32) {
+        let (c, s) = st.phasor;
+        (self.amplitude_rad * s, self.amplitude_rad_s * c)
+    }
+
+    /// Add this tick's fused estimate `(point, lo, hi)`, advance the phase,
+    /// and return the mean over the last whole period once the first period
+    /// of the hold (the settling of the dither) has passed.
+    #[inline]
+    pub fn update(&self, st: &mut ProbeState, values: [f32; VALUES]) -> Option<ProbeOut> {
+        for (a, v) in st.acc.iter_mut().zip(values) {
+            *a += v;
+        }
+        let (c, s) = st.phasor;
+        st.phasor = (
+            c * self.rot_cos - s * self.rot_sin,
+            s * self.rot_cos + c * self.rot_sin,
+        );
+        st.tick += 1;
+        if st.tick >= self.block_ticks {
+            st.ring[st.block] = st.acc;
+            st.acc = [0.0; VALUES];
+            st.tick = 0;
+            st.block += 1;
+            if st.block >= BLOCKS {
+                st.block = 0;
+                // Exact phase once per period: no drift of the rotation.
+                st.phasor = (1.0, 0.0);
+            }
+            st.blocks_done = st.blocks_done.saturating_add(1);
+        }
+        if st.blocks_done < 2 * BLOCKS as u32 {
+            return None;
+        }
+        let mut sum = [0.0f32; VALUES];
+        for block in &st.ring {
+            for (s, b) in sum.iter_mut().zip(block) {
+                *s += *b;
+            }
+        }
+        Some(ProbeOut {
+            f_ext_n: sum[0] * self.inv_period_ticks,
+            lo_n: sum[1] * self.inv_period_ticks,
+            hi_n: sum[2] * self.inv_period_ticks,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn probe(rate_hz: f32, f_hz: f32) -> Probe {
+        let c = ProbeConfig {
+            enabled: true,
+            frequency_hz: f_hz,
+            ..ProbeConfig::default()
+        };
+        Probe::new(&c, 1.0 / rate_hz)
+    }
+
+    #[test]
+    fn the_period_is_a_whole_number_of_blocks_of_whole_ticks() {
+        let ticks = |f_hz: f32, period_s: f32| {
+            let c = ProbeConfig {
+                frequency_hz: f_hz,
+                ..ProbeConfig::default()
+            };
+            Probe::block_ticks(&c, period_s)
+        };
+        assert_eq!(ticks(5.0, 5e-4), 50);
+        assert_eq!(ticks(4.0, 1e-3), 31);
+        assert_eq!(ticks(1e4, 1e-3), 1);
+    }
+
+    #[test]
+    fn the_dither_is_a_sine_of_the_configured_amplitude_that_returns_to_zero_each_period() {
+        let p = probe(2000.0, 4.0);
+        let mut st = ProbeState::default();
+        let n = p.block_ticks * BLOCKS as u32;
+        let (mut max, mut min) = (f32::MIN, f32::MAX);
+        for _ in 0..3 * n {
+            let (a, _) = p.dither(&st);
+            max = max.max(a);
+            min = min.min(a);
+            p.update(&mut st, [0.0; 3]);
+        }
+        let amp = ProbeConfig::default().amplitude_rad;
+        assert!((max - amp).abs() < 1e-3 * amp, "{max} vs {amp}");
+        assert!((min + amp).abs() < 1e-3 * amp, "{min} vs {amp}");
+        // After whole periods the phase is exactly zero again.
+        assert_eq!(p.dither(&st).0, 0.0);
+    }
+
+    #[test]
+    fn the_mean_removes_a_friction_that_follows_the_dithers_direction() {
+        // Estimate = true force + a Coulomb term of the slip's sign + an
+        // inertial swing: the period mean is the true force.
+        let p = probe(1000.0, 5.0);
+        let mut st = ProbeState::default();
+        let force_n = 0.29;
+        let mut last = None;
+        for _ in 0..4 * p.block_ticks * BLOCKS as u32 {
+            let (angle, rate) = p.dither(&st);
+            let friction = 1.5 * math::sign_eps(rate, 0.0);
+            let v = force_n + friction + 40.0 * angle;
+            last = p.update(&mut st, [v, v - 2.0, v + 2.0]);
+        }
+        let out = last.expect("published after the settling period");
+        assert!((out.f_ext_n - force_n).abs() < 0.02, "{out:?}");
+        assert!(out.lo_n < force_n && force_n < out.hi_n);
+    }
+
+    #[test]
+    fn nothing_is_published_during_the_first_period() {
+        let p = probe(2000.0, 4.0);
+        let mut st = ProbeState::default();
+        for _ in 0..2 * p.block_ticks * BLOCKS as u32 - 1 {
+            assert!(p.update(&mut st, [1.0; 3]).is_none());
+        }
+        assert_eq!(p.update(&mut st, [1.0; 3]).map(|o| o.f_ext_n), Some(1.0));
+    }
+}

@@ -372,13 +372,15 @@ pub struct ProbeConfig {
     /// report measures it on every variant). Sweep on four variants at 4 Hz
     /// (`docs/force.md`): 0.05° and 0.2° gave the same worst-case accuracy
     /// within 4 points except on one drawn plant, 0.2° with 0.07° to 0.38°
-    /// more tip motion; the default 0.1° lies between them.
+    /// more tip motion; the default 0.1° lies between them. On the pin-friction
+    /// variant 0.1° was the worst amplitude (50.6 % above 1 N, from one case,
+    /// against 86 % to 87 % at 0.05°, 0.15° and 0.2°): not traced yet.
     pub amplitude_rad: f32,
     /// Dither frequency, Hz (rounded so a period is eight blocks of whole
     /// ticks). 4 Hz: at 8 Hz (0.1°) the worst case at 0.3 N was 8 to 11
-    /// points lower on the default and slider-1 variants (and about the same
-    /// on two others); at 2 Hz the one-period mean lags a load change by half
-    /// a second.
+    /// points lower on the default and slider-1 variants (1 to 6 points higher
+    /// on the two others); at 2 Hz it was lower on all four, and the
+    /// one-period mean lags a load change by half a second.
     pub frequency_hz: f32,
 }
 

@@ -94,6 +94,32 @@ fn jae_feedback_tracks_better_than_motor_encoder_feedback() {
     );
 }
 
+/// One case of the seed's loading protocol on the clean plant.
+fn loading(
+    config: &Config,
+    angle_deg: f64,
+    mass_g: f64,
+    direction: Direction,
+    duration_scale: f64,
+) -> scenario::RunSummary {
+    let opts = ScenarioOptions {
+        duration_scale,
+        angle_deg: Some(angle_deg),
+        mass_g: Some(mass_g),
+        direction: Some(direction),
+        ..Default::default()
+    };
+    scenario::run(
+        "loading",
+        PlantParams::default(),
+        *config,
+        None,
+        &opts,
+        &mut NullRecorder,
+    )
+    .unwrap_or_else(|e| panic!("loading {angle_deg}° {mass_g} g {direction:?}: {e:#}"))
+}
+
 /// The seed's loading protocol on the clean plant with the identified
 /// configuration: the DOB (printed: at standstill it is blind to slider 1's
 /// friction band, seed Fig. 20-26), the stretch estimate and the fused
@@ -113,22 +139,7 @@ fn stretch_and_fused_force_estimates_under_static_loads_at_three_angles() {
     eprintln!("pin friction band at the tip: ±{pin_tip_n:.3} N");
     for angle_deg in [0.0, 30.0, -40.0] {
         for mass_g in [100.0, 250.0] {
-            let opts = ScenarioOptions {
-                duration_scale: 0.6,
-                angle_deg: Some(angle_deg),
-                mass_g: Some(mass_g),
-                direction: Some(Direction::Pos),
-                ..Default::default()
-            };
-            let s = scenario::run(
-                "loading",
-                PlantParams::default(),
-                config,
-                None,
-                &opts,
-                &mut NullRecorder,
-            )
-            .unwrap_or_else(|e| panic!("loading {angle_deg}° {mass_g} g: {e:#}"));
+            let s = loading(&config, angle_deg, mass_g, Direction::Pos, 0.6);
             let (dob_mean, dob_max) = s.force_error_n.expect("stable region present");
             let (st_mean, st_max) = s.force_stretch_error_n.expect("stable region present");
             let (fu_mean, fu_max) = s.force_fused_error_n.expect("stable region present");
@@ -176,22 +187,7 @@ fn probing_brings_the_fused_estimate_at_rest_within_eight_percent_of_the_load_pl
     config.probe.enabled = true;
     for angle_deg in [30.0, -40.0] {
         for (mass_g, direction) in [(30.0, Direction::Pos), (250.0, Direction::Neg)] {
-            let opts = ScenarioOptions {
-                duration_scale: 1.0,
-                angle_deg: Some(angle_deg),
-                mass_g: Some(mass_g),
-                direction: Some(direction),
-                ..Default::default()
-            };
-            let s = scenario::run(
-                "loading",
-                PlantParams::default(),
-                config,
-                None,
-                &opts,
-                &mut NullRecorder,
-            )
-            .unwrap_or_else(|e| panic!("loading {angle_deg}° {mass_g} g: {e:#}"));
+            let s = loading(&config, angle_deg, mass_g, direction, 1.0);
             let (fu_mean, fu_max) = s.force_fused_error_n.expect("stable region present");
             let coverage = s.force_bound_coverage.expect("stable region present");
             let load_n = mass_g * 1e-3 * G_M_S2;

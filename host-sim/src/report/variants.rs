@@ -195,24 +195,10 @@ pub struct VariantResult {
     /// level) without any sensor seeing it, so it bounds what a passive
     /// estimate can resolve at standstill.
     pub pin_at_tip_n: f64,
-    /// Per estimate, in [`SOURCES`] order.
-    pub sources: Vec<SourceStats>,
-    /// Share of hold samples (no-load and stable regions) whose applied
-    /// force lies inside the fused bound.
-    pub coverage: f64,
-    /// Mean width of the bound in the hold samples, N.
-    pub mean_bound_width_n: f64,
-    /// Largest peak-to-peak joint motion in a stable region, °.
-    pub tip_motion_pp_deg: f64,
-    /// Loading cases run, and those that latched a fault.
-    pub cases: usize,
-    /// Faulted cases, described.
-    pub faults: Vec<String>,
-    /// Faults whose cause the plant's true state does not show (a slack
-    /// fault with both cables above the limit, a range fault with the joint
-    /// inside its range and both cables taut, any other fault): the false
-    /// ones.
-    pub false_faults: usize,
+    /// The loading protocol, passive (its fields appear at this level in
+    /// the JSON).
+    #[serde(flatten)]
+    pub passive: Protocol,
     /// The same protocol with probing on ([`cable_joint::probe`], the
     /// configuration's default dither).
     pub probing: Option<Protocol>,
@@ -375,7 +361,10 @@ pub struct Protocol {
     pub cases: usize,
     /// Faulted cases, described.
     pub faults: Vec<String>,
-    /// Faults the plant's true state does not confirm.
+    /// Faults whose cause the plant's true state does not show (a slack
+    /// fault with both cables above the limit, a range fault with the joint
+    /// inside its range and both cables taut, any other fault): the false
+    /// ones.
     pub false_faults: usize,
 }
 
@@ -485,13 +474,12 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
         error: None,
         notes: Vec::new(),
         pin_at_tip_n: f64::NAN,
-        sources: Vec::new(),
-        coverage: f64::NAN,
-        mean_bound_width_n: f64::NAN,
-        tip_motion_pp_deg: f64::NAN,
-        cases: 0,
-        faults: Vec::new(),
-        false_faults: 0,
+        passive: Protocol {
+            coverage: f64::NAN,
+            mean_bound_width_n: f64::NAN,
+            tip_motion_pp_deg: f64::NAN,
+            ..Protocol::default()
+        },
         probing: None,
     };
     let (base, _) = Config::default().at_rate(v.rate_hz);
@@ -507,14 +495,7 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
             return out;
         }
     };
-    let passive = run_protocol(&v.plant, &config, s, &format!("variant/{}", v.name));
-    out.sources = passive.sources;
-    out.coverage = passive.coverage;
-    out.mean_bound_width_n = passive.mean_bound_width_n;
-    out.tip_motion_pp_deg = passive.tip_motion_pp_deg;
-    out.cases = passive.cases;
-    out.faults = passive.faults;
-    out.false_faults = passive.false_faults;
+    out.passive = run_protocol(&v.plant, &config, s, &format!("variant/{}", v.name));
     let mut probed = config;
     probed.probe.enabled = true;
     out.probing = Some(run_protocol(
@@ -527,8 +508,11 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
         &tag,
         &format!(
             "done: coverage {:.1} %, fused worst >= 1 N {:.1} %, with probing {:.1} %",
-            100.0 * out.coverage,
-            out.sources.get(2).map_or(f64::NAN, |x| x.above_1n_min_pct),
+            100.0 * out.passive.coverage,
+            out.passive
+                .sources
+                .get(2)
+                .map_or(f64::NAN, |x| x.above_1n_min_pct),
             out.probing
                 .as_ref()
                 .and_then(|p| p.sources.get(2))
@@ -554,17 +538,21 @@ fn pct(v: f64) -> String {
 /// The goals of the issue, judged per variant (passive: no probing).
 pub fn goal_lines(r: &VariantResult) -> Vec<(String, bool)> {
     let mut g = Vec::new();
-    if r.error.is_some() || r.sources.len() < 4 {
+    if r.error.is_some() || r.passive.sources.len() < 4 {
         g.push(("identified and run".to_owned(), false));
         return g;
     }
-    let (dob, st, fu) = (&r.sources[0], &r.sources[1], &r.sources[2]);
+    let (dob, st, fu) = (
+        &r.passive.sources[0],
+        &r.passive.sources[1],
+        &r.passive.sources[2],
+    );
     g.push((
         format!(
             "bound covers >= 95 % of hold samples ({:.1} %)",
-            100.0 * r.coverage
+            100.0 * r.passive.coverage
         ),
-        r.coverage >= 0.95,
+        r.passive.coverage >= 0.95,
     ));
     g.push((
         format!(
@@ -595,11 +583,11 @@ pub fn goal_lines(r: &VariantResult) -> Vec<(String, bool)> {
     g.push((
         format!(
             "no false fault ({} of {} cases faulted, {} of them false by the plant's true state)",
-            r.faults.len(),
-            r.cases,
-            r.false_faults
+            r.passive.faults.len(),
+            r.passive.cases,
+            r.passive.false_faults
         ),
-        r.false_faults == 0,
+        r.passive.false_faults == 0,
     ));
     g
 }
@@ -738,16 +726,8 @@ pub fn markdown(results: &[VariantResult]) -> String {
         }
         let faults =
             |p: &Protocol| format!("{}/{} ({} false)", p.faults.len(), p.cases, p.false_faults);
-        let passive = Protocol {
-            sources: r.sources.clone(),
-            coverage: r.coverage,
-            mean_bound_width_n: r.mean_bound_width_n,
-            tip_motion_pp_deg: r.tip_motion_pp_deg,
-            cases: r.cases,
-            faults: r.faults.clone(),
-            false_faults: r.false_faults,
-        };
-        for (k, st) in r.sources.iter().enumerate() {
+        let passive = &r.passive;
+        for (k, st) in passive.sources.iter().enumerate() {
             let first = k == 0;
             let (head, rate) = if first {
                 (r.name.clone(), format!("{} Hz", r.rate_hz))
@@ -757,9 +737,9 @@ pub fn markdown(results: &[VariantResult]) -> String {
             let run = Row {
                 coverage: k == 2,
                 tip_motion: first,
-                faults: first.then(|| faults(&passive)),
+                faults: first.then(|| faults(passive)),
             };
-            table_row(&mut s, [&head, &rate, SOURCES[k]], st, &passive, &run);
+            table_row(&mut s, [&head, &rate, SOURCES[k]], st, passive, &run);
         }
         if let Some(p) = r.probing.as_ref().filter(|p| p.sources.len() >= 4) {
             let run = Row {
@@ -791,7 +771,7 @@ pub fn markdown(results: &[VariantResult]) -> String {
         for n in &r.notes {
             let _ = writeln!(s, "  * {n}");
         }
-        for f in &r.faults {
+        for f in &r.passive.faults {
             let _ = writeln!(s, "  * fault: {f}");
         }
         for (text, ok) in probing_goal_lines(r) {

@@ -405,11 +405,14 @@ pub struct FaultLimits {
     pub max_motor_speed_rad_s: f32,
     /// Joint-angle range, rad (|theta_hat| beyond it is a fault).
     pub max_joint_angle_rad: f32,
-    /// Cable 1 counts as slack (a fault) when its estimated tension,
-    /// `K_w1 (x1 - r theta_hat) + F_0`, falls below this fraction of the
-    /// preload `F_0`. A physical threshold: with cable 1 near slack the joint
-    /// loses its stiffness on that side and the JAE's cable model no longer
-    /// holds. 0 switches the check off (a decoupled motor, homing).
+    /// Cable 1 counts as slack (a fault) when both its tension read off its
+    /// stretch, `K_w1 (x1 - r theta_hat) + F_0`, and the tension the motor
+    /// holds less slider 1's friction band, `F_1_hat - F_sc1` (the DOB),
+    /// fall below this fraction of the preload `F_0`. A physical threshold:
+    /// with cable 1 near slack the joint loses its stiffness on that side
+    /// and the JAE's cable model no longer holds. Both chains must agree
+    /// because each has its own scale (spring datasheet, torque constant).
+    /// 0 switches the check off (a decoupled motor, homing).
     pub min_tension_fraction: f32,
     /// With the drive enabled, a measured current beyond this is
     /// [`crate::Fault::OverCurrent`], A: the drive limits at

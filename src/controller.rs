@@ -648,13 +648,19 @@ impl Controller {
                 drive_torque_q_nm: st.dob.drive_nm,
             },
         );
-        // Cable 1 is slack when its tension, read off its stretch, falls
+        // Cable 1 is slack when both chains that see its tension put it
         // below a fraction of the preload (a physical threshold, not a
-        // motor/joint disagreement).
+        // motor/joint disagreement): its stretch, whose scale rests on the
+        // datasheet spring rate, and the motor's torque balance less slider
+        // 1's friction band, whose scale rests on the torque constant. A
+        // slack cable passes both (the motor then holds only the slider);
+        // a stiffness scale off by a third fails only the first, so it is
+        // no fault.
         let tension1_stretch_n = cable1_stretch_n + cfg.tension.f_0_n;
+        let tension1_motor_n = dob_out.tension1_n - cfg.tension.f_sc1_n;
         if st.primed
             && cfg.limits.min_tension_fraction > 0.0
-            && tension1_stretch_n < cfg.slack_limit_n()
+            && tension1_stretch_n.max(tension1_motor_n) < cfg.slack_limit_n()
         {
             fault = fault.or(Some(Fault::TransmissionSlack));
         }
@@ -865,9 +871,43 @@ mod tests {
     /// Cable 1's tension read off its stretch: the joint turning positive
     /// (slider 2 moves out) while slider 1 stays put unloads cable 1; below
     /// the configured fraction of the preload it is slack, above it not.
+    /// The motor here holds nothing (no current measured, the shaft still),
+    /// so its torque balance agrees that cable 1 is slack.
     #[test]
     fn slack_cable_is_a_fault_by_its_tension_not_by_an_angle() {
-        let cfg = Config::default();
+        let mut cfg = Config::default();
+        cfg.dob.use_measured_current = true;
+        let (half, slack) = slack_runs(cfg, at_rest());
+        assert_eq!(half.fault, None, "half the preload left is not slack");
+        assert!((half.est.tension1_stretch_n - 0.5 * cfg.tension.f_0_n).abs() < 0.5);
+        assert_eq!(slack.fault, Some(Fault::TransmissionSlack));
+        assert!(!slack.drive_enable);
+    }
+
+    /// The same stretch, while the measured motor current holds the full
+    /// preload on cable 0: the motor's chain says cable 1 is taut (a
+    /// stiffness scale off, not a slack cable), so there is no fault.
+    #[test]
+    fn a_stretch_that_reads_slack_while_the_motor_holds_the_preload_is_no_fault() {
+        let mut cfg = Config::default();
+        cfg.dob.use_measured_current = true;
+        let m = &cfg.machine;
+        let preload_a =
+            cfg.tension.f_0_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
+        let code = (preload_a / cfg.scales.adc_a_per_code + cfg.scales.adc_zero_code) as u16;
+        let raw = RawSample {
+            current: AdcCode(code),
+            ..Default::default()
+        };
+        let (_, slack) = slack_runs(cfg, raw);
+        assert!(slack.est.tension1_stretch_n < cfg.slack_limit_n());
+        assert_ne!(slack.fault, Some(Fault::TransmissionSlack));
+    }
+
+    /// Hold the motor at zero and turn the joint positive by slider 2 alone
+    /// until cable 1's stretch tension is half, then a tenth, of the
+    /// preload: the controller's output after each.
+    fn slack_runs(cfg: Config, start: RawSample) -> (Output, Output) {
         let per_count = cfg.jae.c_pos_rad_m * cfg.scales.grating_m_per_count;
         let r = cfg.machine.pulley_radius_m;
         // Counts of x2 at which cable 1's tension is a fraction `f` of F_0.
@@ -880,7 +920,7 @@ mod tests {
                 mode: Mode::MotorPosition,
                 trajectory: Trajectory::Hold { angle_rad: 0.0 },
             });
-            let mut raw = at_rest();
+            let mut raw = start;
             let mut out = c.step(&raw);
             for k in 1..=400 {
                 raw.grating2 = GratingCount(end_counts * k / 400);
@@ -894,12 +934,7 @@ mod tests {
             }
             out
         };
-        let half = run(counts_at(0.5));
-        assert_eq!(half.fault, None, "half the preload left is not slack");
-        assert!((half.est.tension1_stretch_n - 0.5 * cfg.tension.f_0_n).abs() < 0.5);
-        let slack = run(counts_at(0.1));
-        assert_eq!(slack.fault, Some(Fault::TransmissionSlack));
-        assert!(!slack.drive_enable);
+        (run(counts_at(0.5)), run(counts_at(0.1)))
     }
 
     /// The stretch estimator reads the joint torque off the two cables:

@@ -43,7 +43,7 @@ use cable_joint::RawSample;
 
 use crate::cli;
 use crate::output::Outputs;
-use crate::plant::PlantParams;
+use crate::plant::{PlantParams, Tensions};
 use crate::sim::{NullRecorder, Sim};
 use crate::simulate::check_ticks;
 
@@ -117,6 +117,8 @@ pub struct Recorded {
     pub theta_true_rad: Vec<f64>,
     /// Applied tip force at each sample, N.
     pub f_ext_true_n: Vec<f64>,
+    /// True cable tensions at each sample.
+    pub tensions_true: Vec<Tensions>,
 }
 
 impl Recorded {
@@ -255,6 +257,7 @@ pub fn record_with(
         rec.outcomes.push(outcome);
         rec.theta_true_rad.push(theta);
         rec.f_ext_true_n.push(plant.external_force_n());
+        rec.tensions_true.push(plant.tensions());
         plant.set_current_command(current_a);
         let dt = period_s / substeps as f64;
         for j in 0..substeps {

@@ -411,7 +411,7 @@ pub struct FaultLimits {
     /// fall below this fraction of the preload `F_0`. A physical threshold:
     /// with cable 1 near slack the joint loses its stiffness on that side
     /// and the JAE's cable model no longer holds. Both chains must agree
-    /// because each has its own scale (spring datasheet, torque constant).
+    /// because each has its own scale (spring rate, torque constant).
     /// 0 switches the check off (a decoupled motor, homing).
     pub min_tension_fraction: f32,
     /// With the drive enabled, a measured current beyond this is

@@ -651,7 +651,7 @@ impl Controller {
         // Cable 1 is slack when both chains that see its tension put it
         // below a fraction of the preload (a physical threshold, not a
         // motor/joint disagreement): its stretch, whose scale rests on the
-        // datasheet spring rate, and the motor's torque balance less slider
+        // spring rate, and the motor's torque balance less slider
         // 1's friction band, whose scale rests on the torque constant. A
         // slack cable passes both (the motor then holds only the slider);
         // a stiffness scale off by a third fails only the first, so it is

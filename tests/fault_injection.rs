@@ -36,6 +36,23 @@ fn run(config: Config, duration_s: f64, inject: &mut dyn Inject) -> Recorded {
         .expect("the closed loop runs")
 }
 
+/// The closed loop with the firmware's configuration and a tip force of
+/// `load_n` applied at `INJECT_S` (ramped in over 50 ms), nothing injected.
+fn run_with_tip_force(load_n: f64) -> Recorded {
+    let opts = TraceOptions {
+        load_n,
+        load_at_s: INJECT_S,
+        ..options(3.6)
+    };
+    record_with(
+        PlantParams::default(),
+        &opts,
+        firmware_config(),
+        &mut NoInjection,
+    )
+    .expect("the closed loop runs")
+}
+
 /// The first fault: its tick and code; the drive off (and the DAC at zero
 /// current) from that tick to the end.
 fn first_fault(rec: &Recorded) -> (usize, Fault) {
@@ -171,18 +188,7 @@ fn cable_one_unloaded_by_a_tip_force_beyond_its_preload_is_slack() {
     // off cable 1 (DESIGN.md's sign convention): -4.5 N takes 22 N, more
     // than the 19.5 N preload, so the transmission goes slack in the hold
     // and both cable 1's stretch and the motor's torque balance read it so.
-    let opts = TraceOptions {
-        load_n: -4.5,
-        load_at_s: INJECT_S,
-        ..options(3.6)
-    };
-    let rec = record_with(
-        PlantParams::default(),
-        &opts,
-        firmware_config(),
-        &mut NoInjection,
-    )
-    .expect("the closed loop runs");
+    let rec = run_with_tip_force(-4.5);
     let (k, _) = first_fault(&rec);
     // The drive, saturated against the load, may pull cable 0 slack first.
     let t = rec.tensions_true[k];
@@ -199,18 +205,7 @@ fn cable_one_unloaded_by_a_tip_force_beyond_its_preload_is_slack() {
 fn a_tip_force_the_preload_still_carries_is_no_fault() {
     // -2.5 N takes 12.5 N off cable 1: about a third of the preload is
     // left, above the 20 % limit.
-    let opts = TraceOptions {
-        load_n: -2.5,
-        load_at_s: INJECT_S,
-        ..options(3.6)
-    };
-    let rec = record_with(
-        PlantParams::default(),
-        &opts,
-        firmware_config(),
-        &mut NoInjection,
-    )
-    .expect("the closed loop runs");
+    let rec = run_with_tip_force(-2.5);
     assert!(rec.outcomes.iter().all(|o| o.record.fault == 0));
 }
 

@@ -618,7 +618,8 @@ fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit {
     };
     // A constant of the machine does not depend on the trajectory: the
     // earlier and the later half of the sweeps (on the seed's calibration,
-    // the sine and the complex trajectory) must agree within the same 5 %.
+    // the sine and the complex trajectory) bound the fit's own error
+    // (`SpringFit::uncertainty_n_m`).
     let (early, late) = rows.split_at(rows.len() / 2);
     if let (Ok(a), Ok(b)) = (solve(early), solve(late)) {
         fit.halves_n_m = (a.params[0], b.params[0]);

@@ -799,7 +799,8 @@ pub fn markdown(results: &[VariantResult]) -> String {
          Dahl presliding state in the estimator. The force scale of the stretch estimate rests on the \
          spring rate (`machine.spring_n_m`, through `c4`, Eq. 16), which `identify` measures through the \
          motor on the JAE's calibration run (the DOB's tension across sweeps of the transmission sliding one \
-         way) and keeps at the datasheet's where that fit's %sigma is above 5 %; the notes above give the \
+         way) and keeps at the datasheet's unless that fit's %sigma is below 5 % and the datasheet's rate \
+         lies outside the fit's uncertainty; the notes above give the \
          rate each variant used against the plant's. The slack check needs both cable 1's stretch and the \
          motor's torque balance (less slider 1's friction band) below the limit.\n"
     );

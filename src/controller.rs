@@ -13,6 +13,7 @@
 use crate::cascade::{self, CascadeIn, CascadeState};
 use crate::config::{Config, ConfigError};
 use crate::dob::{self, Dob, DobOut, DobState, TensionState};
+use crate::effects::TermState;
 use crate::fault::{Fault, Sensor};
 use crate::filter::{Kinematics, LowPass1, TrackingObserver};
 use crate::fusion::{self, Fusion, FusionIn, FusionState};
@@ -466,27 +467,74 @@ impl Controller {
     /// Homing: take `raw` as the origin of every counter. Estimators restart
     /// from rest at zero.
     pub fn set_origin(&mut self, raw: &RawSample) {
-        let fault = self.state.fault;
-        let tick = self.state.tick;
-        // The winding does not cool down because the counters were zeroed.
-        let i2t_a2 = self.state.i2t_a2;
-        // Reset in place, field by field after the default: this runs on a
-        // control tick (homing), so no second copy of the state.
-        self.state = State::default();
-        let st = &mut self.state;
-        let (motor, _) = st.motor_ext.update(raw.motor.0);
-        let (magnetic, _) = st.magnetic_ext.update(raw.magnetic.0);
-        st.origin = Origin {
+        // Reset in place, field by field: this runs on a control tick
+        // (homing), and `self.state = State::default()` built a 600-byte
+        // temporary and copied it (about 1700 instructions under QEMU, the
+        // tick's worst). The pattern names every field, so a field added to
+        // `State` does not compile until it is reset here or kept.
+        let State {
+            motor_ext,
+            magnetic_ext,
+            last_grating,
+            origin,
+            x1,
+            x2,
+            phi,
+            jae,
+            tension,
+            jae_terms,
+            tension_terms,
+            dob,
+            fusion,
+            probe,
+            probing,
+            tension_friction_n,
+            cascade,
+            stretch_force_n,
+            stretch_rad,
+            last_current_a,
+            drive_was_enabled,
+            // The winding does not cool down because the counters were zeroed.
+            i2t_a2: _,
+            current_error_a,
+            tick,
+            command_tick,
+            primed,
+            // A latched fault stays latched.
+            fault: _,
+        } = &mut self.state;
+        *motor_ext = Extender16::default();
+        *magnetic_ext = Extender16::default();
+        let (motor, _) = motor_ext.update(raw.motor.0);
+        let (magnetic, _) = magnetic_ext.update(raw.magnetic.0);
+        *last_grating = None;
+        *origin = Origin {
             grating1: raw.grating1.0,
             grating2: raw.grating2.0,
             motor,
             magnetic,
         };
-        st.fault = fault;
-        st.i2t_a2 = i2t_a2;
-        st.tick = tick;
-        st.command_tick = tick;
-        st.primed = false;
+        for k in [x1, x2, phi] {
+            *k = Kinematics::default();
+        }
+        *jae = JaeState::default();
+        *tension = TensionState::default();
+        for term in jae_terms.iter_mut().chain(tension_terms.iter_mut()) {
+            *term = TermState::default();
+        }
+        *dob = DobState::default();
+        *fusion = FusionState::default();
+        probe.restart();
+        *probing = false;
+        *tension_friction_n = 0.0;
+        *cascade = CascadeState::default();
+        *stretch_force_n = 0.0;
+        *stretch_rad = 0.0;
+        *last_current_a = 0.0;
+        *drive_was_enabled = false;
+        *current_error_a = 0.0;
+        *command_tick = *tick;
+        *primed = false;
     }
 
     /// Trajectory time of the command in force, s.
@@ -693,7 +741,7 @@ impl Controller {
                 fused.flags |= fusion::flags::PROBED;
             }
         } else if st.probing {
-            st.probe = ProbeState::default();
+            st.probe.restart();
         }
         st.probing = probing;
         if !st.primed {
@@ -999,6 +1047,81 @@ mod tests {
             let out = c.step(&raw);
             assert_eq!(out.fault, None);
             assert!((out.est.phi_rad - c.config().scales.motor_rad(k as i32 * 3)).abs() < 1e-5);
+        }
+    }
+
+    /// Homing restarts every estimator as a new controller would. After
+    /// `set_origin` the state equals a fresh controller's, save what homing
+    /// keeps: the tick, the winding's heat, a latched fault, and the probe's
+    /// ring (rewritten before it is read). The two then step identically.
+    #[test]
+    fn homing_restarts_the_estimators_as_a_fresh_controller_would() {
+        use crate::effects::{EffectKind, Term};
+        let mut cfg = Config::default();
+        cfg.probe.enabled = true;
+        // The samples below are no plant: the current does not follow the
+        // reference, and the cables' stretch is arbitrary.
+        cfg.limits.max_current_error_a = 0.0;
+        cfg.limits.min_tension_fraction = 0.0;
+        let time = Term {
+            kind: EffectKind::Time { scale_s: 1.0 },
+            input: sig::X1_M,
+            aux: 0,
+        };
+        let creep = Term {
+            kind: EffectKind::Creep { tau_s: 0.5 },
+            input: sig::X1_M,
+            aux: 0,
+        };
+        assert!(cfg.jae.added.push(time, 1e-3));
+        assert!(cfg.tension.added.push(creep, 10.0));
+        let hold = Command {
+            mode: Mode::JointClosedLoop,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        };
+        // Slow motion on every sensor: the filters, signs, terms and the
+        // probe (a hold, so it dithers) all leave their defaults.
+        let sample = |k: u32| {
+            let w = 0.002 * k as f32;
+            RawSample {
+                grating1: GratingCount((40.0 * math::sin(w)) as i32),
+                grating2: GratingCount((60.0 * math::sin(1.3 * w)) as i32),
+                motor: MotorCount((300.0 * math::sin(w)) as i32 as u16),
+                magnetic: MagneticCount((20.0 * math::sin(1.3 * w)) as i32 as u16),
+                current: AdcCode((2048 + (30.0 * math::sin(3.0 * w)) as i32) as u16),
+            }
+        };
+        let mut used = Controller::new(cfg).unwrap();
+        used.set_command(hold);
+        for k in 0..3000 {
+            used.step(&sample(k));
+        }
+        assert_eq!(used.state.fault, None);
+        assert_ne!(used.state.probe, ProbeState::default(), "the probe ran");
+        assert_ne!(used.state.jae_terms[0], TermState::default());
+        let mut restarted_probe = used.state.probe;
+        restarted_probe.restart();
+        let origin = sample(3000);
+        used.set_origin(&origin);
+        used.set_command(hold);
+        let mut fresh = Controller::new(cfg).unwrap();
+        fresh.set_origin(&origin);
+        fresh.set_command(hold);
+        let mut expected = fresh.state;
+        expected.tick = used.state.tick;
+        expected.command_tick = used.state.tick;
+        expected.i2t_a2 = used.state.i2t_a2;
+        expected.fault = used.state.fault;
+        expected.probe = restarted_probe;
+        assert_eq!(used.state, expected);
+        for k in 3000..6000 {
+            let (a, mut b) = (used.step(&sample(k)), fresh.step(&sample(k)));
+            b.est.t_s = a.est.t_s; // the controllers' clocks differ
+            assert_eq!(
+                (a.est, a.current_ref_a),
+                (b.est, b.current_ref_a),
+                "tick {k}"
+            );
         }
     }
 

@@ -82,6 +82,20 @@ impl Default for ProbeState {
     }
 }
 
+impl ProbeState {
+    /// Start a new hold: phase, block and sums back to their start. The ring
+    /// is left as it is: [`Probe::update`] reads it only after two whole
+    /// periods, by which time every slot has been written again, so clearing
+    /// its 96 bytes would cost a control tick instructions for nothing.
+    pub fn restart(&mut self) {
+        self.phasor = (1.0, 0.0);
+        self.tick = 0;
+        self.block = 0;
+        self.acc = [0.0; VALUES];
+        self.blocks_done = 0;
+    }
+}
+
 /// The probed estimate: means over the last whole dither period.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ProbeOut {

@@ -9,17 +9,21 @@
 #    and builds the QEMU variant around it;
 # 4. runs it on QEMU's netduinoplus2 under `-icount shift=0,sleep=off` with a
 #    timeout, decodes the defmt stream, and fails on a timeout, a failure exit
-#    (panic or HardFault), or an ERROR line;
+#    (panic or HardFault), or an ERROR line; the run injects a drive fault
+#    (from the trace) and a watchdog reset (the control task hangs once the
+#    trace is played), and the boot after the reset must report fault 32
+#    with the drive off;
 # 5. replays the same trace through the core on the host and requires the
-#    firmware's output to be identical tick by tick, bit for bit
-#    (tests/qemu_replay.rs);
+#    firmware's output of both boots to be identical tick by tick, bit for
+#    bit (tests/qemu_replay.rs);
 # 6. prints the instructions per control stage (TIM2 under -icount) and writes
 #    the run as a CSV log (host-sim ingest).
 #
 # Host tools run in the dev profile, so the builds of .ci/run's `cargo test
 # --workspace` are reused. Outputs land in $QEMU_OUT (default: <target dir>/qemu): firmware-hw.elf,
-# firmware-qemu.elf, trace.bin, qemu.defmt (raw), qemu.txt (decoded),
-# qemu.csv, sizes.txt, icount.txt.
+# firmware-qemu.elf, trace.bin, qemu.defmt (raw), qemu-all.txt (decoded),
+# qemu.txt (its first boot), qemu-reset.txt (the recovery boot), qemu.csv,
+# sizes.txt, icount.txt.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -80,8 +84,14 @@ timeout "$TIMEOUT_S" qemu-system-arm \
   -kernel "$OUT/firmware-qemu.elf" >"$OUT/qemu.defmt" 2>"$OUT/qemu.stderr"
 status=$?
 set -e
-defmt-print -e "$OUT/firmware-qemu.elf" <"$OUT/qemu.defmt" >"$OUT/qemu.txt" 2>&1 || true
-grep -v '^INFO  tlm \[' "$OUT/qemu.txt" | tail -n 20 || true
+defmt-print -e "$OUT/firmware-qemu.elf" <"$OUT/qemu.defmt" >"$OUT/qemu-all.txt" 2>&1 || true
+# The run is two boots: the trace, then (after the injected watchdog reset)
+# the recovery boot. Split at the line that arms the watchdog test.
+awk -v first="$OUT/qemu.txt" -v reset="$OUT/qemu-reset.txt" '
+  BEGIN { printf "" > first; printf "" > reset }
+  { if (armed) print > reset; else print > first }
+  /watchdog test: the control task hangs/ { armed = 1 }' "$OUT/qemu-all.txt"
+grep -v '^INFO  tlm \[' "$OUT/qemu-all.txt" | tail -n 20 || true
 if [ "$status" -eq 124 ]; then
   echo "FAIL: QEMU timed out after ${TIMEOUT_S} s" >&2
   exit 1
@@ -98,9 +108,27 @@ if ! grep -q 'trace played' "$OUT/qemu.txt"; then
   echo "FAIL: the firmware did not finish the trace" >&2
   exit 1
 fi
+if ! grep -q 'watchdog test: the control task hangs' "$OUT/qemu.txt"; then
+  echo "FAIL: the firmware did not arm the watchdog test" >&2
+  exit 1
+fi
+# The recovery boot reports the reset as its one error, then ends cleanly.
+if ! grep -q -E '^ERROR +last reset: fault 32 ' "$OUT/qemu-reset.txt"; then
+  echo "FAIL: no watchdog reset reported at the next boot ($OUT/qemu-reset.txt)" >&2
+  exit 1
+fi
+if grep -E '^(ERROR|WARN)' "$OUT/qemu-reset.txt" | grep -q -v -E '^ERROR +last reset: fault 32 '; then
+  echo "FAIL: the recovery boot logged another error or a warning" >&2
+  exit 1
+fi
+if ! grep -q 'recovery boot done' "$OUT/qemu-reset.txt"; then
+  echo "FAIL: the recovery boot did not finish" >&2
+  exit 1
+fi
 
-say "bit-for-bit comparison with the host replay (tests/qemu_replay.rs)"
-CABLE_JOINT_QEMU_LOG="$OUT/qemu.txt" CABLE_JOINT_TRACE="$OUT/trace.bin" \
+say "bit-for-bit comparison with the host replay, both boots (tests/qemu_replay.rs)"
+CABLE_JOINT_QEMU_LOG="$OUT/qemu.txt" CABLE_JOINT_QEMU_RESET_LOG="$OUT/qemu-reset.txt" \
+  CABLE_JOINT_TRACE="$OUT/trace.bin" \
   cargo test "${LOCKED[@]}" --test qemu_replay -- --include-ignored
 
 say "instructions per control tick (TIM2 under -icount shift=0)"

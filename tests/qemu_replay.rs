@@ -15,6 +15,10 @@
 //!   phase, drive line, and the current reference, joint-angle reference,
 //!   `theta_hat` and `F_ext_hat` compared as `f32::to_bits`. Only the cycle
 //!   counts (a property of the machine, not of the math) are not compared.
+//! * `qemu_watchdog_reset_latches_fault_32_with_the_drive_off_at_the_next_boot`
+//!   (ignored likewise): the same for the boot after the watchdog reset the
+//!   QEMU run injects (`CABLE_JOINT_QEMU_RESET_LOG`), against a replay with
+//!   fault 32 latched at start-up.
 
 use std::path::PathBuf;
 
@@ -23,12 +27,17 @@ use cable_joint::telemetry::{parse_line, Record, TickRecord};
 use cable_joint::{Fault, Mode};
 
 /// Replay `trace` exactly as the QEMU firmware runs it (decimation 1, the
-/// program requested before the first tick) and return its telemetry stream.
-fn replay(trace: &Trace) -> Vec<Record> {
-    let control = ControlLoop::new(firmware_config(), 1).expect("built-in configuration");
+/// program requested before the first tick) and return its telemetry stream:
+/// the first `limit` samples, with `boot_fault` latched at start-up as a
+/// recovery boot does.
+fn replay(trace: &Trace, boot_fault: Option<Fault>, limit: usize) -> Vec<Record> {
+    let mut control = ControlLoop::new(firmware_config(), 1).expect("built-in configuration");
+    if let Some(fault) = boot_fault {
+        control.report_boot_fault(fault);
+    }
     let mut records = vec![Record::Start(control.start_record())];
     let mut harness = Harness::new(control);
-    for (k, sample) in trace.iter().enumerate() {
+    for (k, sample) in trace.iter().take(limit).enumerate() {
         let request = (k == 0).then_some(Request::Program(Program::default()));
         let out = harness.tick(&sample, request);
         if let Some(origin) = out.origin {
@@ -60,7 +69,7 @@ fn committed_trace_replays_through_the_firmware_sequence() {
         firmware_config().control_rate_hz,
         "the trace must be recorded at the firmware's control rate"
     );
-    let records = replay(&trace);
+    let records = replay(&trace, None, usize::MAX);
     let ticks = ticks(&records);
     assert_eq!(ticks.len(), trace.len());
     // The drive stays off through the sensor check.
@@ -155,34 +164,34 @@ fn differences(fw: &TickRecord, host: &TickRecord) -> Vec<String> {
     d
 }
 
-#[test]
-#[ignore = "needs the QEMU firmware's decoded output: run .ci/qemu.sh"]
-fn qemu_firmware_matches_host_replay_bit_for_bit() {
+/// The telemetry records in a decoded defmt log named by `var`.
+fn firmware_records(var: &str) -> (PathBuf, String, Vec<Record>) {
     let log = PathBuf::from(
-        std::env::var_os("CABLE_JOINT_QEMU_LOG")
-            .expect("set CABLE_JOINT_QEMU_LOG to the decoded defmt output of the QEMU run"),
+        std::env::var_os(var)
+            .unwrap_or_else(|| panic!("set {var} to the decoded defmt output of the QEMU run")),
     );
-    let trace_path = std::env::var_os("CABLE_JOINT_TRACE")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("firmware/trace.bin"));
     let text =
         std::fs::read_to_string(&log).unwrap_or_else(|e| panic!("reading {}: {e}", log.display()));
-    let mut firmware = Vec::new();
+    let mut records = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if let Some(rec) = parse_line(line) {
-            firmware.push(rec.unwrap_or_else(|e| panic!("{}:{}: {e}", log.display(), i + 1)));
+            records.push(rec.unwrap_or_else(|e| panic!("{}:{}: {e}", log.display(), i + 1)));
         }
     }
-    assert!(
-        text.contains("trace played"),
-        "{}: the firmware did not report the end of the trace",
-        log.display()
-    );
-    let bytes = std::fs::read(&trace_path)
-        .unwrap_or_else(|e| panic!("reading {}: {e}", trace_path.display()));
-    let trace = Trace::parse(&bytes).expect("trace");
-    let host = replay(&trace);
+    (log, text, records)
+}
 
+/// The trace the QEMU firmware embedded (`CABLE_JOINT_TRACE`, default
+/// `firmware/trace.bin`).
+fn embedded_trace() -> Vec<u8> {
+    let path = std::env::var_os("CABLE_JOINT_TRACE")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("firmware/trace.bin"));
+    std::fs::read(&path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()))
+}
+
+/// Start and origin records equal, and every tick record equal bit for bit.
+fn assert_identical(firmware: &[Record], host: &[Record]) {
     assert_eq!(firmware.first(), host.first(), "start records differ");
     let origins = |r: &[Record]| -> Vec<Record> {
         r.iter()
@@ -190,8 +199,8 @@ fn qemu_firmware_matches_host_replay_bit_for_bit() {
             .copied()
             .collect()
     };
-    assert_eq!(origins(&firmware), origins(&host), "origin records differ");
-    let (fw, ho) = (ticks(&firmware), ticks(&host));
+    assert_eq!(origins(firmware), origins(host), "origin records differ");
+    let (fw, ho) = (ticks(firmware), ticks(host));
     assert_eq!(
         fw.len(),
         ho.len(),
@@ -216,7 +225,49 @@ fn qemu_firmware_matches_host_replay_bit_for_bit() {
         fw.len(),
         report.join("\n")
     );
+}
+
+#[test]
+#[ignore = "needs the QEMU firmware's decoded output: run .ci/qemu.sh"]
+fn qemu_firmware_matches_host_replay_bit_for_bit() {
+    let (log, text, firmware) = firmware_records("CABLE_JOINT_QEMU_LOG");
+    assert!(
+        text.contains("trace played"),
+        "{}: the firmware did not report the end of the trace",
+        log.display()
+    );
+    let bytes = embedded_trace();
+    let trace = Trace::parse(&bytes).expect("trace");
+    let host = replay(&trace, None, usize::MAX);
+    assert_identical(&firmware, &host);
     // The run covers what it should: homing, motion, a latched fault.
+    let fw = ticks(&firmware);
     assert!(fw.iter().any(|t| t.phase == Phase::Running.code()));
     assert!(fw.iter().any(|t| t.fault != 0));
+}
+
+/// The boot after the injected watchdog reset (`.ci/qemu.sh` splits it off
+/// as `qemu-reset.txt`): fault 32 latched from the first record on, the
+/// drive never enabled, the program refused, and every record identical
+/// to the host's replay of the same samples with the same boot fault.
+#[test]
+#[ignore = "needs the QEMU firmware's decoded output: run .ci/qemu.sh"]
+fn qemu_watchdog_reset_latches_fault_32_with_the_drive_off_at_the_next_boot() {
+    let (log, text, firmware) = firmware_records("CABLE_JOINT_QEMU_RESET_LOG");
+    assert!(
+        text.contains("recovery boot done"),
+        "{}: the recovery boot did not finish",
+        log.display()
+    );
+    let fw = ticks(&firmware);
+    assert!(!fw.is_empty(), "{}: no tick records", log.display());
+    for t in &fw {
+        assert_eq!(t.fault, Fault::Watchdog.code(), "tick {}", t.tick);
+        assert!(!t.drive_enable && t.current_ref_a == 0.0, "tick {}", t.tick);
+        assert_ne!(t.phase, Phase::Running.code(), "tick {}", t.tick);
+    }
+    let bytes = embedded_trace();
+    let trace = Trace::parse(&bytes).expect("trace");
+    let host = replay(&trace, Some(Fault::Watchdog), fw.len());
+    assert_identical(&firmware, &host);
 }

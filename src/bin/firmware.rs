@@ -67,7 +67,9 @@ use defmt_semihosting as _;
 #[cfg(target_os = "none")]
 static EVENTS: cable_joint::board::Events = cable_joint::board::Events::new();
 
-/// The QEMU trace is played; the telemetry task exits after flushing.
+/// The QEMU trace is played: the control task stops stepping, and the
+/// telemetry task, once it has flushed, arms the watchdog test (first boot)
+/// or ends the run (recovery boot).
 #[cfg(all(target_os = "none", feature = "qemu"))]
 static DONE: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
 
@@ -229,6 +231,11 @@ mod app {
             dropped,
             ..
         } = cx.local;
+        #[cfg(feature = "qemu")]
+        if super::DONE.load(core::sync::atomic::Ordering::SeqCst) {
+            board::after_trace(watchdog);
+            return;
+        }
         tick.ack();
         let request = requests_rx.dequeue();
         let outcome = control.tick(front_end, drive, &EVENTS, request, counter);
@@ -249,7 +256,7 @@ mod app {
         }
         #[cfg(feature = "qemu")]
         if front_end.finished() {
-            tick.stop();
+            // The tick source keeps running: the software watchdog lives in it.
             super::DONE.store(true, core::sync::atomic::Ordering::SeqCst);
             queued = true;
         }
@@ -284,7 +291,8 @@ mod app {
         on_origin_edge(cx.local.origin, cx.local.kill, &EVENTS);
     }
 
-    /// QEMU only: TIM5 stands in for TIM6, which QEMU does not model.
+    /// QEMU only: TIM5 stands in for TIM6, which QEMU does not model, and
+    /// runs the software watchdog that stands in for the IWDG.
     #[cfg(feature = "qemu")]
     #[task(binds = TIM5, priority = 5)]
     fn qemu_tick(_: qemu_tick::Context) {
@@ -306,7 +314,7 @@ mod app {
             // flushes everything it queued.
             drain(telemetry_rx, last);
             defmt::info!("trace played");
-            board::finish();
+            board::trace_played();
         }
     }
 

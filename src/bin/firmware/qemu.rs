@@ -14,9 +14,18 @@
 //! * TIM2 counts virtual nanoseconds; under `-icount shift=0,sleep=off` its
 //!   delta is the number of guest instructions (the per-stage counts);
 //! * the drive enable line is a flag; logging goes over semihosting
-//!   (defmt-semihosting), and the run ends through semihosting: success when
-//!   the trace is played and the telemetry flushed, failure on a panic or a
-//!   HardFault.
+//!   (defmt-semihosting);
+//! * the IWDG is not modelled either: a software watchdog in TIM5's
+//!   interrupt (priority above the control task) resets the MCU through
+//!   `SYSRESETREQ` when no tick has completed for [`WATCHDOG_TICKS`] ticks,
+//!   and leaves a flag in RAM the start-up code does not clear, as the RCC's
+//!   reset flag would be on the chip;
+//! * the run injects a watchdog reset: once the trace is played and the
+//!   telemetry flushed, the control task hangs on purpose; the watchdog
+//!   resets the MCU, and the next boot (a *recovery boot*) must latch fault
+//!   32 and keep the drive off for [`RECOVERY_TICKS`] ticks of the trace;
+//!   then the run ends through semihosting with success. A panic or a
+//!   HardFault ends it with failure.
 //!
 //! No RCC register is touched (QEMU has no clock model; HAL clock set-up
 //! would wait forever for the PLL).
@@ -105,9 +114,11 @@ pub struct FrontEnd {
 }
 
 impl FrontEnd {
-    /// Every sample has been played.
+    /// Every sample has been played (a recovery boot plays only the first
+    /// [`RECOVERY_TICKS`]).
     pub fn finished(&self) -> bool {
         self.replay.finished()
+            || (RECOVERY.load(Ordering::SeqCst) && self.replay.position() >= RECOVERY_TICKS)
     }
 }
 
@@ -128,20 +139,91 @@ impl SensorFrontEnd for FrontEnd {
     }
 }
 
-/// QEMU's netduinoplus2 does not model the IWDG: feeding is a no-op here
-/// (the hardware build runs the real one; its logic, the boot report, is
-/// tested on the host).
+/// Ticks without a completed control tick before the software watchdog
+/// resets the MCU (the hardware IWDG's timeout is six periods).
+pub const WATCHDOG_TICKS: u32 = 6;
+
+/// Ticks a recovery boot runs on the trace before the run ends.
+pub const RECOVERY_TICKS: usize = 50;
+
+/// Pattern of the watchdog's reset flag ("WDOG").
+const WATCHDOG_MAGIC: u32 = 0x5744_4F47;
+
+/// The tick count at the last feed.
+static FED_AT: AtomicU32 = AtomicU32::new(0);
+/// The control task hangs on purpose from its next tick (watchdog test).
+static HANG: AtomicBool = AtomicBool::new(false);
+/// This boot follows a watchdog reset.
+static RECOVERY: AtomicBool = AtomicBool::new(false);
+/// The end of the trace has been handled.
+static TRACE_ENDED: AtomicBool = AtomicBool::new(false);
+
+/// The reset flag, in RAM the start-up code leaves alone (cortex-m-rt's
+/// `.uninit`), as RCC_CSR's IWDGRSTF survives the reset on the chip.
+#[link_section = ".uninit.WATCHDOG_FLAG"]
+static mut WATCHDOG_FLAG: core::mem::MaybeUninit<u32> = core::mem::MaybeUninit::uninit();
+
+/// The software watchdog, fed by every control tick that completes in time.
 pub struct Watchdog;
 
 impl Watchdog {
-    /// Nothing to feed.
+    /// Note that a tick completed.
     #[inline(always)]
-    pub fn feed(&mut self) {}
+    pub fn feed(&mut self) {
+        FED_AT.store(TICKS.load(Ordering::SeqCst), Ordering::SeqCst);
+    }
 }
 
-/// No watchdog, so never a watchdog reset.
+/// Did the software watchdog cause the last reset? Clears the flag. A
+/// `true` makes this boot a recovery boot (see the module's docs).
 pub fn take_watchdog_reset_flag() -> bool {
-    false
+    let flag = core::ptr::addr_of_mut!(WATCHDOG_FLAG).cast::<u32>();
+    // SAFETY: init runs once, before any task or handler; the word may hold
+    // power-up noise, which the pattern rejects.
+    let by_watchdog = unsafe { core::ptr::read_volatile(flag) } == WATCHDOG_MAGIC;
+    // SAFETY: as above.
+    unsafe { core::ptr::write_volatile(flag, 0) };
+    RECOVERY.store(by_watchdog, Ordering::SeqCst);
+    by_watchdog
+}
+
+/// No tick completed in time: drive off, flag for the next boot, reset.
+fn watchdog_reset() -> ! {
+    kill_drive();
+    let flag = core::ptr::addr_of_mut!(WATCHDOG_FLAG).cast::<u32>();
+    // SAFETY: a volatile store of one word no other code touches while the
+    // MCU resets.
+    unsafe { core::ptr::write_volatile(flag, WATCHDOG_MAGIC) };
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// The control task's tick once the trace is played: feed the watchdog
+/// while the telemetry flushes, then hang once the test is armed.
+pub fn after_trace(watchdog: &mut Watchdog) {
+    if HANG.load(Ordering::SeqCst) {
+        loop {
+            cortex_m::asm::nop();
+        }
+    }
+    watchdog.feed();
+}
+
+/// The trace is played and the telemetry flushed. A first boot arms the
+/// watchdog test (the control task hangs from its next tick); a recovery
+/// boot ends the run with success.
+pub fn trace_played() {
+    if TRACE_ENDED.swap(true, Ordering::SeqCst) {
+        return;
+    }
+    if RECOVERY.load(Ordering::SeqCst) {
+        defmt::info!("recovery boot done: drive kept off");
+        finish();
+    }
+    defmt::info!(
+        "watchdog test: the control task hangs from the next tick ({=u32} ticks to the reset)",
+        WATCHDOG_TICKS
+    );
+    HANG.store(true, Ordering::SeqCst);
 }
 
 fn trace() -> Option<Trace<'static>> {
@@ -176,20 +258,17 @@ impl TickTimer {
     pub fn overran(&self) -> bool {
         TICKS.load(Ordering::SeqCst) != self.seen
     }
-
-    /// Stop the tick source (the trace is played).
-    pub fn stop(&mut self) {
-        // SAFETY: TIM5 is only used as this tick source.
-        unsafe { (*pac::TIM5::ptr()).cr1().write(|w| w.bits(0)) };
-    }
 }
 
-/// TIM5 update: one control tick.
+/// TIM5 update: one control tick, and the software watchdog's check.
 #[inline(always)]
 pub fn on_tick_source() {
     // SAFETY: clear TIM5's update flag (rc_w0); TIM5 is only this tick source.
     unsafe { (*pac::TIM5::ptr()).sr().write(|w| w.bits(0)) };
-    TICKS.fetch_add(1, Ordering::SeqCst);
+    let now = TICKS.fetch_add(1, Ordering::SeqCst).wrapping_add(1);
+    if now.wrapping_sub(FED_AT.load(Ordering::SeqCst)) > WATCHDOG_TICKS {
+        watchdog_reset();
+    }
     rtic::pend(Interrupt::TIM6_DAC);
 }
 
@@ -230,7 +309,7 @@ pub struct Board {
     pub origin: InputLine<OriginPin>,
     /// Tick source.
     pub tick: TickTimer,
-    /// No-op watchdog.
+    /// Software watchdog.
     pub watchdog: Watchdog,
 }
 

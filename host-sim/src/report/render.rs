@@ -997,7 +997,7 @@ fn md_residual(out: &mut String, name: &str, a: &Analysis, scale: f64, unit: &st
     let o = &a.outcome;
     let _ = writeln!(
         out,
-        "**{name}** ({} candidates, fitted on the first 70 % of the run, judged on the last 30 %): validation RMSE {} → {} {unit}.\n",
+        "**{name}** ({} candidates, fitted on the first 70 % of the run, judged on the last 30 %; terms reading a sensor the model does not read, for the JAE grating 1 and the motor encoder, are sensor fusion and not offered): validation RMSE {} → {} {unit}.\n",
         o.n_candidates,
         fmt_num(o.baseline.val_rmse * scale),
         fmt_num(o.final_fit.val_rmse * scale),
@@ -1011,18 +1011,44 @@ fn md_residual(out: &mut String, name: &str, a: &Analysis, scale: f64, unit: &st
     }
     let _ = writeln!(
         out,
-        "| # | term | meaning | validation RMSE after [{unit}] | gain |"
+        "| # | term | effect family | meaning | validation RMSE after [{unit}] | gain | residual–term correlation, before → after | a rival family as likely |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|");
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
     for (k, s) in o.accepted.iter().enumerate() {
+        let evidence = s
+            .evidence
+            .map_or("–".into(), |(b, a)| format!("{b:+.2} → {a:+.2}"));
+        let rival = s
+            .rival
+            .as_ref()
+            .map_or("no".into(), |r| format!("{} (`{}`)", r.class, r.label));
         let _ = writeln!(
             out,
-            "| {} | `{}` | {} | {} | {:.1} % |",
+            "| {} | `{}` | {} | {} | {} | {:.1} % | {} | {} |",
             k + 1,
             s.label,
+            s.class,
             s.meaning,
             fmt_num(s.fit.val_rmse * scale),
-            100.0 * s.gain
+            100.0 * s.gain,
+            evidence,
+            rival
+        );
+    }
+    let harmed: Vec<String> = o
+        .rejected
+        .iter()
+        .filter_map(|s| {
+            s.harm
+                .as_ref()
+                .map(|(run, rise)| format!("`{}` (raises {run} by {:.1} %)", s.label, 100.0 * rise))
+        })
+        .collect();
+    if !harmed.is_empty() {
+        let _ = writeln!(
+            out,
+            "\nSet aside because they raise one validation run's error (do no harm): {}.",
+            harmed.join(", ")
         );
     }
     let _ = writeln!(out);

@@ -115,6 +115,11 @@ pub struct ResidualArgs {
     /// run's first sample) instead of the encoders' common zero.
     #[arg(long = "mrdlab-first-zero")]
     pub mrdlab_first_zero: bool,
+    /// jae/tension/force: also offer terms that read sensors the model does
+    /// not (for the JAE the motor encoder and grating 1). Such a term is
+    /// sensor fusion, not a physical effect, and is labelled `fusion`.
+    #[arg(long = "other-sensors")]
+    pub other_sensors: bool,
 }
 
 /// Fitting rows the automatic decimation aims at.
@@ -343,6 +348,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         holdout: args.holdout,
         keep_added: args.keep_added,
         settle_s: args.settle_s,
+        other_sensors: args.other_sensors,
     };
     let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
     print!("{}", report::table(&a));

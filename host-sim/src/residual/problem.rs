@@ -33,7 +33,7 @@ use cable_joint::filter::{LowPass1, SignMemory, TrackingObserver};
 use cable_joint::model::{sig, SIGNAL_NAMES};
 use cable_joint::Config;
 
-use super::select::{lowpass, term_column, Problem, RunData};
+use super::select::{lowpass, reads_other_sensor, term_column, Problem, RunData};
 use crate::derive::{config_for_log, derive, median_period_s};
 use crate::log::{Log, Schema};
 
@@ -202,6 +202,9 @@ pub struct BuildOptions {
     /// Leave the first seconds of every run out of fitting and validation
     /// (start-up transients of runs that begin at rest).
     pub settle_s: f64,
+    /// Offer terms that read sensors the model itself does not read
+    /// ([`Problem::other_sensors`]): sensor fusion, reported as such.
+    pub other_sensors: bool,
 }
 
 impl Default for BuildOptions {
@@ -210,6 +213,7 @@ impl Default for BuildOptions {
             holdout: 0.3,
             keep_added: false,
             settle_s: 0.0,
+            other_sensors: false,
         }
     }
 }
@@ -438,7 +442,30 @@ pub fn build(
         },
         ModelKind::Generic { .. } => generic_roles(&problem.signal_names),
     };
+    // The JAE (Eq. 26) reads slider 2 alone: the motor encoder and grating 1
+    // are other sensors for it. The tension and force models read both
+    // sliders and the motor's speed; the motor's angle is not in them.
+    problem.other_sensors = match kind {
+        ModelKind::Jae => vec![
+            sig::X1_M,
+            sig::X1_VEL_M_S,
+            sig::PHI_RAD,
+            sig::PHI_VEL_RAD_S,
+            sig::THETA_MOTOR_RAD,
+        ],
+        ModelKind::Tension | ModelKind::Force => vec![sig::PHI_RAD, sig::THETA_MOTOR_RAD],
+        ModelKind::Generic { .. } => Vec::new(),
+    };
     let mut lib = library(&roles, &problem.runs, period0, duration_s(&problem.runs));
+    if !opts.other_sensors {
+        lib.retain(|t| !reads_other_sensor(t, &problem.other_sensors));
+    }
+    if *kind == ModelKind::Jae {
+        // The JAE maps slider 2 to the joint through cable 2 and the return
+        // spring: the current reaches it only as a load (cable stretch,
+        // load-dependent friction), never through the winding's heat.
+        lib.retain(|t| !matches!(t.kind, EffectKind::Thermal { .. }));
+    }
     if *kind == ModelKind::Tension {
         // Current only through the winding temperature (see the module doc).
         lib.retain(|t| {

@@ -106,6 +106,13 @@ fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
         "train_rmse": s.fit.train_rmse,
         "val_rmse": s.fit.val_rmse,
         "gain": s.gain,
+        "class": s.class,
+        "rival": s.rival,
+        "harm": s.harm.as_ref().map(|(run, rise)| json!({ "run": run, "rise": rise })),
+        "evidence": s.evidence.map(|(before, after)| json!({
+            "corr_before": before,
+            "corr_after": after,
+        })),
     })
 }
 
@@ -131,6 +138,10 @@ pub fn json(a: &Analysis) -> Value {
         "keep_added": a.build.keep_added,
         "decimate": a.options.decimate,
         "min_gain": a.options.min_gain,
+        "other_sensors": a.build.other_sensors,
+        "other_sensor_signals": a.problem.other_sensors.iter()
+            .map(|&i| signal(a, i))
+            .collect::<Vec<_>>(),
         "n_fit": o.n_fit,
         "n_val": o.n_val,
         "n_candidates": o.n_candidates,
@@ -257,8 +268,26 @@ pub fn table(a: &Analysis) -> String {
         if let Some(c) = o.final_fit.coefs.get(nb + k) {
             let _ = writeln!(
                 s,
-                "      {}; coef {:+.4e} ± {:.1e} ({:.1} %σ)",
-                st.meaning, c.value, c.std_dev, c.pct_sigma
+                "      {}: {}; coef {:+.4e} ± {:.1e} ({:.1} %σ)",
+                st.class, st.meaning, c.value, c.std_dev, c.pct_sigma
+            );
+        }
+        if let Some((before, after)) = st.evidence {
+            let _ = writeln!(
+                s,
+                "      evidence: correlation of the validation residual with the term {before:+.3} before, {after:+.3} after"
+            );
+        }
+        if let Some(r) = &st.rival {
+            let _ = writeln!(
+                s,
+                "      ambiguous: {} ({}) explains nearly as much (ERR {:.1} % against {:.1} %); the data do not tell {} from {}",
+                r.label,
+                r.class,
+                100.0 * r.err,
+                100.0 * st.err,
+                st.class,
+                r.class
             );
         }
     }
@@ -274,19 +303,42 @@ pub fn table(a: &Analysis) -> String {
     if !o.rejected.is_empty() {
         let _ = writeln!(
             s,
-            "set aside (cut the validation RMSE by less than {:.1} %):",
+            "set aside (cut the validation RMSE by less than {:.1} %, or raised one validation run's by more):",
             100.0 * a.options.min_gain
         );
         for st in &o.rejected {
+            let harm = st
+                .harm
+                .as_ref()
+                .map(|(run, rise)| format!("; raises {run} by {:.1} %", 100.0 * rise))
+                .unwrap_or_default();
             let _ = writeln!(
                 s,
-                "    {:<44} ERR {:.1} %, validation {:.4} {unit} ({:+.1} %)",
+                "    {:<44} ERR {:.1} %, validation {:.4} {unit} ({:+.1} %){harm}",
                 st.label,
                 100.0 * st.err,
                 st.fit.val_rmse * scale,
                 -100.0 * st.gain
             );
         }
+    }
+    if !a.problem.other_sensors.is_empty() {
+        let names: Vec<&str> = a
+            .problem
+            .other_sensors
+            .iter()
+            .filter_map(|&i| a.problem.signal_names.get(i as usize).map(String::as_str))
+            .collect();
+        let _ = writeln!(
+            s,
+            "other sensors ({}): {}",
+            names.join(", "),
+            if a.build.other_sensors {
+                "offered (--other-sensors); a term that reads one is labelled fusion"
+            } else {
+                "not offered (a term reading one would be sensor fusion; --other-sensors offers them)"
+            }
+        );
     }
     diag_rows(&mut s, &o.before, &o.after, scale, unit);
     if o.runs.len() > 1 {

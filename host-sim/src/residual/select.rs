@@ -69,6 +69,11 @@ pub struct Problem {
     pub signal_names: Vec<String>,
     /// Candidate effect terms.
     pub candidates: Vec<Term>,
+    /// Signals from sensors the model itself does not read (for the JAE:
+    /// the motor encoder and grating 1). A term that reads one explains the
+    /// residual by sensor fusion, not by a physical effect; such terms are
+    /// candidates only when the user asks for them (and are labelled so).
+    pub other_sensors: Vec<u8>,
     /// Terms of the configuration kept in the baseline (its last columns).
     pub kept: Vec<Term>,
     /// Step given to the terms, s; `None`: the log's own time steps.
@@ -150,6 +155,93 @@ pub struct Step {
     pub fit: ModelFit,
     /// Relative cut of the validation RMSE it brought.
     pub gain: f64,
+    /// The physical family it belongs to ([`effect_class`]).
+    pub class: String,
+    /// The best candidate of another family at the step it was taken, when
+    /// that one explains at least [`RIVAL_SHARE`] of what this one does: the
+    /// data do not tell the two families apart.
+    pub rival: Option<Rival>,
+    /// A validation run whose error it would have raised by more than the
+    /// smallest gain (do no harm), with that rise (relative); only for
+    /// set-aside terms.
+    pub harm: Option<(String, f64)>,
+    /// Correlation of the validation residual with the term's column,
+    /// before (baseline) and after (final model); only for kept terms.
+    pub evidence: Option<(f64, f64)>,
+}
+
+/// A candidate of another effect family that explains the residual nearly
+/// as well as the one taken.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Rival {
+    /// Its label.
+    pub label: String,
+    /// Its family.
+    pub class: String,
+    /// Its error reduction ratio at that step.
+    pub err: f64,
+}
+
+/// A rival family is named when its best candidate's ERR reaches this share
+/// of the taken term's ERR.
+pub const RIVAL_SHARE: f64 = 0.8;
+
+/// Signal kinds, from the unit suffix of the signal's name.
+fn is_velocity(name: &str) -> bool {
+    name.contains("_vel") || name.ends_with("_m_s") || name.ends_with("_rad_s")
+}
+
+fn is_load(name: &str) -> bool {
+    name.ends_with("_a") || name.ends_with("_n") || name.ends_with("_nm")
+}
+
+/// Does `t` read a signal of `other` (as its input or its second signal)?
+pub fn reads_other_sensor(t: &Term, other: &[u8]) -> bool {
+    (t.kind.uses_input() && other.contains(&t.input))
+        || (t.kind.uses_aux() && other.contains(&t.aux))
+}
+
+/// The physical family of a term: `drift`, `stiffness` (a static function
+/// of a position), `friction` (of a velocity), `hysteresis`, `creep /
+/// relaxation`, `thermal`, `load` (a function of a current or force), or
+/// `fusion: <signal>` when it reads a sensor the model does not (see
+/// [`Problem::other_sensors`]).
+pub fn effect_class(t: &Term, names: &[String], other: &[u8]) -> String {
+    if reads_other_sensor(t, other) {
+        let i = if t.kind.uses_input() && other.contains(&t.input) {
+            t.input
+        } else {
+            t.aux
+        };
+        let name = names.get(i as usize).map_or("?", String::as_str);
+        return format!("fusion: {name}");
+    }
+    let input = names.get(t.input as usize).map_or("", String::as_str);
+    let static_of_input = if is_velocity(input) {
+        "friction"
+    } else if is_load(input) {
+        "load"
+    } else {
+        "stiffness"
+    };
+    match t.kind {
+        EffectKind::Constant | EffectKind::Time { .. } | EffectKind::Warmup { .. } => "drift",
+        EffectKind::Linear
+        | EffectKind::SignedSquare
+        | EffectKind::Cube
+        | EffectKind::DeadZone { .. } => static_of_input,
+        EffectKind::SmoothSign { .. }
+        | EffectKind::Stribeck { .. }
+        | EffectKind::LoadCoulomb { .. } => "friction",
+        EffectKind::Play { .. }
+        | EffectKind::Stop { .. }
+        | EffectKind::Dahl { .. }
+        | EffectKind::LoadDahl { .. } => "hysteresis",
+        EffectKind::Relaxation { .. } | EffectKind::Creep { .. } => "creep / relaxation",
+        EffectKind::Thermal { .. } => "thermal",
+        EffectKind::Product => "load",
+    }
+    .to_string()
 }
 
 /// Residual diagnostics on the validation rows.
@@ -355,6 +447,14 @@ fn rms(v: &[f64]) -> f64 {
 
 /// Rows of `range` that are finite in the target, fixed part, baseline and
 /// every signal, every `decimate`-th.
+/// RMSE of `e` (over the validation rows) on each validation run.
+fn run_rmses(val: &Split, e: &[f64]) -> Vec<f64> {
+    val.runs
+        .iter()
+        .map(|(_, first, rows)| rms(&e[*first..*first + rows.len()]))
+        .collect()
+}
+
 fn rows_of(run: &RunData, range: &Range<usize>, decimate: usize) -> Vec<usize> {
     let end = range.end.min(run.t_s.len());
     (range.start..end)
@@ -669,6 +769,11 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         .iter()
         .map(|t| term_label(t, &problem.signal_names))
         .collect();
+    let classes: Vec<String> = problem
+        .candidates
+        .iter()
+        .map(|t| effect_class(t, &problem.signal_names, &problem.other_sensors))
+        .collect();
     let mut names: Vec<String> = problem.baseline_names.clone();
 
     // Usable candidates: finite on every fitting and validation row, not flat.
@@ -723,12 +828,13 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     let mut current = baseline.clone();
     let mut params = base_params.clone();
     let mut misses = 0usize;
+    let mut current_runs = run_rmses(&val, &residual(&val, &[], &base_params));
     while chosen.len() < opts.max_terms && misses < opts.patience {
         let rr = dot(&r, &r);
         if rr <= 0.0 {
             break;
         }
-        let mut best: Option<(usize, f64)> = None;
+        let mut errs: Vec<Option<f64>> = vec![None; perp.len()];
         for k in 0..perp.len() {
             if !usable[k] || set_aside[k] || chosen.contains(&k) {
                 continue;
@@ -738,11 +844,31 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
                 continue;
             }
             let err = dot(&perp[k], &r).powi(2) / (nn * rr);
-            if err.is_finite() && best.is_none_or(|(_, e)| err > e) {
-                best = Some((k, err));
+            if err.is_finite() {
+                errs[k] = Some(err);
             }
         }
-        let Some((k, err)) = best else { break };
+        let best = |skip_class: Option<&str>| -> Option<(usize, f64)> {
+            errs.iter()
+                .enumerate()
+                .filter(|(k, _)| skip_class.is_none_or(|c| classes[*k] != c))
+                .filter_map(|(k, e)| e.map(|e| (k, e)))
+                .fold(None, |b: Option<(usize, f64)>, (k, e)| {
+                    if b.is_none_or(|(_, be)| e > be) {
+                        Some((k, e))
+                    } else {
+                        b
+                    }
+                })
+        };
+        let Some((k, err)) = best(None) else { break };
+        let rival = best(Some(&classes[k]))
+            .filter(|&(_, e)| e >= RIVAL_SHARE * err)
+            .map(|(j, e)| Rival {
+                label: labels[j].clone(),
+                class: classes[j].clone(),
+                err: e,
+            });
         let mut idx = chosen.clone();
         idx.push(k);
         let mut nm = names.clone();
@@ -757,7 +883,25 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             }
         };
         let gain = (current.val_rmse - mf.val_rmse) / current.val_rmse;
-        let step = Step {
+        // Do no harm: no validation run (regime) may get worse by more than
+        // the smallest gain that keeps a term.
+        let cand_runs = run_rmses(&val, &residual(&val, &idx, &p));
+        let harm = val
+            .runs
+            .iter()
+            .zip(cand_runs.iter().zip(&current_runs))
+            .map(|((ri, _, _), (&after, &before))| {
+                (problem.runs[*ri].name.clone(), after / before - 1.0)
+            })
+            .filter(|(_, rise)| *rise > opts.min_gain)
+            .fold(None, |w: Option<(String, f64)>, (n, rise)| {
+                if w.as_ref().is_none_or(|(_, r)| rise > *r) {
+                    Some((n, rise))
+                } else {
+                    w
+                }
+            });
+        let mut step = Step {
             term,
             candidate: k,
             label: labels[k].clone(),
@@ -765,8 +909,13 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             err,
             fit: mf.clone(),
             gain,
+            class: classes[k].clone(),
+            rival,
+            harm: None,
+            evidence: None,
         };
-        if gain >= opts.min_gain {
+        if gain >= opts.min_gain && harm.is_none() {
+            current_runs = cand_runs;
             chosen.push(k);
             names = nm;
             current = mf;
@@ -788,6 +937,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         } else {
             set_aside[k] = true;
             misses += 1;
+            step.harm = harm.filter(|_| gain >= opts.min_gain);
             rejected.push(step);
         }
     }
@@ -796,6 +946,10 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     let e_after = residual(&val, &chosen, &params);
     let before = diagnostics(problem, &val, &e_before, &labels, &usable, opts);
     let after = diagnostics(problem, &val, &e_after, &labels, &usable, opts);
+    for step in &mut accepted {
+        let c = &val.cand[step.candidate];
+        step.evidence = Some((corr(&e_before, c), corr(&e_after, c)));
+    }
 
     let mut runs = Vec::new();
     let mut traces = Vec::new();
@@ -947,5 +1101,142 @@ mod tests {
             !out.rejected.is_empty(),
             "a second term was tried and set aside"
         );
+    }
+
+    /// A run of `y = 2 + 0.5 u + c stop(u)`; `c` is the effect's size in it.
+    fn stop_run(name: &str, n: usize, phase: f64, c: f64) -> RunData {
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let u: Vec<f32> = t
+            .iter()
+            .map(|t| ((2.0 * std::f64::consts::PI * 1.3 * t + phase).sin()) as f32)
+            .collect();
+        let stop = Term::new(EffectKind::Stop { half_width: 0.1 }, 0);
+        let w = term_column(&stop, std::slice::from_ref(&u), &t, None, None);
+        let y: Vec<f64> = (0..n).map(|k| 2.0 + 0.5 * u[k] as f64 + c * w[k]).collect();
+        RunData {
+            name: name.into(),
+            fixed: vec![0.0; n],
+            baseline: vec![u.iter().map(|v| *v as f64).collect(), vec![1.0; n]],
+            signals: vec![u],
+            target: y,
+            fit_rows: 0..0,
+            val_rows: 0..n,
+            t_s: t,
+        }
+    }
+
+    fn stop_problem(runs: Vec<RunData>) -> Problem {
+        Problem {
+            model: "generic".into(),
+            target: "y".into(),
+            baseline_names: vec!["u".into(), "const".into()],
+            signal_names: vec!["u".into()],
+            candidates: vec![Term::new(EffectKind::Stop { half_width: 0.1 }, 0)],
+            runs,
+            ..Default::default()
+        }
+    }
+
+    /// Do no harm: the effect is in the fitted regime and in validation run
+    /// `a`, and reversed in the shorter run `b` (another regime). The term
+    /// cuts the pooled validation error by about 40 % but multiplies `b`'s:
+    /// it is set aside and `b` is named. Without `b` it is kept.
+    #[test]
+    fn a_term_that_helps_the_pool_but_raises_one_regime_is_set_aside() {
+        let mut fit = stop_run("fit", 4000, 0.0, 0.3);
+        (fit.fit_rows, fit.val_rows) = (0..4000, 0..0);
+        let a = stop_run("a", 4000, 1.0, 0.3);
+        let b = stop_run("b", 1000, 2.0, -0.05);
+        let out = select(
+            &stop_problem(vec![fit.clone(), a.clone(), b]),
+            &SelectOptions::default(),
+        )
+        .unwrap();
+        assert!(out.accepted.is_empty());
+        let s = &out.rejected[0];
+        assert!(s.gain > 0.3, "the pool improves: gain {}", s.gain);
+        let (run, rise) = s.harm.clone().expect("the harm is named");
+        assert_eq!(run, "b");
+        assert!(rise > 1.0, "b's error rises by {rise}");
+        let out = select(&stop_problem(vec![fit, a]), &SelectOptions::default()).unwrap();
+        assert_eq!(out.accepted.len(), 1, "kept where it harms nothing");
+        let (before, _) = out.accepted[0].evidence.expect("evidence");
+        assert!(
+            before.abs() > 0.9,
+            "the residual followed the term: {before}"
+        );
+    }
+
+    #[test]
+    fn effect_families_follow_the_kind_and_the_signal_and_other_sensors_are_fusion() {
+        let names: Vec<String> = ["x2_m", "x2_vel_m_s", "i_ref_a", "theta_motor_rad"]
+            .map(String::from)
+            .to_vec();
+        let other = [3u8];
+        let class = |t: Term| effect_class(&t, &names, &other);
+        assert_eq!(class(Term::new(EffectKind::Linear, 0)), "stiffness");
+        assert_eq!(class(Term::new(EffectKind::Cube, 0)), "stiffness");
+        assert_eq!(class(Term::new(EffectKind::Linear, 1)), "friction");
+        assert_eq!(class(Term::new(EffectKind::Linear, 2)), "load");
+        assert_eq!(
+            class(Term::new(EffectKind::Stop { half_width: 0.1 }, 0)),
+            "hysteresis"
+        );
+        assert_eq!(
+            class(Term::new(EffectKind::Creep { tau_s: 1.0 }, 0)),
+            "creep / relaxation"
+        );
+        assert_eq!(
+            class(Term::new(EffectKind::Thermal { tau_s: 1.0 }, 2)),
+            "thermal"
+        );
+        assert_eq!(
+            class(Term::new(EffectKind::Time { scale_s: 1.0 }, 0)),
+            "drift"
+        );
+        assert_eq!(
+            class(Term::new(EffectKind::Linear, 3)),
+            "fusion: theta_motor_rad"
+        );
+    }
+
+    /// A drift over time and a signal that happens to be a ramp explain the
+    /// residual equally: the kept one names the other family as a rival.
+    #[test]
+    fn two_families_that_explain_the_residual_equally_are_named() {
+        let n = 3000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let u: Vec<f32> = t.iter().map(|t| (7.0 * t).sin() as f32).collect();
+        let ramp: Vec<f32> = t.iter().map(|t| *t as f32).collect();
+        let y: Vec<f64> = (0..n).map(|k| 1.0 + u[k] as f64 + 0.2 * t[k]).collect();
+        let run = |fit: bool| RunData {
+            name: "r".into(),
+            fixed: vec![0.0; n],
+            baseline: vec![u.iter().map(|v| *v as f64).collect(), vec![1.0; n]],
+            signals: vec![u.clone(), ramp.clone()],
+            target: y.clone(),
+            fit_rows: if fit { 0..2000 } else { 0..0 },
+            val_rows: if fit { 2000..n } else { 0..0 },
+            t_s: t.clone(),
+        };
+        let problem = Problem {
+            model: "generic".into(),
+            target: "y".into(),
+            baseline_names: vec!["u".into(), "const".into()],
+            signal_names: vec!["u".into(), "ramp_m".into()],
+            candidates: vec![
+                Term::new(EffectKind::Time { scale_s: 1.0 }, 0),
+                Term::new(EffectKind::Linear, 1),
+            ],
+            runs: vec![run(true)],
+            ..Default::default()
+        };
+        let out = select(&problem, &SelectOptions::default()).unwrap();
+        let kept = &out.accepted[0];
+        let rival = kept.rival.as_ref().expect("the rival family is named");
+        let mut families = [kept.class.as_str(), rival.class.as_str()];
+        families.sort_unstable();
+        assert_eq!(families, ["drift", "stiffness"]);
+        assert!(rival.err >= RIVAL_SHARE * kept.err);
     }
 }

@@ -458,6 +458,10 @@ impl Default for FaultLimits {
     }
 }
 
+/// The largest per-tick step a 16-bit encoder count's jump limit may allow
+/// (half the counter's range, with room for the limit's two-count margin).
+pub const MAX_COUNTER_STEP: f32 = 16_000.0;
+
 /// The whole configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -944,6 +948,32 @@ impl Config {
                 expected: "at most current_limit_a per count of motor angle",
             });
         }
+        // The 16-bit counters' extender tells motion from wrap-around only
+        // for steps below half their range (32 768 counts). The jump limit,
+        // the largest legal step per tick, must stay well inside it: beyond,
+        // legal motion aliases and jump detection is silently off.
+        let per_tick =
+            |rad_s: f32, counts: u32| rad_s * self.period_s() * counts as f32 / (2.0 * math::PI);
+        let motor_step = per_tick(self.limits.max_motor_speed_rad_s, s.motor_counts_per_rev);
+        if motor_step.is_nan() || motor_step > MAX_COUNTER_STEP {
+            return Err(ConfigError {
+                field: "scales.motor_counts_per_rev",
+                expected: "such that limits.max_motor_speed_rad_s moves the motor encoder at most 16 000 counts per tick (half the 16-bit counter's range)",
+            });
+        }
+        let motor_per_joint = m.gear_ratio * m.pulley_radius_m / m.rope_wheel_radius_m;
+        // The magnetic encoder's jump limit allows four times the joint speed.
+        let magnetic_step = 4.0
+            * per_tick(
+                self.limits.max_motor_speed_rad_s / motor_per_joint,
+                s.magnetic_counts_per_rev,
+            );
+        if magnetic_step.is_nan() || magnetic_step > MAX_COUNTER_STEP {
+            return Err(ConfigError {
+                field: "scales.magnetic_counts_per_rev",
+                expected: "such that four times the joint speed limit moves the magnetic encoder at most 16 000 counts per tick (half the 16-bit counter's range)",
+            });
+        }
         if c.vel_limit_rad_s > self.limits.max_motor_speed_rad_s {
             return Err(ConfigError {
                 field: "cascade.vel_limit_rad_s",
@@ -1333,5 +1363,47 @@ mod tests {
         let mut c = Config::default();
         c.cascade.current_limit_a = 3.0;
         assert_eq!(c.validate().unwrap_err().field, "cascade.current_limit_a");
+    }
+
+    /// Values that would silently disable a check, trip it at rest, or
+    /// overflow on the control path (issue 10's findings) are refused,
+    /// each naming its field.
+    #[test]
+    fn values_that_would_disable_a_check_are_refused() {
+        let refused = |edit: fn(&mut Config), field: &str| {
+            let mut c = Config::default();
+            edit(&mut c);
+            assert_eq!(c.validate().unwrap_err().field, field);
+        };
+        // A rail margin beyond the ADC's range: every sample a rail fault.
+        refused(
+            |c| c.scales.adc_rail_margin_codes = 5000,
+            "scales.adc_rail_margin_codes",
+        );
+        // A jump limit that wraps: jump detection off.
+        refused(
+            |c| c.limits.max_grating_speed_m_s = 1e30,
+            "limits.max_grating_speed_m_s",
+        );
+        refused(|c| c.cascade.kp_pos_1_s = 1e30, "cascade.kp_pos_1_s");
+        // An angle limit below the resolution: trips at rest.
+        refused(
+            |c| c.limits.max_joint_angle_rad = 1e-30,
+            "limits.max_joint_angle_rad",
+        );
+        // A legal step beyond the 16-bit counter's half range: motion
+        // aliases through the extender and jumps go unseen.
+        refused(
+            |c| c.scales.motor_counts_per_rev = 1_000_000,
+            "scales.motor_counts_per_rev",
+        );
+        refused(
+            |c| c.scales.magnetic_counts_per_rev = 1_000_000,
+            "scales.magnetic_counts_per_rev",
+        );
+        // The same scales are fine at a rate whose step stays small.
+        let mut c = Config::default();
+        c.scales.motor_counts_per_rev = 20_000;
+        c.validate().unwrap();
     }
 }

@@ -79,7 +79,9 @@ fn jaw_angle_from_the_input_side() {
         "{s}"
     );
     assert!(o.final_fit.val_rmse < 0.6 * o.baseline.val_rmse, "{s}");
-    assert!(o.final_fit.val_rmse * deg < 1.3, "{s}");
+    // 1.32° measured; 1.09° before do no harm set aside the terms that
+    // raised one of the four validation runs' error by more than 1 %.
+    assert!(o.final_fit.val_rmse * deg < 1.4, "{s}");
     // Every kept term cut the validation error, in order.
     let mut last = o.baseline.val_rmse;
     for st in &o.accepted {

@@ -378,3 +378,40 @@ fn a_panic_hardfault_or_watchdog_reset_keeps_the_drive_off_after_boot() {
         assert!(rec.outcomes.iter().all(|o| !o.record.drive_enable));
     }
 }
+
+/// Fault 11 (non-finite). The firmware's sensors are integer counts and an
+/// ADC code, so a non-finite estimate comes from the configuration (an
+/// effect term that overflows: `tests/step_props.rs` drives arbitrary valid
+/// configurations and asserts the fault whenever an estimate is not finite)
+/// or, on the host, from a replayed log whose applied current is beyond
+/// `f32`, injected here: the controller latches fault 11, outputs no
+/// current, and its estimators restart from the sensors, finite from the
+/// next tick.
+#[test]
+fn a_non_finite_replayed_current_is_fault_11_and_the_estimators_restart() {
+    let mut c = cable_joint::Controller::new(firmware_config()).expect("config");
+    let raw = cable_joint::RawSample {
+        current: AdcCode(2048),
+        ..Default::default()
+    };
+    c.set_origin(&raw);
+    for _ in 0..100 {
+        let out = c.replay(&raw, 0.0);
+        assert_eq!(out.fault, None);
+    }
+    let out = c.replay(&raw, f32::INFINITY);
+    assert_eq!(out.fault, Some(Fault::NonFinite));
+    assert_eq!(Fault::NonFinite.code(), 11);
+    assert!(!out.drive_enable && out.current_ref_a == 0.0);
+    let next = c.replay(&raw, 0.0);
+    assert_eq!(next.fault, Some(Fault::NonFinite), "latched");
+    let e = &next.est;
+    for (name, v) in [
+        ("theta_hat_rad", e.theta_hat_rad),
+        ("f_ext_hat_n", e.f_ext_hat_n),
+        ("f_ext_fused_n", e.f_ext_fused_n),
+        ("tension1_n", e.tension1_n),
+    ] {
+        assert!(v.is_finite(), "{name} = {v} after the restart");
+    }
+}

@@ -12,6 +12,7 @@
 //! stepped through up to 300 samples.
 
 use cable_joint::controller::{Command, Mode, RawSample};
+use cable_joint::effects::{EffectKind, Term};
 use cable_joint::trajectory::Trajectory;
 use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount};
 use cable_joint::{Config, Controller, Fault};
@@ -42,8 +43,10 @@ fn rate() -> impl Strategy<Value = f32> {
 
 /// Configurations around the defaults: the rate derived as a user's would be
 /// (`at_rate`), then gains, identified parameters, filters and limits scaled
-/// by up to ±1.5 decades and the fitted signs flipped. Those `validate()`
-/// rejects are discarded by the test.
+/// by up to ±1.5 decades and the fitted signs flipped; the machine's
+/// parameters, the sensor scales (encoder resolutions up to 1e6 counts), the
+/// probe, and up to two effect terms of any kind with coefficients between
+/// 1e-12 and 1e12. Those `validate()` rejects are discarded by the test.
 fn config() -> impl Strategy<Value = Config> {
     let gains = (
         factor(1.5),
@@ -82,44 +85,141 @@ fn config() -> impl Strategy<Value = Config> {
         any::<bool>(),
         factor(1.0),
     );
-    (rate(), gains, model, tension, limits, filters).prop_map(|(rate_hz, g, m, t, l, f)| {
-        let mut c = Config::default();
-        c.cascade.kp_pos_1_s *= g.0;
-        c.cascade.kp_vel_a_s_rad *= g.1;
-        c.cascade.ki_vel_a_rad *= g.2;
-        c.cascade.vel_feedforward = (c.cascade.vel_feedforward * g.3).min(2.0);
-        c.cascade.kd_pos = g.4;
-        let flip = |v: f32, s: bool| if s { -v } else { v };
-        c.jae.c_acc_rad_s2_m = flip(c.jae.c_acc_rad_s2_m * m.0, m.4[0]);
-        c.jae.c_vel_rad_s_m = flip(c.jae.c_vel_rad_s_m * m.1, m.4[1]);
-        c.jae.c_sign_rad = flip(c.jae.c_sign_rad * m.2, m.4[2]);
-        c.jae.c_pos_rad_m *= m.3;
-        c.tension.f_sc1_n = flip(c.tension.f_sc1_n * t.0, m.4[3]);
-        c.tension.f_cp2_n *= t.1;
-        c.tension.k_s_n_m *= t.2;
-        c.tension.f_0_n *= t.3;
-        c.stretch.cable1_n_m *= t.4;
-        c.limits.max_grating_speed_m_s *= l.0;
-        c.limits.max_motor_speed_rad_s *= l.1;
-        c.limits.max_joint_angle_rad *= l.2;
-        c.limits.min_tension_fraction = l.3;
-        c.scales.adc_rail_margin_codes = l.4;
-        c.limits.continuous_current_a *= l.5;
-        c.limits.max_current_error_a *= l.6;
-        c.differentiators.grating_bandwidth_hz *= f.0;
-        c.differentiators.motor_bandwidth_hz *= f.1;
-        c.dob.cutoff_rad_s *= f.2;
-        c.dob.use_measured_current = f.3;
-        c.fusion.creep_distance_m *= f.4;
-        // What a user's tool does at another rate: derive what the rate
-        // cannot support (bandwidths, the position gain).
-        let (mut c, _) = c.at_rate(rate_hz);
-        c.cascade.vel_limit_rad_s = c
-            .cascade
-            .vel_limit_rad_s
-            .min(c.limits.max_motor_speed_rad_s);
-        c
-    })
+    let machine = (
+        factor(1.0),
+        factor(1.0),
+        factor(0.5),
+        factor(0.5),
+        factor(0.5),
+        factor(0.5),
+    );
+    let scales = (
+        factor(1.0),
+        prop::sample::select(vec![64u32, 2000, 4096, 65_536, 1_000_000]),
+        prop::sample::select(vec![256u32, 4096, 16_384, 1_000_000]),
+        factor(0.5),
+    );
+    // The probe on or off, and up to two effect terms of any kind on any
+    // run-time signal with a coefficient over 24 decades.
+    let probe = (any::<bool>(), factor(1.0), factor(1.0));
+    let term = (
+        0usize..EFFECT_KINDS,
+        0u8..cable_joint::model::sig::COUNT as u8,
+        0u8..cable_joint::model::sig::COUNT as u8,
+        factor(1.0),
+        -12.0f32..=12.0,
+        any::<bool>(),
+    );
+    let added = prop::collection::vec(term, 0..=2);
+    let extra = (machine, scales, probe, added);
+    (rate(), gains, model, tension, limits, filters, extra).prop_map(
+        |(rate_hz, g, m, t, l, f, (mc, sc, pr, added))| {
+            let mut c = Config::default();
+            c.machine.torque_constant_nm_a *= mc.0;
+            c.machine.rotor_inertia_kg_m2 *= mc.1;
+            c.machine.gear_ratio *= mc.2;
+            c.machine.rope_wheel_radius_m *= mc.3;
+            c.machine.pulley_radius_m *= mc.4;
+            c.machine.gripper_length_m *= mc.5;
+            c.scales.grating_m_per_count *= sc.0;
+            c.scales.motor_counts_per_rev = sc.1;
+            c.scales.magnetic_counts_per_rev = sc.2;
+            c.scales.adc_a_per_code *= sc.3;
+            c.probe.enabled = pr.0;
+            c.probe.amplitude_rad *= pr.1;
+            c.probe.frequency_hz *= pr.2;
+            for (kind, input, aux, param, log_coef, to_jae) in added {
+                let term = Term {
+                    kind: effect_kind(kind, param),
+                    input,
+                    aux,
+                };
+                let coef = 10f32.powf(log_coef);
+                let terms = if to_jae {
+                    &mut c.jae.added
+                } else {
+                    &mut c.tension.added
+                };
+                terms.push(term, coef);
+            }
+            c.cascade.kp_pos_1_s *= g.0;
+            c.cascade.kp_vel_a_s_rad *= g.1;
+            c.cascade.ki_vel_a_rad *= g.2;
+            c.cascade.vel_feedforward = (c.cascade.vel_feedforward * g.3).min(2.0);
+            c.cascade.kd_pos = g.4;
+            let flip = |v: f32, s: bool| if s { -v } else { v };
+            c.jae.c_acc_rad_s2_m = flip(c.jae.c_acc_rad_s2_m * m.0, m.4[0]);
+            c.jae.c_vel_rad_s_m = flip(c.jae.c_vel_rad_s_m * m.1, m.4[1]);
+            c.jae.c_sign_rad = flip(c.jae.c_sign_rad * m.2, m.4[2]);
+            c.jae.c_pos_rad_m *= m.3;
+            c.tension.f_sc1_n = flip(c.tension.f_sc1_n * t.0, m.4[3]);
+            c.tension.f_cp2_n *= t.1;
+            c.tension.k_s_n_m *= t.2;
+            c.tension.f_0_n *= t.3;
+            c.stretch.cable1_n_m *= t.4;
+            c.limits.max_grating_speed_m_s *= l.0;
+            c.limits.max_motor_speed_rad_s *= l.1;
+            c.limits.max_joint_angle_rad *= l.2;
+            c.limits.min_tension_fraction = l.3;
+            c.scales.adc_rail_margin_codes = l.4;
+            c.limits.continuous_current_a *= l.5;
+            c.limits.max_current_error_a *= l.6;
+            c.differentiators.grating_bandwidth_hz *= f.0;
+            c.differentiators.motor_bandwidth_hz *= f.1;
+            c.dob.cutoff_rad_s *= f.2;
+            c.dob.use_measured_current = f.3;
+            c.fusion.creep_distance_m *= f.4;
+            // What a user's tool does at another rate: derive what the rate
+            // cannot support (bandwidths, the position gain).
+            let (mut c, _) = c.at_rate(rate_hz);
+            c.cascade.vel_limit_rad_s = c
+                .cascade
+                .vel_limit_rad_s
+                .min(c.limits.max_motor_speed_rad_s);
+            c
+        },
+    )
+}
+
+/// Number of effect kinds [`effect_kind`] draws from.
+const EFFECT_KINDS: usize = 20;
+
+/// Every effect kind, its parameter set from `p` (a positive factor).
+fn effect_kind(k: usize, p: f32) -> EffectKind {
+    match k {
+        0 => EffectKind::Constant,
+        1 => EffectKind::Linear,
+        2 => EffectKind::Time {
+            scale_s: 3600.0 * p,
+        },
+        3 => EffectKind::Warmup { tau_s: p },
+        4 => EffectKind::SmoothSign { v_eps: 1e-3 * p },
+        5 => EffectKind::Stribeck {
+            v_s: 1e-2 * p,
+            v_eps: 1e-3 * p,
+        },
+        6 => EffectKind::Play {
+            half_width: 1e-4 * p,
+        },
+        7 => EffectKind::Stop {
+            half_width: 1e-4 * p,
+        },
+        8 => EffectKind::Dahl { length: 1e-4 * p },
+        9 => EffectKind::LoadDahl { length: 1e-4 * p },
+        10 => EffectKind::LoadCoulomb { v_eps: 1e-3 * p },
+        11 => EffectKind::DeadZone {
+            center: 0.0,
+            half_width: 1e-4 * p,
+        },
+        12 => EffectKind::Product,
+        13 => EffectKind::Relaxation { tau_s: p },
+        14 => EffectKind::Creep { tau_s: p },
+        15 => EffectKind::Thermal { tau_s: 10.0 * p },
+        16 => EffectKind::SignedSquare,
+        17 => EffectKind::Cube,
+        18 => EffectKind::Time { scale_s: p },
+        _ => EffectKind::Creep { tau_s: 1e-3 * p },
+    }
 }
 
 /// A raw sample: counters near the last ones (a random walk) or anywhere

@@ -18,7 +18,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use cable_joint::fusion::flags;
 use cable_joint::Config;
 
@@ -85,6 +85,7 @@ pub struct ReferenceErrors {
 pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
     let (cfg, derived) = config_for_log_noted(log, config)?;
     let out = derive(log, &cfg)?;
+    check_finite(log, &out)?;
     let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);
     let (fault, fl) = (col("fault_code")?, col("fusion_flags")?);
     let (lo, hi, fused) = (
@@ -155,6 +156,48 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             against_reference,
         },
     ))
+}
+
+/// Every estimate the replay wrote is finite; else the error names the
+/// input's line and, when one is the cause, the input cell beyond the core's
+/// `f32` range (an `inf` would otherwise surface as a write error naming the
+/// output file).
+fn check_finite(input: &Log, out: &Log) -> Result<()> {
+    // Copied from the input, where a blank cell stays blank.
+    const COPIED: [&str; 5] = ["t_s", "i_ref_a", "theta_rad", "f_ext_n", "theta_ref_rad"];
+    for name in out.names() {
+        let Some(values) = out.col(name).filter(|_| !COPIED.contains(&name)) else {
+            continue;
+        };
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            // The replay reads the previous row's current command, so the
+            // cause may sit one line above.
+            let cause = (k.saturating_sub(1)..=k)
+                .rev()
+                .flat_map(|row| {
+                    input
+                        .names()
+                        .into_iter()
+                        .filter_map(move |n| input.col(n).map(|c| (row, n, c[row])))
+                })
+                .find(|(_, _, v)| v.is_finite() && v.abs() > f64::from(f32::MAX))
+                .map(|(row, n, v)| {
+                    format!(
+                        "; column {} = {v:e} on line {} is beyond the core's f32 range",
+                        crate::log::quoted(n),
+                        crate::log::line_of_row(row)
+                    )
+                })
+                .unwrap_or_default();
+            bail!(
+                "line {}: the core's {} is {}{cause}",
+                crate::log::line_of_row(k),
+                crate::log::quoted(name),
+                values[k]
+            );
+        }
+    }
+    Ok(())
 }
 
 /// `host-sim estimate`.

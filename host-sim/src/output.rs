@@ -280,6 +280,28 @@ impl Outputs {
         Ok(())
     }
 
+    /// Take over the outputs `other` staged (e.g. on another thread).
+    ///
+    /// # Errors
+    /// A target staged in both; nothing is taken over then.
+    pub fn append(&mut self, other: Outputs) -> Result<(), OutputError> {
+        if let Some(s) = other
+            .staged
+            .iter()
+            .find(|s| self.staged.iter().any(|t| t.target == s.target))
+        {
+            return Err(OutputError::new(
+                &s.named,
+                io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    "named twice as an output of the same command",
+                ),
+            ));
+        }
+        self.staged.extend(other.staged);
+        Ok(())
+    }
+
     /// Rename every staged file over its target; returns the targets as
     /// named, in staging order.
     ///

@@ -571,9 +571,70 @@ fn residual_names_left_out_rows_and_why_there_are_no_validation_rows() {
             .arg(&blind),
     );
     assert!(
-        err.contains("no validation rows: blind.csv: lines 2..6001 (6000 rows), none with a finite theta_rad"),
+        err.contains(
+            "no validation rows: blind.csv: lines 2..6001 (6000 rows), none usable \
+             (the first, line 2: \"theta_rad\" is not finite)"
+        ),
         "{err}"
     );
+}
+
+/// A generic fit whose input has one empty cell: that row is left out and
+/// said so, and the input's derived velocity holds the last reading instead
+/// of turning every later row into NaN (398 of 600 validation rows were
+/// lost silently before).
+#[test]
+fn a_generic_fit_with_an_empty_input_cell_loses_that_row_only_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
+    let gap = with_cell(&fit, "x2_m", 500, None, "gap.csv");
+    let out = run(host_sim()
+        .args([
+            "residual",
+            "--target",
+            "theta_rad",
+            "--inputs",
+            "x2_m",
+            "--log",
+        ])
+        .arg(&gap));
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "warning: gap.csv: column x2_m is not measured on 1 of 6000 rows (first at line 502)"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("4199 fitting rows, 1800 validation rows"),
+        "{text}"
+    );
+}
+
+/// `estimate` on a log whose current command is beyond the core's `f32`
+/// range names the input file, line and cell, not the output file.
+#[test]
+fn estimate_names_the_input_cell_beyond_the_cores_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
+    let bad = with_cell(&fit, "i_ref_a", 3000, Some(1e308), "bad.csv");
+    let est = dir.path().join("est.csv");
+    let err = run_err(
+        host_sim()
+            .args(["estimate", "--log"])
+            .arg(&bad)
+            .arg("--out")
+            .arg(&est),
+    );
+    assert!(
+        err.contains("bad.csv")
+            && err.contains("\"i_ref_a\" = 1e308 on line 3002")
+            && !err.contains("est.csv"),
+        "{err}"
+    );
+    assert!(!est.exists(), "nothing written");
 }
 
 #[test]
@@ -617,4 +678,22 @@ fn estimate_warns_about_rows_without_a_reference_force() {
         )),
         "{err}"
     );
+}
+
+/// `report --duration-scale` is refused up front when one of its runs would
+/// exceed the tick limit a simulated run has (it grew past 6 GB before).
+#[test]
+fn report_refuses_a_duration_scale_beyond_the_tick_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("rep");
+    let err = run_err(
+        host_sim()
+            .args(["report", "--quiet", "--duration-scale", "100", "--out"])
+            .arg(&out),
+    );
+    assert!(
+        err.contains("--duration-scale 100 (scenario") && err.contains("at most 1000000 ticks"),
+        "{err}"
+    );
+    assert!(!out.exists(), "refused before creating anything");
 }

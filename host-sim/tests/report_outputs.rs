@@ -37,8 +37,8 @@ fn run() -> &'static Run {
             quiet: true,
             ..ReportArgs::default()
         };
-        let r = generate(&args).expect("report runs");
-        let terminal = write(&r).expect("report written");
+        let mut r = generate(&args).expect("report runs");
+        let terminal = write(&mut r).expect("report written");
         let map = host_sim::report::render::figure_map(&r);
         let json: Value = serde_json::from_str(
             &std::fs::read_to_string(out.join("report.json")).expect("report.json exists"),
@@ -391,4 +391,30 @@ fn the_clean_programme_depends_only_on_the_seed() {
         compared += 1;
     }
     assert!(compared > 100);
+}
+
+/// All or none: when one output cannot be written (here `report.json` is a
+/// directory), the run leaves no figure, configuration or report behind.
+#[test]
+fn a_report_that_cannot_be_written_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("report");
+    std::fs::create_dir_all(out.join("report.json")).expect("a directory in the way");
+    let args = ReportArgs {
+        out: out.clone(),
+        seed: SEED,
+        duration_scale: 0.05,
+        no_effects: true,
+        quiet: true,
+        ..ReportArgs::default()
+    };
+    let mut r = generate(&args).expect("report runs");
+    assert!(!r.figures.is_empty(), "figures were staged");
+    let err = write(&mut r).expect_err("report.json is a directory");
+    assert!(format!("{err:#}").contains("report.json"), "{err:#}");
+    let left: Vec<String> = std::fs::read_dir(&out)
+        .expect("output dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left, ["report.json"], "nothing written beside the obstacle");
 }

@@ -9,7 +9,8 @@ use super::experiments::{LoadCase, TrackRun, DEG_PER_RAD, TRACE_EVERY};
 use super::programme::{Evaluation, Identification};
 use super::regressors::Replay;
 use crate::ident::FitReport;
-use crate::plot::{write_figure, Figure, Panel, Series};
+use crate::output::Outputs;
+use crate::plot::{stage_figure, Figure, Panel, Series};
 use crate::scenario::LOADING_MASSES_G;
 
 /// One written figure: its file stem (relative to the report directory)
@@ -34,15 +35,18 @@ fn scaled(v: &[f64], k: f64) -> Vec<f64> {
     v.iter().map(|x| x * k).collect()
 }
 
+/// Stages every figure among the report's outputs (written with the report,
+/// or none is).
 struct Writer<'a> {
     dir: &'a Path,
+    out: &'a mut Outputs,
     written: Vec<Written>,
 }
 
 impl Writer<'_> {
     fn write(&mut self, stem: &str, caption: &str, fig: &Figure) -> Result<()> {
-        let _: [PathBuf; 2] =
-            write_figure(fig, &self.dir.join(stem)).with_context(|| format!("figure {stem}"))?;
+        let _: [PathBuf; 2] = stage_figure(self.out, fig, &self.dir.join(stem))
+            .with_context(|| format!("figure {stem}"))?;
         self.written.push(Written {
             stem: stem.to_owned(),
             caption: caption.to_owned(),
@@ -154,10 +158,16 @@ fn loading_figure(cases: &[&LoadCase], title: &str) -> Figure {
     Figure::grid(panels, 2)
 }
 
-/// Write the clean programme's figures into `dir`.
-pub fn programme_figures(dir: &Path, id: &Identification, ev: &Evaluation) -> Result<Vec<Written>> {
+/// Stage the clean programme's figures in `dir` among `out`.
+pub fn programme_figures(
+    dir: &Path,
+    out: &mut Outputs,
+    id: &Identification,
+    ev: &Evaluation,
+) -> Result<Vec<Written>> {
     let mut w = Writer {
         dir,
+        out,
         written: Vec::new(),
     };
     let k = TRACE_EVERY as usize;
@@ -327,10 +337,15 @@ pub fn programme_figures(dir: &Path, id: &Identification, ev: &Evaluation) -> Re
     Ok(w.written)
 }
 
-/// Step 7's figure: accuracy of every loading case, per variant.
-pub fn accuracy_figure(dir: &Path, variants: &[(&str, &Evaluation)]) -> Result<Vec<Written>> {
+/// Step 7's figure: accuracy of every loading case, per variant (staged).
+pub fn accuracy_figure(
+    dir: &Path,
+    out: &mut Outputs,
+    variants: &[(&str, &Evaluation)],
+) -> Result<Vec<Written>> {
     let mut w = Writer {
         dir,
+        out,
         written: Vec::new(),
     };
     let mut acc = Panel::new(

@@ -65,7 +65,9 @@ pub struct ReportArgs {
     /// Base seed of every run's noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Scale of every scenario's duration (1 = the full programme).
+    /// Scale of every scenario's duration (1 = the full programme; refused
+    /// up front when one run would exceed `simulate`'s 1e6-tick limit,
+    /// above about 11.9).
     #[arg(long, default_value_t = 1.0, value_parser = crate::cli::f64_above(0.0, 100.0))]
     pub duration_scale: f64,
     /// Skip step 7 (unmodelled effects and the residual loop).
@@ -131,6 +133,9 @@ pub struct Report {
     pub figures: Vec<Written>,
     /// The force estimate on plant variants.
     pub variants: Vec<variants::VariantResult>,
+    /// The figures, staged: [`write()`] commits them with the report, so a
+    /// run that fails leaves the output directory as it was.
+    pub staged: Outputs,
 }
 
 /// The JAE of `config` on a log with the magnetic encoder, replayed through
@@ -202,18 +207,29 @@ fn effects_part(names: &[String], s: &Settings) -> Result<EffectsPart> {
     })
 }
 
-/// The clean programme and its figures.
-fn clean_part(
-    s: &Settings,
-    dir: &Path,
-) -> Result<((Identification, Evaluation), Summary, Vec<Written>)> {
+/// The clean programme, its JAE error, its figures and their staged files.
+struct CleanPart {
+    programme: (Identification, Evaluation),
+    jae_error_deg: Summary,
+    figures: Vec<Written>,
+    staged: Outputs,
+}
+
+/// The clean programme and its figures (staged).
+fn clean_part(s: &Settings, dir: &Path) -> Result<CleanPart> {
     let tag = "clean";
     s.progress.line(tag, "plant without unmodelled effects");
     let (id, ev) = programme::programme(&PlantParams::default(), &Config::default(), s, tag)?;
     let jae = jae_error_deg(&id.logs.jae, &id.config_jae)?;
     s.progress.line(tag, "figures");
-    let figs = figures::programme_figures(dir, &id, &ev)?;
-    Ok(((id, ev), jae, figs))
+    let mut staged = Outputs::new();
+    let figures = figures::programme_figures(dir, &mut staged, &id, &ev)?;
+    Ok(CleanPart {
+        programme: (id, ev),
+        jae_error_deg: jae,
+        figures,
+        staged,
+    })
 }
 
 /// Run the programme and write the figures into `args.out`; returns the
@@ -224,6 +240,29 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
         "--duration-scale must be > 0, got {}",
         args.duration_scale
     );
+    // Every run is kept in memory: each scenario at this scale must fit the
+    // limit one simulated run has (`simulate`'s), checked before any work.
+    let rate_hz = f64::from(Config::default().control_rate_hz);
+    for info in crate::scenario::SCENARIOS {
+        let mut opts = crate::scenario::ScenarioOptions {
+            duration_scale: args.duration_scale,
+            ..Default::default()
+        };
+        if info.name == "loading" {
+            // The report runs the loading protocol one case at a time.
+            opts.angle_deg = Some(-40.0);
+            opts.mass_g = Some(250.0);
+            opts.direction = Some(crate::scenario::Direction::Pos);
+        }
+        crate::simulate::check_ticks(
+            &format!(
+                "--duration-scale {} (scenario {})",
+                args.duration_scale, info.name
+            ),
+            crate::scenario::plan(info.name, &opts)?.duration_s(),
+            rate_hz,
+        )?;
+    }
     let progress = Progress::new(args.quiet);
     let s = Settings {
         seed: args.seed,
@@ -254,13 +293,19 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
             Ok((clean?, Some(fx?)))
         })?
     };
-    let ((id, ev), clean_jae, mut figs) = clean;
+    let CleanPart {
+        programme: (id, ev),
+        jae_error_deg: clean_jae,
+        figures: mut figs,
+        mut staged,
+    } = clean;
     progress.line("report", "force estimate on plant variants");
     let variant_results = variants::run_all(&s);
     if let Some(fx) = &fx {
         progress.line("report", "step 7 figures");
         figs.extend(figures::accuracy_figure(
             dir,
+            &mut staged,
             &[
                 ("clean", &ev),
                 ("effects, seed model", &fx.before),
@@ -271,7 +316,7 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
             let sub = format!("residual_{name}");
             let d = dir.join(&sub);
             std::fs::create_dir_all(&d).with_context(|| format!("creating {}", d.display()))?;
-            for p in crate::residual::report::plots(a, &d)? {
+            for p in crate::residual::report::stage_plots(&mut staged, a, &d)? {
                 if p.extension().is_some_and(|e| e == "svg") {
                     if let Some(stem) = p.file_stem() {
                         figs.push(Written {
@@ -291,17 +336,21 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
         effects: fx,
         figures: figs,
         variants: variant_results,
+        staged,
     })
 }
 
-/// Write report.md and report.json into the output directory; returns the
-/// terminal text (comparison, goals, step 7).
-pub fn write(r: &Report) -> Result<String> {
+/// Write report.md, report.json, the configurations and the staged figures
+/// into the output directory, all or none; returns the terminal text
+/// (comparison, goals, step 7).
+pub fn write(r: &mut Report) -> Result<String> {
+    // The figures, the configurations and the report are written together,
+    // or none is.
+    let mut out = std::mem::take(&mut r.staged);
+    let r = &*r;
     let map = render::figure_map(r);
     let rows = render::comparison(&map);
     let dir = &r.options.out;
-    // The configurations and the report are written together, or none is.
-    let mut out = Outputs::new();
     stage_config(&mut out, dir.join("config_clean.toml"), &r.clean.0.config)?;
     if let Some(fx) = &r.effects {
         stage_config(
@@ -361,8 +410,8 @@ pub fn write(r: &Report) -> Result<String> {
 
 /// Run the subcommand.
 pub fn run(args: ReportArgs) -> Result<()> {
-    let r = generate(&args)?;
-    let text = write(&r)?;
+    let mut r = generate(&args)?;
+    let text = write(&mut r)?;
     print!("{text}");
     Ok(())
 }

@@ -634,9 +634,10 @@ fn generic_columns(
     let log = &first.log;
     ensure!(
         log.has(target),
-        "{}: no target column `{target}` (columns: {})",
+        "{}: no target column {} (columns: {})",
         first.name,
-        log.names().join(", ")
+        crate::log::quoted(target),
+        column_list(log)
     );
     let inputs: Vec<String> = match inputs {
         Some(v) => v.clone(),
@@ -688,9 +689,10 @@ fn generic_run(
     let col = |name: &str| -> Result<Vec<f64>> {
         log.col(name).map(<[f64]>::to_vec).with_context(|| {
             format!(
-                "{}: no column `{name}` (columns: {})",
+                "{}: no column {} (columns: {})",
                 nl.name,
-                log.names().join(", ")
+                crate::log::quoted(name),
+                column_list(log)
             )
         })
     };
@@ -700,6 +702,7 @@ fn generic_run(
     let mut signals = Vec::new();
     for i in inputs {
         let v = col(i)?;
+        warn_unmeasured(&nl.name, i, &v);
         signals.push(f32s(&v));
         baseline.push(v);
     }
@@ -713,10 +716,18 @@ fn generic_run(
         let obs = TrackingObserver::new(bw, period);
         let x = col(pos)?;
         let mut st = Default::default();
-        obs.reset(&mut st, x[0] as f32);
+        // A cell not measured holds the last reading (as the core's replay
+        // does), so one empty cell does not poison every later velocity.
+        let mut held = x.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0);
+        obs.reset(&mut st, held as f32);
         signals.push(
             x.iter()
-                .map(|v| obs.update(&mut st, *v as f32).vel)
+                .map(|v| {
+                    if v.is_finite() {
+                        held = *v;
+                    }
+                    obs.update(&mut st, held as f32).vel
+                })
                 .collect(),
         );
     }
@@ -739,8 +750,18 @@ fn generic_run(
     })
 }
 
-/// Warns on stderr when the target is not measured (or not finite) on some
-/// rows: those rows are neither fitted nor judged.
+/// The log's column names for a message, each cut by [`crate::log::quoted`]
+/// (a 5 MB header cell never floods the terminal).
+fn column_list(log: &Log) -> String {
+    log.names()
+        .iter()
+        .map(|n| crate::log::quoted(n))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Warns on stderr when a column (the target or an input) is not measured
+/// (or not finite) on some rows: those rows are neither fitted nor judged.
 fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
     if let Some(k) = target.iter().position(|v| !v.is_finite()) {
         eprintln!(

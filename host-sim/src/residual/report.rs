@@ -360,19 +360,11 @@ pub fn table(a: &Analysis) -> String {
     s
 }
 
-/// Write `residual_time` (residual before and after over time, per
+/// Stage `residual_time` (residual before and after over time, per
 /// validation run) and, when effects were kept, `residual_effects` (for each
 /// effect: the baseline residual and the effect's fitted contribution against
-/// its input signal). Returns the files written.
-pub fn plots(a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut out = Outputs::new();
-    let files = stage_plots(&mut out, a, dir)?;
-    out.commit()?;
-    Ok(files)
-}
-
-/// Stage the plots of [`plots`] among a command's outputs
-/// ([`crate::output`]); returns their paths.
+/// its input signal) among a command's outputs ([`crate::output`]); returns
+/// their paths.
 pub fn stage_plots(out: &mut Outputs, a: &Analysis, dir: &Path) -> Result<Vec<PathBuf>> {
     let o = &a.outcome;
     let (unit, scale) = display_unit(&a.problem.target);

@@ -447,6 +447,32 @@ fn rms(v: &[f64]) -> f64 {
 
 /// Rows of `range` that are finite in the target, fixed part, baseline and
 /// every signal, every `decimate`-th.
+/// Why row `k` of `run` cannot be used: the first column (target,
+/// baseline regressor or term signal) that is not finite there.
+fn why_unusable(problem: &Problem, run: &RunData, k: usize) -> String {
+    let name = |names: &[String], i: usize| {
+        names
+            .get(i)
+            .map_or_else(|| format!("#{i}"), |n| crate::log::quoted(n))
+    };
+    let bad = if !run.target.get(k).is_some_and(|v| v.is_finite()) {
+        Some(crate::log::quoted(&problem.target))
+    } else if let Some(i) = run.baseline.iter().position(|c| !c[k].is_finite()) {
+        Some(name(&problem.baseline_names, i))
+    } else {
+        run.signals
+            .iter()
+            .position(|c| !c[k].is_finite())
+            .map(|i| name(&problem.signal_names, i))
+    };
+    bad.map_or_else(String::new, |c| {
+        format!(
+            " (the first, line {}: {c} is not finite)",
+            crate::log::line_of_row(k)
+        )
+    })
+}
+
 /// RMSE of `e` (over the validation rows) on each validation run.
 fn run_rmses(val: &Split, e: &[f64]) -> Vec<f64> {
     val.runs
@@ -555,12 +581,12 @@ fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split)> {
             .filter(|r| !r.val_rows.is_empty())
             .map(|r| {
                 format!(
-                    "{}: lines {}..{} ({} rows), none with a finite {}",
+                    "{}: lines {}..{} ({} rows), none usable{}",
                     r.name,
                     r.val_rows.start + 2,
                     r.val_rows.end + 1,
                     r.val_rows.len(),
-                    problem.target
+                    why_unusable(problem, r, r.val_rows.start)
                 )
             })
             .collect();
@@ -572,7 +598,7 @@ fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split)> {
                     .to_owned()
             } else {
                 format!(
-                    "{} (the target not measured, or every row after a fault the replay latched)",
+                    "{} (a column not measured, or every row after a fault the replay latched)",
                     runs.join("; ")
                 )
             }

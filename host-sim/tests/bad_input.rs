@@ -697,3 +697,28 @@ fn report_refuses_a_duration_scale_beyond_the_tick_limit() {
     );
     assert!(!out.exists(), "refused before creating anything");
 }
+
+/// A 5 MB column name is quoted, not copied, when `residual` lists the
+/// columns of a log that lacks the target (5 MB of stderr before).
+#[test]
+fn residual_quotes_a_huge_column_name_in_its_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
+    let text = std::fs::read_to_string(&fit).unwrap();
+    let (header, body) = text.split_once('\n').unwrap();
+    let huge = format!("{}_m", "x".repeat(5_000_000));
+    let renamed = header.replacen("x1_m", &huge, 1);
+    let path = dir.path().join("huge.csv");
+    std::fs::write(&path, format!("{renamed}\n{body}")).unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--target", "nope", "--log"])
+            .arg(&path),
+    );
+    assert!(
+        err.contains("no target column \"nope\""),
+        "{}",
+        &err[..err.len().min(500)]
+    );
+    assert!(err.len() < 10_000, "{} bytes of stderr", err.len());
+}

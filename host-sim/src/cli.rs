@@ -23,14 +23,18 @@ where
     T::Err: Display,
 {
     let v: T = text.trim().parse().map_err(|e| format!("{e}"))?;
-    check(v, lo, lo_open, hi)
+    // The value as the user wrote it (1e300 is not 301 digits), cut if long.
+    let shown: String = text.trim().chars().take(40).collect();
+    check(v, lo, lo_open, hi, &shown)
 }
 
+/// `v` finite and within the range; `shown` is how the message writes it.
 fn check<T: PartialOrd + Copy + Display + Finite>(
     v: T,
     lo: T,
     lo_open: bool,
     hi: T,
+    shown: &str,
 ) -> Result<T, String> {
     if !v.finite() {
         return Err("not a finite number".to_owned());
@@ -40,7 +44,7 @@ fn check<T: PartialOrd + Copy + Display + Finite>(
         Ok(v)
     } else {
         let open = if lo_open { "(" } else { "[" };
-        Err(format!("{v} is outside {open}{lo}, {hi}]"))
+        Err(format!("{shown} is outside {open}{lo}, {hi}]"))
     }
 }
 
@@ -113,7 +117,12 @@ pub fn usize_in(
 /// # Errors
 /// `v` is NaN, infinite or outside `[lo, hi]`.
 pub fn check_f64(option: &str, v: f64, lo: f64, hi: f64) -> anyhow::Result<f64> {
-    check(v, lo, false, hi).map_err(|e| anyhow::anyhow!("{option}: {e}"))
+    let shown = if v.abs() >= 1e6 || (v != 0.0 && v.abs() < 1e-4) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    };
+    check(v, lo, false, hi, &shown).map_err(|e| anyhow::anyhow!("{option}: {e}"))
 }
 
 #[cfg(test)]
@@ -129,7 +138,14 @@ mod tests {
         for bad in ["NaN", "inf", "-inf"] {
             assert_eq!(p(bad), Err("not a finite number".to_owned()), "{bad}");
         }
-        assert_eq!(p("1e9"), Err("1000000000 is outside [0, 1]".to_owned()));
+        assert_eq!(p("1e9"), Err("1e9 is outside [0, 1]".to_owned()));
+        assert_eq!(p("1e300"), Err("1e300 is outside [0, 1]".to_owned()));
+        assert_eq!(
+            check_f64("--x", f64::MAX, 0.0, 1.0)
+                .unwrap_err()
+                .to_string(),
+            "--x: 1.7976931348623157e308 is outside [0, 1]"
+        );
         assert!(p("abc").is_err());
         let q = f64_above(0.0, 10.0);
         assert_eq!(q("0"), Err("0 is outside (0, 10]".to_owned()));

@@ -329,3 +329,34 @@ fn force_terms_written_to_the_tension_model_run_in_the_core() {
         "core's force estimate with the written config: RMSE {rmse:.5} N vs reported {after:.5} N"
     );
 }
+
+/// With `holdout_with_validate` the held-out part of the fitting log and the
+/// validation logs are judged together, each its own run (regime) for the
+/// do-no-harm rule; without it the validation logs replace the hold-out.
+#[test]
+fn held_out_parts_and_validation_logs_are_judged_together_when_asked() {
+    let fit = named("fit", simulate("jae-ident", ""));
+    let other = named("other", simulate("track-motor", ""));
+    let judged = |holdout_with_validate: bool| {
+        let a = analyse(
+            ModelKind::Jae,
+            std::slice::from_ref(&fit),
+            std::slice::from_ref(&other),
+            &Config::default(),
+            BuildOptions {
+                holdout: 0.3,
+                holdout_with_validate,
+                ..BuildOptions::default()
+            },
+            options(2),
+        )
+        .expect("analysis runs");
+        let names: Vec<String> = a.outcome.runs.iter().map(|r| r.name.clone()).collect();
+        (names, a.holdout)
+    };
+    assert_eq!(
+        judged(true),
+        (vec!["fit".into(), "other".into()], Some(0.3))
+    );
+    assert_eq!(judged(false), (vec!["other".into()], None));
+}

@@ -185,7 +185,7 @@ fn effects_part(names: &[String], s: &Settings) -> Result<EffectsPart> {
     );
     let (id, before) = programme::programme(&plant, &Config::default(), s, tag)?;
     let jae_error_before_deg = jae_error_deg(&id.logs.jae, &id.config_jae)?;
-    let residual = programme::residual_loop(&id, s, tag)?;
+    let residual = programme::residual_loop(&plant, &id, s, tag)?;
     s.progress.line(
         tag,
         &format!(

@@ -546,11 +546,24 @@ pub struct ResidualStep {
     pub config: Config,
 }
 
-/// Run the residual loop on an identification's logs.
-pub fn residual_loop(id: &Identification, s: &Settings, tag: &str) -> Result<ResidualStep> {
+/// The runs the JAE's residual loop must not make worse, besides the
+/// held-out part of its identification run: another regime each.
+pub const JAE_REGIMES: [&str; 2] = ["robust-2n5", "track-jae"];
+
+/// Run the residual loop on an identification's logs. The JAE's terms are
+/// also judged on [`JAE_REGIMES`] (fresh runs on `plant` with the
+/// identified configuration and their own seeds): a term that makes one of
+/// them worse is set aside (do no harm).
+pub fn residual_loop(
+    plant: &PlantParams,
+    id: &Identification,
+    s: &Settings,
+    tag: &str,
+) -> Result<ResidualStep> {
     let build = BuildOptions {
         holdout: 0.3,
         keep_added: false,
+        holdout_with_validate: true,
         ..BuildOptions::default()
     };
     let select = SelectOptions {
@@ -565,16 +578,34 @@ pub fn residual_loop(id: &Identification, s: &Settings, tag: &str) -> Result<Res
         name: "jae-ident".into(),
         log: id.logs.jae.clone(),
     };
+    let mut regimes = Vec::new();
+    for name in JAE_REGIMES {
+        let (log, _) = experiments::logged(
+            name,
+            plant,
+            &id.config,
+            run_seed(s.seed, &format!("{name}/regime")),
+            s.scale,
+        )?;
+        regimes.push(NamedLog {
+            name: name.into(),
+            log,
+        });
+    }
     let jae = residual::analyse(
         ModelKind::Jae,
         std::slice::from_ref(&jae_log),
-        &[],
+        &regimes,
         &id.config,
         build,
         select,
     )
     .context("residual loop on the JAE")?;
     let config = residual::config_with(&jae, &id.config)?;
+    let build = BuildOptions {
+        holdout_with_validate: false,
+        ..build
+    };
     let ten_log = NamedLog {
         name: "tension-ident".into(),
         log: id.logs.tension.clone(),

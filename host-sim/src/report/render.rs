@@ -997,8 +997,9 @@ fn md_residual(out: &mut String, name: &str, a: &Analysis, scale: f64, unit: &st
     let o = &a.outcome;
     let _ = writeln!(
         out,
-        "**{name}** ({} candidates, fitted on the first 70 % of the run, judged on the last 30 %; terms reading a sensor the model does not read, for the JAE grating 1 and the motor encoder, are sensor fusion and not offered): validation RMSE {} → {} {unit}.\n",
+        "**{name}** ({} candidates, fitted on the rest of the run, judged on {}; terms reading a sensor the model does not read, for the JAE grating 1 and the motor encoder, are sensor fusion and not offered): validation RMSE {} → {} {unit}.\n",
         o.n_candidates,
+        crate::residual::report::validation_description(a),
         fmt_num(o.baseline.val_rmse * scale),
         fmt_num(o.final_fit.val_rmse * scale),
     );
@@ -1034,6 +1035,21 @@ fn md_residual(out: &mut String, name: &str, a: &Analysis, scale: f64, unit: &st
             evidence,
             rival
         );
+    }
+    if o.runs.len() > 1 {
+        let _ = writeln!(
+            out,
+            "\n| validation run | RMSE before [{unit}] | after [{unit}] |\n|---|---|---|"
+        );
+        for r in &o.runs {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} |",
+                r.name,
+                fmt_num(r.before_rmse * scale),
+                fmt_num(r.after_rmse * scale)
+            );
+        }
     }
     let harmed: Vec<String> = o
         .rejected
@@ -1383,8 +1399,10 @@ fn md_effects(o: &mut String, r: &Report, fx: &EffectsPart, map: &BTreeMap<Strin
         "The simulator's effects switched on (default magnitudes): {}. The whole programme ran again on that plant \
          with the seed's models (every identification repeated), then the residual loop \
          (`host_sim::residual`) ranked candidate effect terms on the `jae-ident` log (JAE) and the `tension-ident` log \
-         (tension model), kept those that cut the error on the held-out last 30 % of each run, and wrote them into \
-         `config.jae.added` and `config.tension.added`; steps 3, 4 and 6 then ran again with that configuration.\n",
+         (tension model), kept those that cut the error on the held-out last 30 % of each run and, for the JAE, \
+         made none of two other regimes worse (a run under 2.5 N, `robust-2n5`, and one with JAE feedback, \
+         `track-jae`, each a fresh run with its own seed), and wrote them into `config.jae.added` and \
+         `config.tension.added`; steps 3, 4 and 6 then ran again with that configuration.\n",
         fx.names.join(", ")
     );
     let _ = writeln!(

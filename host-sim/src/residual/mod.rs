@@ -218,7 +218,8 @@ pub fn analyse(
         options,
         fit_logs: fit.iter().map(|l| l.name.clone()).collect(),
         validate_logs: validate.iter().map(|l| l.name.clone()).collect(),
-        holdout: validate.is_empty().then_some(build_opts.holdout),
+        holdout: (validate.is_empty() || build_opts.holdout_with_validate)
+            .then_some(build_opts.holdout),
         build: build_opts,
     })
 }
@@ -349,6 +350,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         keep_added: args.keep_added,
         settle_s: args.settle_s,
         other_sensors: args.other_sensors,
+        holdout_with_validate: false,
     };
     let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
     print!("{}", report::table(&a));

@@ -205,6 +205,10 @@ pub struct BuildOptions {
     /// Offer terms that read sensors the model itself does not read
     /// ([`Problem::other_sensors`]): sensor fusion, reported as such.
     pub other_sensors: bool,
+    /// Hold out the last `holdout` share of each fitting log even when
+    /// validation logs are given: the held-out parts and the validation logs
+    /// are then all judged, each a regime that no kept term may make worse.
+    pub holdout_with_validate: bool,
 }
 
 impl Default for BuildOptions {
@@ -214,6 +218,7 @@ impl Default for BuildOptions {
             keep_added: false,
             settle_s: 0.0,
             other_sensors: false,
+            holdout_with_validate: false,
         }
     }
 }
@@ -409,7 +414,7 @@ pub fn build(
         let start = run.t_s.partition_point(|t| *t < t0 + opts.settle_s).min(n);
         let (f, v) = if !is_fit {
             (0..0, start..n)
-        } else if validate.is_empty() {
+        } else if validate.is_empty() || opts.holdout_with_validate {
             let cut = ((1.0 - opts.holdout) * n as f64).round() as usize;
             (start.min(cut)..cut, cut.max(start)..n)
         } else {

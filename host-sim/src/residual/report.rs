@@ -197,19 +197,25 @@ fn diag_rows(out: &mut String, b: &Diagnostics, f: &Diagnostics, scale: f64, uni
     }
 }
 
+/// What the analysis was judged on: the held-out part of each fitting log,
+/// the validation logs, or both.
+pub fn validation_description(a: &Analysis) -> String {
+    let held = a
+        .holdout
+        .map(|h| format!("the last {:.0} % of each fitting log", 100.0 * h));
+    match (held, a.validate_logs.is_empty()) {
+        (Some(h), true) => h,
+        (Some(h), false) => format!("{h} and {}", a.validate_logs.join(", ")),
+        (None, _) => a.validate_logs.join(", "),
+    }
+}
+
 /// The printed table.
 pub fn table(a: &Analysis) -> String {
     let o = &a.outcome;
     let (unit, scale) = display_unit(&a.problem.target);
     let mut s = String::new();
-    let val = if a.validate_logs.is_empty() {
-        format!(
-            "last {:.0} % of each fitting log",
-            100.0 * a.holdout.unwrap_or(0.0)
-        )
-    } else {
-        a.validate_logs.join(" ")
-    };
+    let val = validation_description(a);
     let _ = writeln!(
         s,
         "residual: model {}, target {}\n  fit on: {}\n  validate on: {}{}\n  {} fitting rows, {} validation rows (every {} sample), {} candidate effects",

@@ -130,6 +130,15 @@ pub enum EffectKind {
         /// Thermal time constant, s.
         tau_s: f32,
     },
+    /// The load remembered from the driven stroke: the peak of `|u|`,
+    /// decaying as `exp(-t / tau)` while `|u|` stays below it. On a
+    /// back-driven, nearly self-locking stroke the motor current drops to
+    /// about zero while the load stays: the state keeps the level the
+    /// driven stroke measured.
+    LoadMemory {
+        /// Decay time constant, s.
+        tau_s: f32,
+    },
     /// `u |u|`: quadratic stiffening, odd in `u`.
     SignedSquare,
     /// `u^3`: cubic stiffening.
@@ -250,6 +259,7 @@ impl EffectKind {
             EffectKind::Relaxation { .. } => "relax",
             EffectKind::Creep { .. } => "creep",
             EffectKind::Thermal { .. } => "thermal",
+            EffectKind::LoadMemory { .. } => "load_memory",
             EffectKind::SignedSquare => "sqr_sign",
             EffectKind::Cube => "cube",
         }
@@ -290,6 +300,9 @@ impl EffectKind {
             EffectKind::Thermal { .. } => {
                 "first-order lag of the squared current: winding temperature rise"
             }
+            EffectKind::LoadMemory { .. } => {
+                "load remembered from the driven stroke (peak of |u|, slowly decaying): carries the load through a back-driven stroke"
+            }
             EffectKind::SignedSquare => "odd quadratic stiffening",
             EffectKind::Cube => "cubic stiffening",
         }
@@ -319,7 +332,8 @@ impl EffectKind {
             EffectKind::Warmup { tau_s }
             | EffectKind::Relaxation { tau_s }
             | EffectKind::Creep { tau_s }
-            | EffectKind::Thermal { tau_s } => [("tau_s", tau_s), NONE],
+            | EffectKind::Thermal { tau_s }
+            | EffectKind::LoadMemory { tau_s } => [("tau_s", tau_s), NONE],
             EffectKind::SmoothSign { v_eps } | EffectKind::LoadCoulomb { v_eps } => {
                 [("v_eps", v_eps), NONE]
             }
@@ -492,6 +506,21 @@ impl Term {
                 };
                 state.y as f32
             }
+            EffectKind::LoadMemory { tau_s } => {
+                let level = f64::from(math::abs(u));
+                state.y = if first {
+                    level
+                } else {
+                    // The peak decays toward zero; a larger load replaces it.
+                    let decayed = lag(state, state.y, 0.0, dt_s, tau_s);
+                    if level > decayed {
+                        level
+                    } else {
+                        decayed
+                    }
+                };
+                state.y as f32
+            }
             EffectKind::SignedSquare => u * math::abs(u),
             EffectKind::Cube => u * u * u,
         }
@@ -573,7 +602,8 @@ impl fmt::Display for Term {
             }
             EffectKind::Relaxation { tau_s }
             | EffectKind::Creep { tau_s }
-            | EffectKind::Thermal { tau_s } => write!(f, "{n}[{}](tau={tau_s}s)", self.input),
+            | EffectKind::Thermal { tau_s }
+            | EffectKind::LoadMemory { tau_s } => write!(f, "{n}[{}](tau={tau_s}s)", self.input),
         }
     }
 }
@@ -692,7 +722,7 @@ pub struct LibrarySpec {
 }
 
 /// Capacity of the [`candidate_library`].
-pub const LIBRARY_MAX: usize = 40;
+pub const LIBRARY_MAX: usize = 44;
 
 /// The standard candidate set for a log, with widths scaled to each signal's
 /// range and time constants spread between the sample rate and the log length:
@@ -714,7 +744,7 @@ pub const LIBRARY_MAX: usize = 40;
 /// an empty range are skipped.
 pub fn candidate_library(spec: &LibrarySpec) -> heapless::Vec<Term, LIBRARY_MAX> {
     let mut v = heapless::Vec::new();
-    // LIBRARY_MAX exceeds the largest set (39 terms), so pushes cannot fail.
+    // LIBRARY_MAX exceeds the largest set (42 terms), so pushes cannot fail.
     let mut add = |t: Term| {
         let _ = v.push(t);
     };
@@ -797,6 +827,9 @@ pub fn candidate_library(spec: &LibrarySpec) -> heapless::Vec<Term, LIBRARY_MAX>
         for tau_s in taus {
             add(Term::new(EffectKind::Creep { tau_s }, s.index));
         }
+        for tau_s in taus {
+            add(Term::new(EffectKind::LoadMemory { tau_s }, s.index));
+        }
         if let Some(w) = vel {
             for f in [0.005, 0.02] {
                 let kind = EffectKind::LoadCoulomb {
@@ -843,6 +876,28 @@ mod tests {
                 a - 2.0 * a * (ph - 1.0)
             }
         })
+    }
+
+    /// The load memory follows a rising load at once, keeps its peak while
+    /// the load drops to zero (a back-driven stroke), decaying with its time
+    /// constant, and takes a new larger load at once.
+    #[test]
+    fn load_memory_holds_the_driven_strokes_peak_and_decays() {
+        let t = Term::new(EffectKind::LoadMemory { tau_s: 1.0 }, 0);
+        let dt = 1e-3;
+        let u = (0..100)
+            .map(|k| -0.01 * k as f32)
+            .chain(core::iter::repeat_n(0.0, 1000))
+            .chain(core::iter::once(2.0));
+        let y = run(t, u, dt);
+        assert!((y[99] - 0.99).abs() < 1e-6, "follows |u|: {}", y[99]);
+        let after_1s = y[1099];
+        let expected = 0.99 * (-1.0f32).exp();
+        assert!(
+            (after_1s - expected).abs() < 2e-3,
+            "{after_1s} vs {expected}"
+        );
+        assert_eq!(y[1100], 2.0, "a larger load at once");
     }
 
     #[test]
@@ -1192,7 +1247,7 @@ mod tests {
             duration_s: 60.0,
         };
         let lib = candidate_library(&spec);
-        assert_eq!(lib.len(), 39);
+        assert_eq!(lib.len(), 42);
         let bank = EffectBank::<LIBRARY_MAX>::new(&lib, 4);
         assert!(bank.is_ok(), "{:?}", bank.err());
         for t in &lib {

@@ -465,6 +465,13 @@ pub fn build(
     if !opts.other_sensors {
         lib.retain(|t| !reads_other_sensor(t, &problem.other_sensors));
     }
+    if !matches!(kind, ModelKind::Generic { .. }) {
+        // The load memory stands for a transmission that self-locks when
+        // back-driven, so the current stops carrying the load on one stroke
+        // (the da Vinci tool). The prototype's drive is back-drivable (the
+        // DOB rests on it): its current carries the load on both strokes.
+        lib.retain(|t| !matches!(t.kind, EffectKind::LoadMemory { .. }));
+    }
     if *kind == ModelKind::Jae {
         // The JAE maps slider 2 to the joint through cable 2 and the return
         // spring: the current reaches it only as a load (cable stretch,

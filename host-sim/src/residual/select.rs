@@ -236,7 +236,8 @@ pub fn effect_class(t: &Term, names: &[String], other: &[u8]) -> String {
         EffectKind::Play { .. }
         | EffectKind::Stop { .. }
         | EffectKind::Dahl { .. }
-        | EffectKind::LoadDahl { .. } => "hysteresis",
+        | EffectKind::LoadDahl { .. }
+        | EffectKind::LoadMemory { .. } => "hysteresis",
         EffectKind::Relaxation { .. } | EffectKind::Creep { .. } => "creep / relaxation",
         EffectKind::Thermal { .. } => "thermal",
         EffectKind::Product => "load",
@@ -374,7 +375,8 @@ pub fn term_label(t: &Term, names: &[String]) -> String {
         }
         EffectKind::Relaxation { tau_s }
         | EffectKind::Creep { tau_s }
-        | EffectKind::Thermal { tau_s } => format!("{n}[{}](tau={tau_s:.4}s)", sig(t.input)),
+        | EffectKind::Thermal { tau_s }
+        | EffectKind::LoadMemory { tau_s } => format!("{n}[{}](tau={tau_s:.4}s)", sig(t.input)),
     }
 }
 

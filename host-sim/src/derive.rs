@@ -33,6 +33,18 @@ pub const EXTRA_COLUMNS: [&str; 14] = [
     "fault_code",
 ];
 
+/// The core's held sign (`SignMemory`, as the estimators hold `sgn(v)`)
+/// over a velocity column: ±1, or 0 before the first motion above
+/// `switch_speed`. The one implementation the identification and the
+/// residual loop share.
+pub fn held_sign(vel: impl IntoIterator<Item = f32>, switch_speed: f32) -> Vec<f64> {
+    let memory = cable_joint::filter::SignMemory { switch_speed };
+    let mut sign = 0.0f32;
+    vel.into_iter()
+        .map(|v| f64::from(memory.update(&mut sign, v)))
+        .collect()
+}
+
 /// Median time step of a log, s.
 pub fn median_period_s(t_s: &[f64]) -> Option<f64> {
     if t_s.len() < 2 {

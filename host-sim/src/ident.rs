@@ -17,7 +17,7 @@
 //! Every log is first replayed through the core ([`crate::derive::derive`]):
 //! the regressors are the firmware's own signals (the tracking-observer
 //! velocities and accelerations, the held friction signs of
-//! [`SignMemory`] with the configuration's switching speeds, the DOB's
+//! [`SignMemory`](cable_joint::filter::SignMemory) with the configuration's switching speeds, the DOB's
 //! outputs), not a second implementation of them.
 //!
 //! * **Filtering.** The DOB's outputs (`load_torque_nm`, `tension1_hat_n`) are
@@ -70,12 +70,13 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context, Result};
-use cable_joint::filter::{Kinematics, LowPass1, SignMemory, TrackingObserver};
+use cable_joint::filter::{Kinematics, LowPass1, TrackingObserver};
 use cable_joint::lsq::{BatchLsq, Fit, LsqConfig};
 use cable_joint::Config;
 use serde::Serialize;
 
 use crate::cli;
+use crate::derive::held_sign;
 use crate::derive::{config_for_log, derive};
 use crate::log::{toml_error, Log};
 use crate::output::Outputs;
@@ -1078,14 +1079,6 @@ impl Prepared {
         })
     }
 
-    fn signs(vel: &[f64], switch_speed: f32) -> Vec<f64> {
-        let sm = SignMemory { switch_speed };
-        let mut s = 0.0f32;
-        vel.iter()
-            .map(|v| f64::from(sm.update(&mut s, *v as f32)))
-            .collect()
-    }
-
     /// Time, s.
     pub fn t_s(&self) -> Result<&[f64]> {
         Ok(self.derived.time_s()?)
@@ -1118,14 +1111,15 @@ impl Prepared {
             Regressor::SgnThetaVel => {
                 // Slider 2 moves about r theta: the same switching speed.
                 let sw = c.tension.sign_switch_x2_m_s / c.machine.pulley_radius_m;
-                Self::signs(&self.theta_kin()?.0, sw)
+                held_sign(self.theta_kin()?.0.iter().map(|v| *v as f32), sw)
             }
             Regressor::Theta => self.theta()?.clone(),
             Regressor::X1Acc => self.col("x1_acc_m_s2")?,
             Regressor::X1Vel => self.col("x1_vel_m_s")?,
-            Regressor::SgnX1Vel => {
-                Self::signs(&self.col("x1_vel_m_s")?, c.tension.sign_switch_x1_m_s)
-            }
+            Regressor::SgnX1Vel => held_sign(
+                self.col("x1_vel_m_s")?.iter().map(|v| *v as f32),
+                c.tension.sign_switch_x1_m_s,
+            ),
             Regressor::X1 => self.col("x1_m")?,
             Regressor::X2Acc => self.col("x2_acc_m_s2")?,
             Regressor::X2Vel => self.col("x2_vel_m_s")?,
@@ -1134,14 +1128,14 @@ impl Prepared {
                     X2Switch::Jae => c.jae.sign_switch_m_s,
                     X2Switch::Tension => c.tension.sign_switch_x2_m_s,
                 };
-                Self::signs(&self.col("x2_vel_m_s")?, sw)
+                held_sign(self.col("x2_vel_m_s")?.iter().map(|v| *v as f32), sw)
             }
             Regressor::X2 => self.col("x2_m")?,
             Regressor::PhiVel => self.col("phi_vel_rad_s")?,
             Regressor::SgnPhiVel => {
                 // Slider 1's switching speed at the motor shaft.
                 let sw = c.tension.sign_switch_x1_m_s * c.machine.motor_rad_per_cable_m();
-                Self::signs(&self.col("phi_vel_rad_s")?, sw)
+                held_sign(self.col("phi_vel_rad_s")?.iter().map(|v| *v as f32), sw)
             }
             Regressor::One => vec![1.0; self.len()],
         })

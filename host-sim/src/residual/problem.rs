@@ -29,12 +29,12 @@ use std::path::Path;
 
 use anyhow::{bail, ensure, Context, Result};
 use cable_joint::effects::{candidate_library, EffectKind, LibrarySpec, SignalRange, Term};
-use cable_joint::filter::{LowPass1, SignMemory, TrackingObserver};
+use cable_joint::filter::{LowPass1, TrackingObserver};
 use cable_joint::model::{sig, SIGNAL_NAMES};
 use cable_joint::Config;
 
 use super::select::{lowpass, reads_other_sensor, term_column, Problem, RunData};
-use crate::derive::{config_for_log, derive, median_period_s};
+use crate::derive::{config_for_log, derive, held_sign, median_period_s};
 use crate::log::{Log, Schema};
 
 /// Which model to fit.
@@ -333,14 +333,6 @@ fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, Log, Co
     Ok((signals, d, cfg))
 }
 
-fn held_sign(vel: &[f32], switch_speed: f32) -> Vec<f64> {
-    let m = SignMemory { switch_speed };
-    let mut s = 0.0f32;
-    vel.iter()
-        .map(|v| f64::from(m.update(&mut s, *v)))
-        .collect()
-}
-
 /// What the core's configuration needs to take a `jae`/`tension` result.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildInfo {
@@ -532,7 +524,7 @@ fn core_run(
     let (mut target, fixed, mut baseline, names) = match kind {
         ModelKind::Jae => {
             let target = need("theta_rad", "the magnetic encoder of a calibration run")?;
-            let sign = held_sign(s(sig::X2_VEL_M_S), cfg.jae.sign_switch_m_s);
+            let sign = held_sign(s(sig::X2_VEL_M_S).iter().copied(), cfg.jae.sign_switch_m_s);
             (
                 target,
                 vec![0.0; n],
@@ -548,8 +540,14 @@ fn core_run(
         }
         ModelKind::Tension => {
             let target = d.col_required("tension1_hat_n")?.to_vec();
-            let s1 = held_sign(s(sig::X1_VEL_M_S), cfg.tension.sign_switch_x1_m_s);
-            let s2 = held_sign(s(sig::X2_VEL_M_S), cfg.tension.sign_switch_x2_m_s);
+            let s1 = held_sign(
+                s(sig::X1_VEL_M_S).iter().copied(),
+                cfg.tension.sign_switch_x1_m_s,
+            );
+            let s2 = held_sign(
+                s(sig::X2_VEL_M_S).iter().copied(),
+                cfg.tension.sign_switch_x2_m_s,
+            );
             problem.prefilter = Some(lp);
             (
                 target,

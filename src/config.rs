@@ -112,7 +112,9 @@ pub struct JaeConfig {
     /// last sign is held (stiction keeps the presliding direction), so the sign
     /// term does not chatter at standstill.
     pub sign_switch_m_s: f32,
-    /// Effect terms added by the residual loop (rad per term unit).
+    /// Effect terms added by the residual loop (rad per term unit); not written to a
+    /// file when there are none.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "AddedTerms::is_empty"))]
     pub added: AddedTerms,
 }
 
@@ -230,7 +232,9 @@ pub struct TensionConfig {
     pub sign_switch_x1_m_s: f32,
     /// Slider-2 speed above which its friction sign switches, m/s (held below).
     pub sign_switch_x2_m_s: f32,
-    /// Effect terms added by the residual loop (N per term unit).
+    /// Effect terms added by the residual loop (N per term unit); not written to a
+    /// file when there are none.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "AddedTerms::is_empty"))]
     pub added: AddedTerms,
 }
 

@@ -67,9 +67,22 @@ pub fn signal_index(name: &str) -> Option<u8> {
 pub type Signals = [f32; sig::COUNT];
 
 /// Up to [`MAX_TERMS`] effect terms with their coefficients (configuration).
+///
+/// In a configuration file only the terms in use are written, one table
+/// each, the signals named by their log columns ([`SIGNAL_NAMES`]):
+///
+/// ```toml
+/// [[jae.added]]
+/// input = "x2_m"
+/// coef = 54.8
+///
+/// [jae.added.kind.Stop]
+/// half_width = 1.738e-5
+/// ```
+///
+/// (`aux = "..."` for the kinds that read a second signal). The slot form
+/// earlier versions wrote (`len`, `terms`, `coef` arrays) is still read.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
 pub struct AddedTerms {
     /// Number of terms in use.
     pub len: u8,
@@ -103,6 +116,11 @@ impl AddedTerms {
         self.coef[n] = coef;
         self.len += 1;
         true
+    }
+
+    /// No term in use.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
     }
 
     /// The terms in use.
@@ -163,5 +181,140 @@ mod tests {
         let mut bad = a;
         bad.terms[0].input = 42;
         assert!(bad.validate().is_err());
+    }
+}
+
+#[cfg(feature = "serde")]
+mod file_form {
+    //! [`AddedTerms`] in a configuration file: the terms in use only, each
+    //! with its signals named.
+
+    use core::fmt;
+
+    use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
+    use serde::ser::{SerializeSeq, Serializer};
+    use serde::{Deserialize, Serialize};
+
+    use super::{signal_index, AddedTerms, MAX_TERMS, SIGNAL_NAMES};
+    use crate::effects::{EffectKind, Term};
+
+    /// One term as written (the kind last: it is a table in TOML).
+    #[derive(Serialize)]
+    struct TermOut<'a> {
+        input: &'a str,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        aux: Option<&'a str>,
+        coef: f32,
+        kind: &'a EffectKind,
+    }
+
+    /// One term as read.
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct TermIn {
+        input: Signal,
+        #[serde(default)]
+        aux: Option<Signal>,
+        coef: f32,
+        kind: EffectKind,
+    }
+
+    /// The slot form of earlier versions.
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Slots {
+        #[serde(default)]
+        len: u8,
+        #[serde(default = "constant_terms")]
+        terms: [Term; MAX_TERMS],
+        #[serde(default)]
+        coef: [f32; MAX_TERMS],
+    }
+
+    fn constant_terms() -> [Term; MAX_TERMS] {
+        AddedTerms::default().terms
+    }
+
+    /// A run-time signal named by its log column.
+    struct Signal(u8);
+
+    impl<'de> Deserialize<'de> for Signal {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            struct Name;
+            impl Visitor<'_> for Name {
+                type Value = Signal;
+                fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                    f.write_str("a run-time signal's column name")
+                }
+                fn visit_str<E: de::Error>(self, v: &str) -> Result<Signal, E> {
+                    signal_index(v).map(Signal).ok_or_else(|| {
+                        E::invalid_value(
+                            de::Unexpected::Str(v),
+                            &"one of x1_m, x1_vel_m_s, x2_m, x2_vel_m_s, x2_acc_m_s2, \
+                              phi_rad, phi_vel_rad_s, i_ref_a, i_meas_a, theta_motor_rad",
+                        )
+                    })
+                }
+            }
+            d.deserialize_str(Name)
+        }
+    }
+
+    fn name(index: u8) -> &'static str {
+        SIGNAL_NAMES.get(usize::from(index)).copied().unwrap_or("?")
+    }
+
+    impl Serialize for AddedTerms {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            let active = self.active();
+            let mut seq = s.serialize_seq(Some(active.len()))?;
+            for (t, coef) in active.iter().zip(self.coef) {
+                seq.serialize_element(&TermOut {
+                    input: name(t.input),
+                    aux: t.kind.uses_aux().then(|| name(t.aux)),
+                    coef,
+                    kind: &t.kind,
+                })?;
+            }
+            seq.end()
+        }
+    }
+
+    impl<'de> Deserialize<'de> for AddedTerms {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            struct Form;
+            impl<'de> Visitor<'de> for Form {
+                type Value = AddedTerms;
+                fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                    f.write_str("a list of effect terms (input, coef, kind)")
+                }
+                fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<AddedTerms, A::Error> {
+                    let mut out = AddedTerms::default();
+                    while let Some(t) = seq.next_element::<TermIn>()? {
+                        let term = Term {
+                            kind: t.kind,
+                            input: t.input.0,
+                            aux: t.aux.map_or(0, |a| a.0),
+                        };
+                        if !out.push(term, t.coef) {
+                            return Err(de::Error::invalid_length(
+                                MAX_TERMS + 1,
+                                &"at most 8 effect terms",
+                            ));
+                        }
+                    }
+                    Ok(out)
+                }
+                fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<AddedTerms, A::Error> {
+                    let s = Slots::deserialize(de::value::MapAccessDeserializer::new(map))?;
+                    Ok(AddedTerms {
+                        len: s.len,
+                        terms: s.terms,
+                        coef: s.coef,
+                    })
+                }
+            }
+            d.deserialize_any(Form)
+        }
     }
 }

@@ -203,7 +203,7 @@ fn check_finite(input: &Log, out: &Log) -> Result<()> {
 /// `host-sim estimate`.
 pub fn run(args: EstimateArgs) -> Result<()> {
     let config = match &args.config {
-        Some(p) => crate::ident::load_config(p)?,
+        Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
     let name = args.log.display().to_string();

@@ -31,7 +31,7 @@ use cable_joint::telemetry::{parse_line, Record, StartRecord, TickRecord};
 use cable_joint::units::{Extender16, GratingCount, Scales};
 use cable_joint::Config;
 
-use crate::log::{toml_error, Log, DEFAULT_MIN_ROWS};
+use crate::log::{Log, DEFAULT_MIN_ROWS};
 
 /// Arguments of `host-sim ingest`.
 #[derive(clap::Args, Debug, Clone)]
@@ -310,24 +310,9 @@ impl std::fmt::Display for CycleStats {
     }
 }
 
-/// Load the core configuration (TOML over the defaults).
-pub fn load_config(path: Option<&Path>) -> anyhow::Result<Config> {
-    let Some(path) = path else {
-        return Ok(Config::default());
-    };
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let config: Config = toml::from_str(&text)
-        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), toml_error(&text, &e)))?;
-    config
-        .validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(config)
-}
-
 /// `host-sim ingest`.
 pub fn run(args: IngestArgs) -> anyhow::Result<()> {
-    let config = load_config(args.config.as_deref())?;
+    let config = crate::io::config::load_or_default(args.config.as_deref())?;
     let records = read_stream(&args.file)?;
     let ticks: Vec<TickRecord> = records
         .iter()

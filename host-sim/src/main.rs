@@ -41,7 +41,7 @@ enum Command {
     /// Tool payload identification and tool-end wrench estimation (KUKA wrist data).
     Payload(host_sim::payload::PayloadArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
-    Identify(host_sim::ident::IdentifyArgs),
+    Identify(host_sim::cli::identify::IdentifyArgs),
     /// Replay a log (any rate) through the core; write every estimate and the force bound.
     Estimate(host_sim::estimate::EstimateArgs),
     /// Residual analysis: rank and add effect terms, judged on validation data.
@@ -59,7 +59,7 @@ fn main() -> ExitCode {
         Some(Command::Trace(args)) => host_sim::trace::run(args),
         Some(Command::Simulate(a)) => host_sim::simulate::run(a),
         Some(Command::Payload(a)) => host_sim::payload::run(a),
-        Some(Command::Identify(a)) => host_sim::ident::run(a),
+        Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
         Some(Command::Residual(a)) => host_sim::residual::run(a),
         Some(Command::Estimate(a)) => host_sim::estimate::run(a),
         Some(Command::Report(a)) => host_sim::report::run(a),

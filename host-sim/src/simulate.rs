@@ -21,9 +21,8 @@ use anyhow::Context;
 use cable_joint::Config;
 
 use crate::cli;
-use crate::log::toml_error;
 use crate::output::Outputs;
-use crate::plant::{merge_toml, PlantParams};
+use crate::plant::PlantParams;
 use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
 use crate::sim::{LogRecorder, RawTrace, Stats};
 
@@ -107,21 +106,6 @@ fn read(path: &PathBuf) -> anyhow::Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
 }
 
-/// Load a controller configuration from TOML, merged onto the defaults.
-pub fn load_config(path: &PathBuf) -> anyhow::Result<Config> {
-    let text = read(path)?;
-    let toml_err =
-        |e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), toml_error(&text, &e));
-    let user: toml::Value = toml::from_str(&text).map_err(toml_err)?;
-    let mut merged = toml::Value::try_from(Config::default())?;
-    merge_toml(&mut merged, user);
-    let config: Config = merged.try_into().map_err(toml_err)?;
-    config
-        .validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(config)
-}
-
 fn fmt_stats(s: &Option<Stats>) -> String {
     match s {
         Some(s) => format!(
@@ -162,7 +146,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         .context("--scenario NAME is required (see --list)")?;
     let out = args.out.as_ref().context("--out PATH is required")?;
     let mut config = match &args.config {
-        Some(p) => load_config(p)?,
+        Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
     if args.oracle {

@@ -622,12 +622,7 @@ fn config_errors_do_not_copy_a_huge_value() {
         format!("[jae]\nc_pos_rad_m = {}\n", "x".repeat(100_000)),
     ] {
         std::fs::write(&path, &text).unwrap();
-        let errors = [
-            host_sim::ident::load_config(&path).unwrap_err(),
-            host_sim::simulate::load_config(&path).unwrap_err(),
-            host_sim::ingest::load_config(Some(&path)).unwrap_err(),
-            host_sim::residual::read_config(&path).unwrap_err(),
-        ];
+        let errors = [host_sim::io::config::load_config(&path).unwrap_err()];
         for e in errors {
             let msg = format!("{e:#}");
             assert!(msg.len() < 500, "{} bytes: {}", msg.len(), &msg[..500]);

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use cable_joint::effects::Term;
 use cable_joint::Config;
-use host_sim::ident::{load_config, write_config};
+use host_sim::io::config::{load_config, write_config};
 
 fn write(path: &Path, text: &str) {
     std::fs::write(path, text).unwrap();

@@ -10,11 +10,12 @@ use std::sync::OnceLock;
 
 use cable_joint::config::StretchConfig;
 use cable_joint::Config;
+use host_sim::cli::identify::{identify, IdentifyArgs, Procedure};
 use host_sim::ident::{
-    decoupled, identify, identify_bm_with, identify_jae_with, identify_tension_with, load_config,
-    physically_required, validate_bm, validate_jae, validate_tension, IdentOptions, IdentifyArgs,
-    Procedure, Regressor, SIMPLIFIED_C,
+    decoupled, identify_bm_with, identify_jae_with, identify_tension_with, physically_required,
+    validate_bm, validate_jae, validate_tension, IdentOptions, Regressor, SIMPLIFIED_C,
 };
+use host_sim::io::config::load_config;
 use host_sim::log::Log;
 use host_sim::plant::PlantParams;
 use host_sim::scenario::{self, ScenarioOptions};
@@ -413,7 +414,7 @@ fn the_command_runs_all_three_and_writes_a_config_that_loads_back() {
     // Validation rows: one for the JAE, five tension models.
     assert_eq!(rep.validation.len(), 6, "{:?}", rep.validation);
 
-    host_sim::ident::run(args.clone()).unwrap();
+    host_sim::cli::identify::run(args.clone()).unwrap();
     let loaded = load_config(path("out.toml")).unwrap();
     assert_eq!(loaded, config, "the written configuration loads back equal");
     let json: serde_json::Value =

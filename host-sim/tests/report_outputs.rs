@@ -325,7 +325,7 @@ fn identified_configurations_load_and_differ_from_the_datasheet() {
         "config_effects_seed_model.toml",
         "config_effects_residual.toml",
     ] {
-        let c = host_sim::ident::load_config(r.out.join(name)).expect(name);
+        let c = host_sim::io::config::load_config(r.out.join(name)).expect(name);
         assert_ne!(
             c.dob.viscous_nm_s_rad, def.dob.viscous_nm_s_rad,
             "{name}: B_m not identified"
@@ -346,7 +346,8 @@ fn identified_configurations_load_and_differ_from_the_datasheet() {
             c.jae.c_pos_rad_m
         );
     }
-    let res = host_sim::ident::load_config(r.out.join("config_effects_residual.toml")).unwrap();
+    let res =
+        host_sim::io::config::load_config(r.out.join("config_effects_residual.toml")).unwrap();
     let n = u32::from(res.jae.added.len) + u32::from(res.tension.added.len);
     let f = figures(&r.json);
     let added = f["effects_residual.residual.jae.terms_added"]

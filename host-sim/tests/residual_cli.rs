@@ -8,9 +8,9 @@ use std::process::Command;
 
 use cable_joint::Config;
 use host_sim::derive::derive;
+use host_sim::io::config::load_config;
 use host_sim::log::Log;
 use host_sim::plant::PlantParams;
-use host_sim::residual::read_config;
 use host_sim::scenario::{self, ScenarioOptions};
 use host_sim::sim::LogRecorder;
 use serde_json::Value;
@@ -128,7 +128,7 @@ fn simulated_log_jae_and_tension_configs_run_in_the_core() {
 
     // The written configuration, replayed through the core: its JAE estimate
     // has the error the tool reported for the final model.
-    let cfg = read_config(&d.join("jae.toml")).expect("config-out is a valid configuration");
+    let cfg = load_config(d.join("jae.toml")).expect("config-out is a valid configuration");
     assert_eq!(cfg.jae.added.len as usize, effects.len());
     let replay = derive(&log, &cfg).unwrap();
     let th = log.col("theta_rad").unwrap();
@@ -158,10 +158,10 @@ fn simulated_log_jae_and_tension_configs_run_in_the_core() {
     let t = read_json(&d.join("tension.json"));
     let after = t["after_rmse"].as_f64().unwrap();
     assert!(after < t["before_rmse"].as_f64().unwrap());
-    let cfg = read_config(&d.join("tension.toml")).unwrap();
+    let cfg = load_config(d.join("tension.toml")).unwrap();
     assert_eq!(
         cfg.jae,
-        read_config(&d.join("jae.toml")).unwrap().jae,
+        load_config(d.join("jae.toml")).unwrap().jae,
         "JAE kept"
     );
     let replay = derive(&log, &cfg).unwrap();

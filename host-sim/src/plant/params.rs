@@ -374,7 +374,7 @@ pub const K_W0_N_M: f64 = 2.0e5;
 pub const K_W1_N_M: f64 = K_W2_N_M;
 
 /// Deep-merge `over` onto `base` (tables key by key, everything else replaced).
-pub(crate) fn merge_toml(base: &mut toml::Value, over: toml::Value) {
+fn merge_toml(base: &mut toml::Value, over: toml::Value) {
     match (base, over) {
         (toml::Value::Table(b), toml::Value::Table(o)) => {
             for (k, v) in o {

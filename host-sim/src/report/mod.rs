@@ -48,7 +48,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Context, Result};
 use cable_joint::Config;
 
-use crate::ident::stage_config;
+use crate::io::config::stage_config;
 use crate::log::Log;
 use crate::output::Outputs;
 use crate::plant::{Effects, PlantParams};

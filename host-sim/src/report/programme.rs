@@ -9,11 +9,12 @@ use cable_joint::Config;
 use serde::Serialize;
 
 use super::experiments::{self, band, LoadCase, Summary, TrackRun};
-use crate::ident::{self, BmResult, ErrorStats, IdentOptions, JaeResult, TensionResult};
+use crate::ident::{self, BmResult, IdentOptions, JaeResult, TensionResult};
 use crate::log::Log;
 use crate::plant::PlantParams;
 use crate::residual::{self, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions};
 use crate::scenario::{Direction, LOADING_ANGLES_DEG, LOADING_MASSES_G};
+use crate::stats::ErrorStats;
 
 /// Progress lines on stderr (`[  12.3 s] clean: ...`).
 #[derive(Clone, Copy, Debug)]

@@ -283,34 +283,6 @@ pub fn config_with(a: &Analysis, base: &Config) -> Result<Config> {
     Ok(cfg)
 }
 
-/// Read a configuration file (TOML; missing fields take the defaults).
-pub fn read_config(path: &std::path::Path) -> Result<Config> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let cfg: Config = toml::from_str(&text).map_err(|e| {
-        anyhow::anyhow!("{}: {}", path.display(), crate::log::toml_error(&text, &e))
-    })?;
-    cfg.validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(cfg)
-}
-
-/// Write a configuration as TOML, atomically.
-pub fn write_config(cfg: &Config, path: &std::path::Path) -> Result<()> {
-    let mut out = Outputs::new();
-    stage_config(&mut out, cfg, path)?;
-    out.commit()?;
-    Ok(())
-}
-
-/// Stage a configuration as TOML among a command's outputs
-/// ([`crate::output`]).
-pub fn stage_config(out: &mut Outputs, cfg: &Config, path: &std::path::Path) -> Result<()> {
-    let text = toml::to_string(cfg).context("serialising the configuration")?;
-    out.bytes(path, text.as_bytes())?;
-    Ok(())
-}
-
 /// Run the subcommand.
 pub fn run(args: ResidualArgs) -> Result<()> {
     let kind = match (&args.model, &args.target) {
@@ -327,7 +299,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         bail!("--config-out needs --model jae, tension or force");
     }
     let config = match &args.config {
-        Some(p) => read_config(p)?,
+        Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
     let project = !matches!(kind, ModelKind::Generic { .. });
@@ -359,7 +331,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     let mut out = Outputs::new();
     if let Some(path) = &args.config_out {
         let cfg = config_with(&a, &config)?;
-        stage_config(&mut out, &cfg, path)?;
+        crate::io::config::stage_config(&mut out, path, &cfg)?;
     }
     if let Some(path) = &args.json {
         let mut v = report::json(&a);

@@ -192,7 +192,7 @@ fn assert_finite_toml(v: &toml::Value, path: &str, file: &str) {
 }
 
 /// A configuration accepted by a loader: valid, finite, and equal to itself
-/// written as `ident::write_config` writes it (`toml::to_string_pretty`,
+/// written as `io::config::write_config` writes it (`io::config::to_toml`,
 /// here without the fsync that would slow the fuzzer down) and loaded back.
 fn check_config_accepted(c: &Config, loader: &str, dir: &Path) {
     if let Err(e) = c.validate() {
@@ -201,10 +201,10 @@ fn check_config_accepted(c: &Config, loader: &str, dir: &Path) {
     let value = toml::Value::try_from(c).expect("a Config serializes");
     assert_finite_toml(&value, "", loader);
     let back = dir.join("back.toml");
-    let text = toml::to_string_pretty(c)
+    let text = host_sim::io::config::to_toml(c)
         .unwrap_or_else(|e| panic!("{loader}: accepted configuration cannot be written: {e}"));
     write(&back, text.as_bytes());
-    let again = host_sim::ident::load_config(&back)
+    let again = host_sim::io::config::load_config(&back)
         .unwrap_or_else(|e| panic!("{loader}: configuration written and loaded back: {e:#}"));
     assert_eq!(&again, c, "{loader}: written and loaded back");
 }
@@ -223,38 +223,16 @@ fn check_config_error(e: &impl Display, path: &Path, loader: &str) {
     );
 }
 
-/// The four configuration loaders (`identify`/`estimate`/`report`,
-/// `simulate`, `ingest`, `residual`) and the plant parameters' parser on the
-/// same file.
+/// The configuration loader every command uses ([`host_sim::io::config`])
+/// and the plant parameters' parser on the same file.
 pub fn config_toml(data: &[u8]) {
     let dir = scratch();
     let path = dir.join("config.toml");
     write(&path, data);
-    type Loader = fn(&Path) -> anyhow::Result<Config>;
-    let loaders: [(&str, Loader); 4] = [
-        ("ident::load_config", |p| host_sim::ident::load_config(p)),
-        ("simulate::load_config", |p| {
-            host_sim::simulate::load_config(&p.to_path_buf())
-        }),
-        ("ingest::load_config", |p| {
-            host_sim::ingest::load_config(Some(p))
-        }),
-        ("residual::read_config", |p| {
-            host_sim::residual::read_config(p)
-        }),
-    ];
-    // Loaders that accept mostly give the same configuration: write and
-    // read back each distinct one once (TOML parsing is the slow part).
-    let mut checked: Vec<Config> = Vec::new();
-    for (loader, load) in loaders {
-        match load(&path) {
-            Ok(c) if checked.contains(&c) => {}
-            Ok(c) => {
-                check_config_accepted(&c, loader, &dir);
-                checked.push(c);
-            }
-            Err(e) => check_config_error(&format!("{e:#}"), &path, loader),
-        }
+    let loader = "io::config::load_config";
+    match host_sim::io::config::load_config(&path) {
+        Ok(c) => check_config_accepted(&c, loader, &dir),
+        Err(e) => check_config_error(&format!("{e:#}"), &path, loader),
     }
     if let Ok(text) = std::str::from_utf8(data) {
         if let Ok(p) = PlantParams::from_toml_str(text) {

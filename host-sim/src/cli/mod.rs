@@ -1,4 +1,7 @@
-//! Checks of numeric command-line options, shared by every subcommand.
+//! The command line: each subcommand's arguments, its run and its printing
+//! live in a module here (so far `identify`; the other subcommands still
+//! own theirs in their library modules), and the checks of numeric options
+//! below are shared by every subcommand.
 //!
 //! Each numeric option names its range with one of these parsers
 //! (`#[arg(long, value_parser = cli::f64_in(0.0, 1.0))]`), so that `NaN`,
@@ -11,6 +14,8 @@
 //!
 //! [`check_f64`] is the same check for a value that does not come from the
 //! command line (a library caller filling an argument structure).
+
+pub mod identify;
 
 use std::fmt::Display;
 use std::str::FromStr;

@@ -1,0 +1,439 @@
+//! `host-sim identify`: arguments, the run over the logs it names, and the
+//! printed report.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use cable_joint::Config;
+use serde::Serialize;
+
+use crate::cli;
+use crate::ident::{
+    identify_bm_with, identify_jae_with, identify_tension_with, validate_bm, validate_jae,
+    validate_tension, FitReport, IdentOptions, IdentifyReport, Validation,
+};
+use crate::io::config::{load_config, stage_config};
+use crate::log::Log;
+use crate::output::Outputs;
+use crate::stats::ErrorStats;
+
+/// What `host-sim identify` identifies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Procedure {
+    /// Motor damping `B_m` from a no-load motor run.
+    Bm,
+    /// Joint-angle estimator from a run with the magnetic encoder.
+    Jae,
+    /// Tension models A, B, C and the simplified model C.
+    Tension,
+    /// All three, in that order (each uses the previous results).
+    All,
+}
+
+/// Arguments of `host-sim identify`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct IdentifyArgs {
+    /// Which model(s) to identify.
+    #[arg(long, value_enum)]
+    pub procedure: Procedure,
+    /// Logs to fit (CSV). With `all`: three logs in the order bm, jae,
+    /// tension, or any number as `bm=FILE`, `jae=FILE`, `tension=FILE`.
+    #[arg(long, num_args = 1.., required = true)]
+    pub log: Vec<String>,
+    /// Logs to validate on (not used for the fit); same form as `--log`.
+    #[arg(long, num_args = 1..)]
+    pub validate: Vec<String>,
+    /// Configuration to start from (TOML; default: the datasheet values).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Where to write the configuration with the identified parameters.
+    #[arg(long)]
+    pub config_out: PathBuf,
+    /// Also write every result as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Leading seconds of each log left out (observer start-up).
+    #[arg(long, default_value_t = IdentOptions::default().skip_start_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
+    pub skip_start_s: f64,
+    /// Tension fits: leave out ticks with |theta'| below this, rad/s (0: keep all).
+    #[arg(long, default_value_t = IdentOptions::default().min_joint_vel_rad_s,
+          value_parser = cli::f64_in(0.0, 1e3))]
+    pub min_joint_vel_rad_s: f64,
+    /// Tension fits: also leave out this long after the joint was still, s.
+    #[arg(long, default_value_t = IdentOptions::default().holdoff_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
+    pub holdoff_s: f64,
+    /// Do not pass the regressors through the DOB's low-pass (the seed's plain fit).
+    #[arg(long)]
+    pub no_filter: bool,
+    /// Pruning limit on %sigma, %.
+    #[arg(long, default_value_t = IdentOptions::default().max_pct_sigma,
+          value_parser = cli::f64_above(0.0, 1e6))]
+    pub max_pct_sigma: f64,
+    /// Prune as the seed did: every parameter above the limit at once.
+    #[arg(long)]
+    pub prune_all_at_once: bool,
+    /// DOB-based fits: extra low-pass on both sides, Hz (0: none).
+    #[arg(long, default_value_t = IdentOptions::default().post_filter_hz,
+          value_parser = cli::f64_in(0.0, 1e4))]
+    pub post_filter_hz: f64,
+    /// Fit B_m without the Coulomb term sgn(phi') (the seed's model).
+    #[arg(long)]
+    pub bm_no_coulomb: bool,
+}
+
+/// Split `--log`/`--validate` arguments by procedure.
+fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, PathBuf)>> {
+    let order = [Procedure::Bm, Procedure::Jae, Procedure::Tension];
+    let tagged = |s: &str| -> Option<(Procedure, PathBuf)> {
+        let (tag, file) = s.split_once('=')?;
+        let p = match tag {
+            "bm" => Procedure::Bm,
+            "jae" => Procedure::Jae,
+            "tension" => Procedure::Tension,
+            _ => return None,
+        };
+        Some((p, PathBuf::from(file)))
+    };
+    let mut out = Vec::new();
+    let untagged: Vec<&String> = files.iter().filter(|s| tagged(s).is_none()).collect();
+    if procedure == Procedure::All && !untagged.is_empty() {
+        if untagged.len() != files.len() || files.len() != 3 {
+            bail!(
+                "with --procedure all give three logs in the order bm, jae, tension, \
+                 or tag each one: bm=FILE jae=FILE tension=FILE"
+            );
+        }
+        for (p, f) in order.iter().zip(files) {
+            out.push((*p, PathBuf::from(f)));
+        }
+        return Ok(out);
+    }
+    for f in files {
+        match tagged(f) {
+            Some((p, path)) => {
+                if procedure != Procedure::All && p != procedure {
+                    bail!("`{f}` is tagged for another procedure than {procedure:?}");
+                }
+                out.push((p, path));
+            }
+            None => out.push((procedure, PathBuf::from(f))),
+        }
+    }
+    Ok(out)
+}
+
+fn read_logs(files: &[(Procedure, PathBuf)], p: Procedure) -> Result<Vec<(String, Log)>> {
+    files
+        .iter()
+        .filter(|(q, _)| *q == p)
+        .map(|(_, f)| Ok((f.display().to_string(), Log::read(f)?)))
+        .collect()
+}
+
+fn refs(logs: &[(String, Log)]) -> Vec<(&str, &Log)> {
+    logs.iter().map(|(l, g)| (l.as_str(), g)).collect()
+}
+
+/// Run the identification(s) the arguments ask for; returns the report and
+/// the configuration with the results applied.
+pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
+    let opts = IdentOptions {
+        skip_start_s: args.skip_start_s,
+        min_joint_vel_rad_s: args.min_joint_vel_rad_s,
+        holdoff_s: args.holdoff_s,
+        filter_regressors: !args.no_filter,
+        max_pct_sigma: args.max_pct_sigma,
+        prune_all_at_once: args.prune_all_at_once,
+        post_filter_hz: args.post_filter_hz,
+        bm_coulomb: !args.bm_no_coulomb,
+        ..IdentOptions::default()
+    };
+    opts.check()?;
+    let mut config = match &args.config {
+        Some(p) => load_config(p)?,
+        None => Config::default(),
+    };
+    let fits = assign(&args.log, args.procedure)?;
+    let vals = assign(&args.validate, args.procedure)?;
+    let wants = |p: Procedure| args.procedure == p || args.procedure == Procedure::All;
+    let mut rep = IdentifyReport {
+        options: Some(opts),
+        ..IdentifyReport::default()
+    };
+    for p in [Procedure::Bm, Procedure::Jae, Procedure::Tension] {
+        if !wants(p) {
+            continue;
+        }
+        let logs = read_logs(&fits, p)?;
+        if logs.is_empty() {
+            bail!("no log for the {p:?} procedure");
+        }
+        let vlogs = read_logs(&vals, p)?;
+        let logs = refs(&logs);
+        match p {
+            Procedure::Bm => {
+                let r = identify_bm_with(&logs, &config, &opts)?;
+                r.apply(&mut config);
+                for (name, log) in &vlogs {
+                    let e = validate_bm(&r, log, &config, &opts)
+                        .with_context(|| format!("validating B_m on {name}"))?;
+                    rep.validation.push(Validation {
+                        log: name.clone(),
+                        model: r.fit.model.clone(),
+                        errors: e,
+                    });
+                }
+                rep.bm = Some(r);
+            }
+            Procedure::Jae => {
+                let r = identify_jae_with(&logs, &config, &opts)?;
+                r.apply(&mut config);
+                for (name, log) in &vlogs {
+                    let e = validate_jae(&r, log, &config, &opts)
+                        .with_context(|| format!("validating the JAE on {name}"))?;
+                    rep.validation.push(Validation {
+                        log: name.clone(),
+                        model: r.fit.model.clone(),
+                        errors: e,
+                    });
+                }
+                rep.jae = Some(r);
+            }
+            Procedure::Tension => {
+                let r = identify_tension_with(&logs, &config, &opts)?;
+                r.apply(&mut config);
+                for (name, log) in &vlogs {
+                    let v = validate_tension(&r, log, &config, &opts)
+                        .with_context(|| format!("validating the tension models on {name}"))?;
+                    for (model, e) in v {
+                        rep.validation.push(Validation {
+                            log: name.clone(),
+                            model,
+                            errors: e,
+                        });
+                    }
+                }
+                rep.tension = Some(r);
+            }
+            Procedure::All => unreachable!("expanded above"),
+        }
+    }
+    Ok((rep, config))
+}
+
+fn fmt_num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else if (1e-3..1e5).contains(&v.abs()) {
+        format!("{v:.5}")
+    } else {
+        format!("{v:.4e}")
+    }
+}
+
+fn fmt_pct(p: f64) -> String {
+    if p.is_finite() {
+        format!("{p:.3} %")
+    } else {
+        "inf".to_owned()
+    }
+}
+
+/// A fit as a readable table.
+pub fn format_fit(f: &FitReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{}: {} rows, residual std {}, condition {:.3e}, residual correlation {:.0} ticks",
+        f.model,
+        f.rows,
+        fmt_num(f.sigma),
+        f.condition,
+        f.residual_corr_ticks
+    );
+    let _ = writeln!(
+        s,
+        "  {:<12} {:<9} {:>13} {:>12} {:>11} {:>11}  unit",
+        "regressor", "parameter", "value", "std", "%sigma", "%sigma eff"
+    );
+    for p in &f.params {
+        let _ = writeln!(
+            s,
+            "  {:<12} {:<9} {:>13} {:>12} {:>11} {:>11}  {}",
+            p.symbol,
+            p.name,
+            fmt_num(p.value),
+            fmt_num(p.std),
+            fmt_pct(p.pct_sigma),
+            fmt_pct(p.pct_sigma_eff),
+            p.unit
+        );
+    }
+    let _ = writeln!(s, "  errors: {}", format_stats(&f.errors));
+    s
+}
+
+/// Error statistics in one line.
+pub fn format_stats(e: &ErrorStats) -> String {
+    format!(
+        "n {}, mean {} {u}, mean|e| {} {u}, max {} {u}, min {} {u}, RMSE {} {u}",
+        e.n,
+        fmt_num(e.mean),
+        fmt_num(e.mean_abs),
+        fmt_num(e.max),
+        fmt_num(e.min),
+        fmt_num(e.rmse),
+        u = e.unit
+    )
+}
+
+/// The whole report as text.
+pub fn format_report(r: &IdentifyReport) -> String {
+    let mut s = String::new();
+    if let Some(b) = &r.bm {
+        s.push_str(&format_fit(&b.fit));
+        if let Some(p) = b.coulomb_dropped_pct_sigma {
+            let _ = writeln!(
+                s,
+                "  Coulomb term sgn(phi') dropped (%sigma {})",
+                fmt_pct(p)
+            );
+        }
+        let _ = writeln!(
+            s,
+            "  -> dob.viscous_nm_s_rad = {:e} (seed: 1.6934e-5)\n",
+            b.b_m_nm_s_rad
+        );
+    }
+    if let Some(j) = &r.jae {
+        s.push_str(&format_fit(&j.fit));
+        let _ = writeln!(s, "  identification error: {}", format_stats(&j.error_deg));
+        let _ = writeln!(
+            s,
+            "  -> jae: chi_s = [{}, {}, {}, {}], offset {} rad (seed: [0.0805, 0.5225, 0.0025, 264.356], error mean 0.275°, max 0.836°)\n",
+            fmt_num(j.chi_s[0]),
+            fmt_num(j.chi_s[1]),
+            fmt_num(j.chi_s[2]),
+            fmt_num(j.chi_s[3]),
+            fmt_num(j.offset_rad)
+        );
+        let sp = &j.spring;
+        let _ = writeln!(
+            s,
+            "spring rate through the motor ({} sweeps, {} ticks): K_s {} N/m (%sigma {:.1}), residual rms {} N\n  -> {}",
+            sp.sweeps,
+            sp.rows,
+            fmt_num(sp.k_s_n_m.0),
+            sp.k_s_n_m.1,
+            fmt_num(sp.residual_rms_n),
+            sp.note
+        );
+        let jf = &j.joint;
+        let _ = writeln!(
+            s,
+            "joint torque balance ({} rows, joint slipping): K_w2 {} N/m (from c4), K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
+            jf.rows,
+            fmt_num(jf.k_w2_n_m),
+            fmt_num(jf.k_w1_n_m.0),
+            jf.k_w1_n_m.1,
+            fmt_num(jf.pin_coulomb_nm.0),
+            jf.pin_coulomb_nm.1,
+            fmt_num(jf.residual_rms_nm),
+            jf.note
+        );
+    }
+    if let Some(t) = &r.tension {
+        let _ = writeln!(
+            s,
+            "tension models: theta from {}, DOB with B_m = {:e} N·m·s/rad",
+            t.theta_source, t.b_m_used_nm_s_rad
+        );
+        for m in [&t.model_a, &t.model_b] {
+            match m {
+                Ok(f) => s.push_str(&format_fit(f)),
+                Err(e) => {
+                    let _ = writeln!(s, "  not fitted: {e}");
+                }
+            }
+        }
+        s.push_str(&format_fit(&t.model_c));
+        let dropped: Vec<String> = t
+            .dropped
+            .iter()
+            .map(|(r, p)| format!("{} ({})", r.symbol(), fmt_pct(*p)))
+            .collect();
+        let _ = writeln!(s, "pruned (%sigma above the limit): {}", dropped.join(", "));
+        s.push_str(&format_fit(&t.simplified));
+        if !t.not_written.is_empty() {
+            let nw: Vec<&str> = t.not_written.iter().map(|r| r.symbol()).collect();
+            let _ = writeln!(
+                s,
+                "  kept terms the core's model does not evaluate (not written): {}",
+                nw.join(", ")
+            );
+            s.push_str(&format_fit(&t.core));
+        }
+        let _ = writeln!(
+            s,
+            "  -> tension: chi_p = [f_sc1 {}, f_cp2 {}, K_s {}, F_0 {}] (seed: [3.879, 5.027, 707.7, 19.52])\n",
+            fmt_num(t.chi_p[0]),
+            fmt_num(t.chi_p[1]),
+            fmt_num(t.chi_p[2]),
+            fmt_num(t.chi_p[3])
+        );
+    }
+    if !r.validation.is_empty() {
+        let _ = writeln!(
+            s,
+            "validation (model - measured, data not used for the fit):"
+        );
+        for v in &r.validation {
+            let _ = writeln!(s, "  {} on {}: {}", v.model, v.log, format_stats(&v.errors));
+        }
+    }
+    s
+}
+
+/// Run the subcommand.
+pub fn run(args: IdentifyArgs) -> Result<()> {
+    let (rep, config) = identify(&args)?;
+    print!("{}", format_report(&rep));
+    // The configuration and the report are written together, or neither is.
+    let mut out = Outputs::new();
+    stage_config(&mut out, &args.config_out, &config)?;
+    if let Some(p) = &args.json {
+        let text = serde_json::to_string_pretty(&rep).context("serializing the report")?;
+        out.bytes(p, text.as_bytes())?;
+    }
+    out.commit()?;
+    println!("configuration written to {}", args.config_out.display());
+    if let Some(p) = &args.json {
+        println!("report written to {}", p.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn logs_are_assigned_to_procedures() {
+        let v = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let a = assign(&v(&["a", "b", "c"]), Procedure::All).unwrap();
+        assert_eq!(
+            a.iter().map(|(p, _)| *p).collect::<Vec<_>>(),
+            vec![Procedure::Bm, Procedure::Jae, Procedure::Tension]
+        );
+        let a = assign(&v(&["tension=t.csv", "bm=b.csv"]), Procedure::All).unwrap();
+        assert_eq!(a[0], (Procedure::Tension, PathBuf::from("t.csv")));
+        assert!(assign(&v(&["a", "b"]), Procedure::All).is_err());
+        assert!(assign(&v(&["jae=j.csv"]), Procedure::Bm).is_err());
+        let a = assign(&v(&["x.csv", "y.csv"]), Procedure::Jae).unwrap();
+        assert!(a.iter().all(|(p, _)| *p == Procedure::Jae));
+    }
+}

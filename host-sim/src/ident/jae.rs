@@ -1,0 +1,109 @@
+//! The joint-angle estimator (Eq. 25-26), with the spring rate and the
+//! joint's torque balance fitted on the same runs.
+
+use anyhow::Result;
+use cable_joint::Config;
+
+use super::design::{evaluate, fit_terms, prepare_all, Target};
+use super::joint::identify_joint;
+use super::spring::identify_spring;
+use super::{IdentOptions, JaeResult, Regressor, JAE_TERMS};
+use crate::log::Log;
+use crate::stats::ErrorStats;
+
+/// The JAE with the default options.
+pub fn identify_jae(log: &Log, config: &Config) -> Result<JaeResult> {
+    identify_jae_with(&[("log", log)], config, &IdentOptions::default())
+}
+
+/// The joint-angle estimator (Eq. 25-26) from runs with the magnetic encoder:
+/// `theta = c1 x2'' + c2 x2' + c3 sgn(x2') + c4 x2 + offset`.
+pub fn identify_jae_with(
+    logs: &[(&str, &Log)],
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<JaeResult> {
+    let preps = prepare_all(logs, config, opts)?;
+    let fit = fit_terms(
+        "JAE (Eq. 25-26)",
+        &preps,
+        &JAE_TERMS,
+        Target::Theta,
+        opts,
+        1.0,
+        "rad",
+    )?;
+    let error_deg = ErrorStats {
+        unit: "deg",
+        ..fit.errors.scaled(180.0 / std::f64::consts::PI)
+    };
+    let mut spring = identify_spring(&preps, config);
+    let mut measured = *config;
+    spring.note = spring.apply(&mut measured);
+    let mut joint = identify_joint(&preps, &measured, fit.value(Regressor::X2));
+    if joint.note.is_empty() {
+        joint.note = joint.apply(&mut measured);
+    }
+    Ok(JaeResult {
+        spring,
+        joint,
+        chi_s: [
+            fit.value(Regressor::X2Acc),
+            fit.value(Regressor::X2Vel),
+            fit.value(Regressor::SgnX2Vel),
+            fit.value(Regressor::X2),
+        ],
+        offset_rad: fit.value(Regressor::One),
+        error_deg,
+        fit,
+    })
+}
+
+/// Errors of an identified JAE on another log with the magnetic encoder (deg).
+pub fn validate_jae(
+    result: &JaeResult,
+    log: &Log,
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<ErrorStats> {
+    let preps = prepare_all(&[("validation", log)], config, opts)?;
+    evaluate(
+        &result.fit,
+        &preps,
+        Target::Theta,
+        opts,
+        180.0 / std::f64::consts::PI,
+        "deg",
+    )
+}
+
+impl JaeResult {
+    /// Write `chi_s` and the offset into the configuration.
+    pub fn apply(&self, config: &mut Config) {
+        let j = &mut config.jae;
+        j.c_acc_rad_s2_m = self.chi_s[0] as f32;
+        j.c_vel_rad_s_m = self.chi_s[1] as f32;
+        j.c_sign_rad = self.chi_s[2] as f32;
+        j.c_pos_rad_m = self.chi_s[3] as f32;
+        j.offset_rad = self.offset_rad as f32;
+        // The position coefficient fixes the cable stiffness (Eq. 16):
+        // c4 = (K_s + K_w2) / (K_w2 r), with the spring rate measured
+        // through the motor, or the datasheet's when it could not be.
+        self.spring.apply(config);
+        let m = &config.machine;
+        if let Some(s) = cable_joint::config::StretchConfig::from_jae(
+            config.jae.c_pos_rad_m,
+            m.spring_n_m,
+            m.pulley_radius_m,
+        ) {
+            config.stretch = s;
+        }
+        // The JAE's error beyond slider 2's friction, for the force bound:
+        // two RMS of the identification residual.
+        let err_rad = 2.0 * self.error_deg.rmse.to_radians();
+        if err_rad.is_finite() {
+            config.fusion.jae_error_rad = err_rad as f32;
+        }
+        self.joint.apply(config);
+    }
+}

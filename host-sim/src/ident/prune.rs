@@ -1,0 +1,197 @@
+//! The seed's pruning by `%sigma` (Sect. 4.2).
+
+use anyhow::{bail, Context, Result};
+use cable_joint::lsq::Fit;
+
+use super::design::{solve, Design};
+use super::{physically_required, IdentOptions, ModelTerm, Regressor, MAX_REGRESSORS};
+
+/// What the pruning kept and dropped.
+pub(super) struct Pruned {
+    /// Kept columns of the design.
+    pub(super) active: Vec<usize>,
+    /// The fit on them.
+    pub(super) fit: Fit<MAX_REGRESSORS>,
+    /// Dropped regressors with their `%sigma` when dropped, in order.
+    pub(super) dropped: Vec<(Regressor, f64)>,
+}
+
+/// The seed's pruning of a fit on all columns of `d` (see the module
+/// documentation and [`IdentOptions::prune_all_at_once`]). The spring
+/// `K_s x2`, the preload `F_0` (and the JAE's `c4 x2`) and the guides'
+/// Coulomb terms are physics the model cannot do without
+/// ([`physically_required`]): they are never pruned, whatever their
+/// `%sigma` (a poorly excited run says so in the fit's table instead).
+pub(super) fn prune(
+    d: &Design,
+    terms: &[ModelTerm],
+    first: Fit<MAX_REGRESSORS>,
+    opts: &IdentOptions,
+) -> Result<Pruned> {
+    let mut dropped: Vec<(Regressor, f64)> = Vec::new();
+    let mut active: Vec<usize> = (0..terms.len()).collect();
+    let mut fit = first;
+    let pct = |fit: &Fit<MAX_REGRESSORS>, k: usize| {
+        let p = fit.pct_sigma(k);
+        if p.is_nan() {
+            f64::INFINITY
+        } else {
+            p
+        }
+    };
+    if opts.prune_all_at_once {
+        // The seed: every parameter above the limit at once, then refit.
+        let mut next = Vec::new();
+        for (k, j) in active.iter().enumerate() {
+            let p = pct(&fit, k);
+            if p > opts.max_pct_sigma && !physically_required(terms[*j].regressor) {
+                dropped.push((terms[*j].regressor, p));
+            } else {
+                next.push(*j);
+            }
+        }
+        if next.is_empty() {
+            bail!(
+                "pruning at {} % dropped every regressor",
+                opts.max_pct_sigma
+            );
+        }
+        if next.len() < active.len() {
+            active = next;
+            fit = solve(d, &active, opts).context("refitting the pruned model")?;
+        }
+    }
+    // Backward elimination: drop the worst while one is above the limit.
+    loop {
+        let worst = (0..active.len())
+            .filter(|k| !physically_required(terms[active[*k]].regressor))
+            .map(|k| (k, pct(&fit, k)))
+            .filter(|(_, p)| *p > opts.max_pct_sigma)
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((k, p)) = worst else { break };
+        dropped.push((terms[active[k]].regressor, p));
+        active.remove(k);
+        if active.is_empty() {
+            bail!(
+                "pruning at {} % dropped every regressor",
+                opts.max_pct_sigma
+            );
+        }
+        fit = solve(d, &active, opts).context("refitting the pruned model")?;
+    }
+    Ok(Pruned {
+        active,
+        fit,
+        dropped,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::term;
+    use super::*;
+    use crate::stats::test_rng::Rng;
+
+    const TERMS: [ModelTerm; 5] = [
+        term(Regressor::SgnX1Vel, "f_sc1", "N"),
+        term(Regressor::SgnX2Vel, "f_cp2", "N"),
+        term(Regressor::X2, "K_s", "N/m"),
+        term(Regressor::One, "F_0", "N"),
+        term(Regressor::X1Acc, "m_0", "kg"),
+    ];
+
+    /// `y = 6 s1 + 2 s2 + 650 x2 + 19.5 + noise n`, with `s2` equal to `s1`
+    /// except on `split` of the rows, and a junk column (`x1''`-like) that
+    /// does not enter `y`.
+    fn design(split: usize, noise: f64, rng: &mut Rng) -> Design {
+        let n = 4000;
+        let mut d = Design {
+            cols: vec![Vec::new(); 5],
+            y: Vec::new(),
+        };
+        for k in 0..n {
+            let t = k as f64 * 1e-3;
+            let s1 = if (t * 3.0).sin() >= 0.0 { 1.0 } else { -1.0 };
+            let s2 = if k % (n / split.max(1)) < 1 && split > 0 {
+                -s1
+            } else {
+                s1
+            };
+            let x2 = 3e-3 * (t * 1.3).sin();
+            let junk = 1e-3 * rng.normal();
+            let y = 6.0 * s1 + 2.0 * s2 + 650.0 * x2 + 19.5 + noise * rng.normal();
+            for (c, v) in d.cols.iter_mut().zip([s1, s2, x2, 1.0, junk]) {
+                c.push(v);
+            }
+            d.y.push(y);
+        }
+        d
+    }
+
+    fn kept(d: &Design, opts: &IdentOptions) -> (Vec<Regressor>, Fit<MAX_REGRESSORS>) {
+        let all: Vec<usize> = (0..TERMS.len()).collect();
+        let first = solve(d, &all, opts).unwrap();
+        let p = prune(d, &TERMS, first, opts).unwrap();
+        (
+            p.active.iter().map(|j| TERMS[*j].regressor).collect(),
+            p.fit,
+        )
+    }
+
+    #[test]
+    fn pruning_drops_the_junk_and_keeps_the_physics() {
+        let mut rng = Rng(0x1234_5678_9abc_def1);
+        // s1 and s2 differ on 400 rows: both are determined.
+        let d = design(400, 0.3, &mut rng);
+        let opts = IdentOptions::default();
+        let (kept, fit) = kept(&d, &opts);
+        assert_eq!(
+            kept,
+            vec![
+                Regressor::SgnX1Vel,
+                Regressor::SgnX2Vel,
+                Regressor::X2,
+                Regressor::One
+            ]
+        );
+        for (k, want) in [6.0, 2.0, 650.0, 19.5].iter().enumerate() {
+            assert!(
+                (fit.params[k] - want).abs() < 0.05 * want,
+                "param {k}: {} vs {want}",
+                fit.params[k]
+            );
+        }
+    }
+
+    #[test]
+    fn collinear_friction_signs_are_kept_with_their_sum_determined() {
+        let mut rng = Rng(42);
+        // s1 and s2 differ on 4 rows only: each alone is poorly determined,
+        // their sum (8 N) is not.
+        let d = design(4, 2.0, &mut rng);
+        let full = solve(&d, &[0, 1, 2, 3, 4], &IdentOptions::default()).unwrap();
+        assert!(full.pct_sigma(0) > 5.0 && full.pct_sigma(1) > 5.0);
+        for opts in [
+            IdentOptions::default(),
+            // The seed's all-at-once rule dropped both and lost the friction.
+            IdentOptions {
+                prune_all_at_once: true,
+                ..IdentOptions::default()
+            },
+        ] {
+            let (kept, fit) = kept(&d, &opts);
+            assert_eq!(
+                kept,
+                vec![
+                    Regressor::SgnX1Vel,
+                    Regressor::SgnX2Vel,
+                    Regressor::X2,
+                    Regressor::One
+                ],
+                "the junk term goes, the guides' friction stays"
+            );
+            let sum = fit.params[0] + fit.params[1];
+            assert!((sum - 8.0).abs() < 0.1, "friction sum {sum}");
+        }
+    }
+}

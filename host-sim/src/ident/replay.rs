@@ -1,0 +1,257 @@
+//! A log replayed through the core, with the columns the models need.
+
+use anyhow::{anyhow, Context, Result};
+use cable_joint::filter::{Kinematics, LowPass1, TrackingObserver};
+use cable_joint::Config;
+
+use super::{IdentOptions, Regressor};
+use crate::derive::{config_for_log, derive, held_sign};
+use crate::log::Log;
+
+/// A log replayed through the core, with the columns the models need (the
+/// report draws the identified models on the same columns).
+pub struct Prepared {
+    pub(super) label: String,
+    pub(super) derived: Log,
+    pub(super) cfg: Config,
+    /// Rows usable at all: after the start-up, not faulted.
+    pub(super) usable: Vec<bool>,
+    /// Time and code of the first fault the replay latched.
+    pub(super) first_fault: Option<(f64, u8)>,
+    pub(super) theta: Option<Vec<f64>>,
+    pub(super) theta_kin: Option<(Vec<f64>, Vec<f64>)>,
+    pub(super) theta_source: &'static str,
+    /// Why rows are lost, for the warning [`design`] prints.
+    pub(super) loss: LossNotes,
+}
+
+/// What [`Prepared::new`] found that costs rows, for the row-loss warning.
+#[derive(Default)]
+pub(super) struct LossNotes {
+    /// The first faulted row: "the replay latched ... at line L ...".
+    pub(super) fault: Option<String>,
+    /// `theta_rad` is present but not measured everywhere: (rows, first row).
+    pub(super) theta_gap: Option<(usize, usize)>,
+    /// The warning was printed (once per log and procedure).
+    pub(super) warned: std::sync::atomic::AtomicBool,
+}
+
+impl LossNotes {
+    fn new(log: &Log, t: &[f64], fault: &[f64]) -> Self {
+        let fault = fault.iter().position(|f| *f != 0.0).map(|k| {
+            let code = fault[k] as u8;
+            let name = cable_joint::Fault::from_code(code)
+                .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+            // A value the core's f32 cannot hold is the likely cause.
+            let cause = (k.saturating_sub(2)..=k)
+                .flat_map(|r| log.names().into_iter().map(move |c| (r, c)))
+                .find(|(r, c)| {
+                    log.col(c)
+                        .is_some_and(|v| v[*r].is_finite() && v[*r].abs() > f64::from(f32::MAX))
+                })
+                .map(|(r, c)| {
+                    format!(
+                        "; column {c} = {:e} on line {} is beyond the core's f32 range",
+                        log.col(c).map_or(0.0, |v| v[r]),
+                        crate::log::line_of_row(r)
+                    )
+                })
+                .unwrap_or_default();
+            format!(
+                "the replay latched {name} at line {} (t = {} s){cause}",
+                crate::log::line_of_row(k),
+                t[k]
+            )
+        });
+        let theta_gap = log.col_opt("theta_rad").and_then(|v| {
+            let first = v.iter().position(Option::is_none)?;
+            Some((v.iter().filter(|x| x.is_none()).count(), first))
+        });
+        Self {
+            fault,
+            theta_gap,
+            warned: Default::default(),
+        }
+    }
+}
+
+/// Which switching speed the `sgn(x2')` column uses.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum X2Switch {
+    Jae,
+    Tension,
+}
+
+impl Prepared {
+    /// Replay `log` (named `label` in errors) through the core with `config`.
+    pub fn new(label: &str, log: &Log, config: &Config, opts: &IdentOptions) -> Result<Self> {
+        let cfg = config_for_log(log, config).with_context(|| label.to_owned())?;
+        let derived = derive(log, config).with_context(|| format!("replaying {label}"))?;
+        let t = derived.time_s()?.to_vec();
+        let fault = derived.col_required("fault_code")?;
+        let t0 = t.first().copied().unwrap_or(0.0);
+        let usable: Vec<bool> = t
+            .iter()
+            .zip(fault)
+            .map(|(t, f)| *t >= t0 + opts.skip_start_s && *f == 0.0)
+            .collect();
+        let first_fault = t
+            .iter()
+            .zip(fault)
+            .find(|(_, f)| **f != 0.0)
+            .map(|(t, f)| (*t, *f as u8));
+        // The magnetic encoder when it is measured on every row, else the JAE.
+        let (theta, theta_source) = match derived.col_opt("theta_rad") {
+            Some(v) if v.iter().all(Option::is_some) => {
+                (Some(v.into_iter().flatten().collect()), "theta_rad")
+            }
+            _ => (
+                derived.col("theta_hat_rad").map(<[f64]>::to_vec),
+                "theta_hat_rad",
+            ),
+        };
+        let theta_kin = theta.as_ref().map(|th| {
+            let obs =
+                TrackingObserver::new(cfg.differentiators.grating_bandwidth_hz, cfg.period_s());
+            let mut st = Kinematics::default();
+            obs.reset(&mut st, th.first().copied().unwrap_or(0.0) as f32);
+            let (mut v, mut a) = (Vec::with_capacity(th.len()), Vec::with_capacity(th.len()));
+            for x in th {
+                let k = obs.update(&mut st, *x as f32);
+                v.push(k.vel as f64);
+                a.push(k.acc as f64);
+            }
+            (v, a)
+        });
+        let loss = LossNotes::new(log, &t, fault);
+        Ok(Self {
+            label: label.to_owned(),
+            first_fault,
+            loss,
+            derived,
+            cfg,
+            usable,
+            theta,
+            theta_kin,
+            theta_source,
+        })
+    }
+
+    pub(super) fn len(&self) -> usize {
+        self.derived.len()
+    }
+
+    /// A column of the replay.
+    pub fn col(&self, name: &str) -> Result<Vec<f64>> {
+        Ok(self
+            .derived
+            .col(name)
+            .ok_or_else(|| anyhow!("{}: replay has no column `{name}`", self.label))?
+            .to_vec())
+    }
+
+    /// The magnetic encoder when measured on every row, else the JAE, rad.
+    pub fn theta(&self) -> Result<&Vec<f64>> {
+        self.theta.as_ref().ok_or_else(|| {
+            anyhow!(
+                "{}: no joint angle (theta_rad or theta_hat_rad)",
+                self.label
+            )
+        })
+    }
+
+    /// Joint speed and acceleration of [`Prepared::theta`] through the
+    /// core's tracking observer.
+    pub fn theta_kin(&self) -> Result<&(Vec<f64>, Vec<f64>)> {
+        self.theta_kin.as_ref().ok_or_else(|| {
+            anyhow!(
+                "{}: no joint angle (theta_rad or theta_hat_rad)",
+                self.label
+            )
+        })
+    }
+
+    /// Time, s.
+    pub fn t_s(&self) -> Result<&[f64]> {
+        Ok(self.derived.time_s()?)
+    }
+
+    /// The configuration the log was replayed with (its own control rate).
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    /// The unfiltered column of `r`; `jae`: `sgn(x2')` with the JAE's
+    /// switching speed (else the tension model's).
+    pub fn regressor_column(&self, r: Regressor, jae: bool) -> Result<Vec<f64>> {
+        self.column(
+            r,
+            if jae {
+                X2Switch::Jae
+            } else {
+                X2Switch::Tension
+            },
+        )
+    }
+
+    /// The unfiltered column of `r`.
+    pub(super) fn column(&self, r: Regressor, x2_switch: X2Switch) -> Result<Vec<f64>> {
+        let c = &self.cfg;
+        Ok(match r {
+            Regressor::ThetaVel => self.theta_kin()?.0.clone(),
+            Regressor::ThetaAcc => self.theta_kin()?.1.clone(),
+            Regressor::SgnThetaVel => {
+                // Slider 2 moves about r theta: the same switching speed.
+                let sw = c.tension.sign_switch_x2_m_s / c.machine.pulley_radius_m;
+                held_sign(self.theta_kin()?.0.iter().map(|v| *v as f32), sw)
+            }
+            Regressor::Theta => self.theta()?.clone(),
+            Regressor::X1Acc => self.col("x1_acc_m_s2")?,
+            Regressor::X1Vel => self.col("x1_vel_m_s")?,
+            Regressor::SgnX1Vel => held_sign(
+                self.col("x1_vel_m_s")?.iter().map(|v| *v as f32),
+                c.tension.sign_switch_x1_m_s,
+            ),
+            Regressor::X1 => self.col("x1_m")?,
+            Regressor::X2Acc => self.col("x2_acc_m_s2")?,
+            Regressor::X2Vel => self.col("x2_vel_m_s")?,
+            Regressor::SgnX2Vel => {
+                let sw = match x2_switch {
+                    X2Switch::Jae => c.jae.sign_switch_m_s,
+                    X2Switch::Tension => c.tension.sign_switch_x2_m_s,
+                };
+                held_sign(self.col("x2_vel_m_s")?.iter().map(|v| *v as f32), sw)
+            }
+            Regressor::X2 => self.col("x2_m")?,
+            Regressor::PhiVel => self.col("phi_vel_rad_s")?,
+            Regressor::SgnPhiVel => {
+                // Slider 1's switching speed at the motor shaft.
+                let sw = c.tension.sign_switch_x1_m_s * c.machine.motor_rad_per_cable_m();
+                held_sign(self.col("phi_vel_rad_s")?.iter().map(|v| *v as f32), sw)
+            }
+            Regressor::One => vec![1.0; self.len()],
+        })
+    }
+
+    /// A first-order low-pass at `cutoff_hz` over a whole column.
+    pub(super) fn low_pass(&self, col: &[f64], cutoff_hz: f64) -> Vec<f64> {
+        let lp = LowPass1::new(
+            (2.0 * std::f64::consts::PI * cutoff_hz) as f32,
+            self.cfg.period_s(),
+        );
+        let mut y = col.first().copied().unwrap_or(0.0) as f32;
+        col.iter()
+            .map(|u| f64::from(lp.update(&mut y, *u as f32)))
+            .collect()
+    }
+
+    /// The DOB's low-pass `Q` over a whole column (state starts at the first
+    /// value: the log starts at rest).
+    pub fn dob_filter(&self, col: &[f64]) -> Vec<f64> {
+        let lp = LowPass1::new(self.cfg.dob.cutoff_rad_s, self.cfg.period_s());
+        let mut y = col.first().copied().unwrap_or(0.0) as f32;
+        col.iter()
+            .map(|u| f64::from(lp.update(&mut y, *u as f32)))
+            .collect()
+    }
+}

@@ -1,0 +1,231 @@
+//! The return spring's rate measured through the motor.
+
+use cable_joint::lsq::{BatchLsq, LsqConfig};
+use cable_joint::Config;
+use serde::Serialize;
+
+use super::joint::{central_kinematics, JOINT_DIFF_HALF_WINDOW_S};
+use super::Prepared;
+
+/// The return spring's rate `K_s` measured through the motor. While the
+/// transmission slides one way, every friction in the loop (motor, gearhead,
+/// slider 1, the pin, slider 2) sits at its kinetic level, so across one
+/// such sweep the DOB's tension changes by `K_s dx2` plus viscous and
+/// inertial terms, whatever the friction's size: per sweep, the means over
+/// its last third less those over its first third give one row
+/// `dF_1_hat = K_s dx2 + b dx2' + m dx2''`, and the rows of all sweeps are
+/// fitted by least squares. The window means average a stick-slip cycle
+/// out (a fit on every tick reads its slip bursts as a softer spring).
+/// `x2`, `x2'`, `x2''` go through the DOB's `Q` like the target. A sweep is
+/// a run of ticks in which `x1` and `x2` both move the same way faster than
+/// the tension model's switching speeds; ticks count once both sliders have
+/// moved [`SPRING_MIN_TRAVEL_M`] and three DOB time constants have passed
+/// since the sweep began (past presliding and the breakaway).
+///
+/// The cables' stiffnesses follow from the spring through the JAE's `c4`
+/// (Eq. 16), so this rate, not the datasheet's, sets the force scale of the
+/// stretch estimate, the fused bound and the slack check. Its own scale is
+/// the torque constant's, as the DOB's. Written only when the data pin it
+/// down (`%sigma` within the seed's 5 % rule) and contradict the datasheet:
+/// the datasheet's rate lies farther from it than its uncertainty, two
+/// standard deviations or the disagreement of the fits on the earlier and
+/// the later half of the sweeps, whichever is larger (a machine constant
+/// does not depend on the trajectory; on the seed's calibration run the
+/// halves are the sine and the complex trajectory). Otherwise the datasheet
+/// stands: on the simulator's plants with friction-driven stick-slip the
+/// fit reads the spring up to 7 % soft within a %sigma of 3.4.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SpringFit {
+    /// Ticks inside the sweeps' windows.
+    pub rows: u64,
+    /// Sweeps (one fitted row each).
+    pub sweeps: u64,
+    /// `K_s`, N/m, and its `%sigma`.
+    pub k_s_n_m: (f64, f64),
+    /// The datasheet rate the configuration had, N/m.
+    pub datasheet_n_m: f64,
+    /// RMS residual, N.
+    pub residual_rms_n: f64,
+    /// `K_s` fitted on the earlier and on the later half of the sweeps, N/m.
+    pub halves_n_m: (f64, f64),
+    /// What was written, or why not.
+    pub note: String,
+}
+
+/// Travel of both sliders since a sweep began before its ticks enter the
+/// spring fit, m: several times the micrometre presliding of a guide.
+pub const SPRING_MIN_TRAVEL_M: f64 = 20e-6;
+
+/// Largest `%sigma` at which the measured spring rate is written.
+const SPRING_MAX_PCT_SIGMA: f64 = 5.0;
+
+/// Fewest sweeps the spring fit needs (one row each, three parameters).
+const SPRING_MIN_SWEEPS: usize = 6;
+
+/// Fit [`SpringFit`] on the prepared runs.
+pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit {
+    let datasheet = f64::from(config.machine.spring_n_m);
+    let mut fit = SpringFit {
+        rows: 0,
+        sweeps: 0,
+        k_s_n_m: (f64::NAN, f64::NAN),
+        datasheet_n_m: datasheet,
+        residual_rms_n: f64::NAN,
+        halves_n_m: (f64::NAN, f64::NAN),
+        note: String::new(),
+    };
+    // Rows [x2, x2', x2'', y], demeaned per sweep.
+    let mut rows: Vec<[f64; 4]> = Vec::new();
+    for p in preps {
+        let cols = (
+            p.col("x1_m"),
+            p.col("x2_m"),
+            p.col("x2_vel_m_s"),
+            p.col("x2_acc_m_s2"),
+            p.col("tension1_hat_n"),
+        );
+        let (Ok(x1), Ok(x2), Ok(v2), Ok(a2), Ok(y)) = cols else {
+            continue;
+        };
+        let q = [p.dob_filter(&x2), p.dob_filter(&v2), p.dob_filter(&a2)];
+        let period_s = f64::from(p.config().period_s());
+        let half = (JOINT_DIFF_HALF_WINDOW_S / period_s).round().max(1.0) as usize;
+        let (w1, _) = central_kinematics(&x1, half, period_s);
+        let (w2, _) = central_kinematics(&x2, half, period_s);
+        // The DOB's Q has forgotten the breakaway after three time constants.
+        let settle_s = 3.0 / f64::from(p.cfg.dob.cutoff_rad_s);
+        let sw1 = f64::from(p.cfg.tension.sign_switch_x1_m_s);
+        let sw2 = f64::from(p.cfg.tension.sign_switch_x2_m_s);
+        let mut sweep: Vec<[f64; 4]> = Vec::new();
+        let mut start: Option<(usize, f64)> = None;
+        // One row per sweep: its last third's means less its first third's.
+        let flush = |sweep: &mut Vec<[f64; 4]>, rows: &mut Vec<[f64; 4]>, ticks: &mut u64| {
+            let third = sweep.len() / 3;
+            if third >= 10 {
+                let mean = |part: &[[f64; 4]]| -> [f64; 4] {
+                    let m = part.len() as f64;
+                    core::array::from_fn(|j| part.iter().map(|r| r[j]).sum::<f64>() / m)
+                };
+                let (a, b) = (mean(&sweep[..third]), mean(&sweep[sweep.len() - third..]));
+                rows.push(core::array::from_fn(|j| b[j] - a[j]));
+                *ticks += 2 * third as u64;
+            }
+            sweep.clear();
+        };
+        for k in 0..p.len() {
+            let dir = w2[k].signum();
+            let row = [q[0][k], q[1][k], q[2][k], y[k]];
+            let sliding = p.usable[k]
+                && w1[k].abs() > sw1
+                && w2[k].abs() > sw2
+                && w1[k].signum() == dir
+                && row.iter().all(|v| v.is_finite());
+            match start {
+                Some((k0, d)) if sliding && d == dir => {
+                    let far = (x1[k] - x1[k0]).abs() >= SPRING_MIN_TRAVEL_M
+                        && (x2[k] - x2[k0]).abs() >= SPRING_MIN_TRAVEL_M
+                        && (k - k0) as f64 * period_s >= settle_s;
+                    if far {
+                        sweep.push(row);
+                    }
+                }
+                _ => {
+                    flush(&mut sweep, &mut rows, &mut fit.rows);
+                    start = sliding.then_some((k, dir));
+                }
+            }
+        }
+        flush(&mut sweep, &mut rows, &mut fit.rows);
+    }
+    fit.sweeps = rows.len() as u64;
+    if rows.len() < SPRING_MIN_SWEEPS {
+        fit.note = format!(
+            "spring rate not measured ({} sweeps of the transmission sliding one way; \
+             needs {SPRING_MIN_SWEEPS}): the datasheet's {datasheet:.0} N/m kept",
+            rows.len()
+        );
+        return fit;
+    }
+    let solve = |rows: &[[f64; 4]]| {
+        BatchLsq::<3>::new(3, LsqConfig::default()).and_then(|mut ls| {
+            for r in rows {
+                ls.push(&[r[0], r[1], r[2]], r[3])?;
+            }
+            ls.solve()
+        })
+    };
+    let sol = match solve(&rows) {
+        Ok(s) => s,
+        Err(e) => {
+            fit.note = format!(
+                "spring rate not measured ({e:?}): the datasheet's {datasheet:.0} N/m kept"
+            );
+            return fit;
+        }
+    };
+    // A constant of the machine does not depend on the trajectory: the
+    // earlier and the later half of the sweeps (on the seed's calibration,
+    // the sine and the complex trajectory) bound the fit's own error
+    // (`SpringFit::uncertainty_n_m`).
+    let (early, late) = rows.split_at(rows.len() / 2);
+    if let (Ok(a), Ok(b)) = (solve(early), solve(late)) {
+        fit.halves_n_m = (a.params[0], b.params[0]);
+    }
+    fit.k_s_n_m = (sol.params[0], 100.0 * sol.std_dev[0] / sol.params[0].abs());
+    fit.residual_rms_n = sol.rmse;
+    fit
+}
+
+impl SpringFit {
+    /// The measured rate when the data pinned it down, else `None`.
+    pub fn value(&self) -> Option<f64> {
+        let (k, pct) = self.k_s_n_m;
+        let pinned = k.is_finite() && k > 0.0 && pct < SPRING_MAX_PCT_SIGMA;
+        (pinned && (k - self.datasheet_n_m).abs() > self.uncertainty_n_m()).then_some(k)
+    }
+
+    /// How far the rate may be off, N/m: two standard deviations, or the
+    /// disagreement of the earlier and later half of the sweeps (a machine
+    /// constant does not depend on the trajectory) when that is larger.
+    pub fn uncertainty_n_m(&self) -> f64 {
+        let (k, pct) = self.k_s_n_m;
+        let spread = (self.halves_n_m.0 - self.halves_n_m.1).abs();
+        (0.02 * pct * k.abs()).max(if spread.is_finite() {
+            spread
+        } else {
+            f64::INFINITY
+        })
+    }
+
+    /// Write the measured rate into `machine.spring_n_m`; returns what was
+    /// written, or why not.
+    pub(super) fn apply(&self, config: &mut Config) -> String {
+        let (k, pct) = self.k_s_n_m;
+        if k.is_nan() {
+            return self.note.clone();
+        }
+        match self.value() {
+            Some(k) => {
+                config.machine.spring_n_m = k as f32;
+                format!(
+                    "machine.spring_n_m = {k:.0} ± {:.0} (%sigma {pct:.1}, {} sweeps; the datasheet's {:.0} is outside)",
+                    self.uncertainty_n_m(),
+                    self.sweeps,
+                    self.datasheet_n_m
+                )
+            }
+            None if pct >= SPRING_MAX_PCT_SIGMA => format!(
+                "spring rate not pinned down ({k:.0} N/m, %sigma {pct:.1}): the datasheet's {:.0} N/m kept",
+                self.datasheet_n_m
+            ),
+            None => format!(
+                "spring rate {k:.0} ± {:.0} N/m ({:.0} and {:.0} on the earlier and later half of the \
+                 sweeps) agrees with the datasheet's {:.0} N/m, which is kept",
+                self.uncertainty_n_m(),
+                self.halves_n_m.0,
+                self.halves_n_m.1,
+                self.datasheet_n_m
+            ),
+        }
+    }
+}

@@ -1,0 +1,139 @@
+//! The no-load tension models A, B, C (Eq. 22-24) and the simplified model C.
+
+use anyhow::{bail, Context, Result};
+use cable_joint::Config;
+
+use super::design::{design, evaluate, fit_terms, prepare_all, report, solve, Target};
+use super::prune::{prune, Pruned};
+use super::{
+    FitReport, IdentOptions, ModelTerm, Regressor, TensionResult, MODEL_A, MODEL_B, MODEL_C,
+    SIMPLIFIED_C,
+};
+use crate::log::Log;
+use crate::stats::ErrorStats;
+
+/// The tension models with the default options.
+pub fn identify_tension(log: &Log, config: &Config) -> Result<TensionResult> {
+    identify_tension_with(&[("log", log)], config, &IdentOptions::default())
+}
+
+/// No-load tension models A, B, C (Eq. 22-24) against the DOB's cable-1
+/// tension (Eq. 21, recomputed by the replay with `config.dob.viscous_nm_s_rad`,
+/// so pass the configuration with the identified `B_m`), the pruning to the
+/// simplified model C, and the refit on the core's structure.
+pub fn identify_tension_with(
+    logs: &[(&str, &Log)],
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<TensionResult> {
+    let preps = prepare_all(logs, config, opts)?;
+    let fit = |name: &str, terms: &[ModelTerm]| {
+        fit_terms(name, &preps, terms, Target::Tension, opts, 1.0, "N")
+    };
+    let model_a = fit("model A (Eq. 22)", &MODEL_A).map_err(|e| format!("{e:#}"));
+    let model_b = fit("model B (Eq. 23)", &MODEL_B).map_err(|e| format!("{e:#}"));
+
+    // Model C and the pruning, on one design matrix.
+    let regs: Vec<Regressor> = MODEL_C.iter().map(|t| t.regressor).collect();
+    let d = design(&preps, &regs, Target::Tension, opts)?;
+    let all: Vec<usize> = (0..MODEL_C.len()).collect();
+    let fit_c = solve(&d, &all, opts).context("fitting model C (Eq. 24/27)")?;
+    let model_c = report("model C (Eq. 24/27)", &d, &MODEL_C, &all, &fit_c, 1.0, "N");
+
+    let Pruned {
+        active,
+        fit,
+        dropped,
+    } = prune(&d, &MODEL_C, fit_c, opts)?;
+    let simplified = report(
+        "simplified model C (Eq. 28-29)",
+        &d,
+        &MODEL_C,
+        &active,
+        &fit,
+        1.0,
+        "N",
+    );
+
+    // The core's structure: the kept ones of [sgn x1', sgn x2', x2, 1].
+    let core_idx: Vec<usize> = active
+        .iter()
+        .copied()
+        .filter(|j| SIMPLIFIED_C.contains(&MODEL_C[*j].regressor))
+        .collect();
+    let not_written: Vec<Regressor> = active
+        .iter()
+        .map(|j| MODEL_C[*j].regressor)
+        .filter(|r| !SIMPLIFIED_C.contains(r))
+        .collect();
+    if core_idx.is_empty() {
+        bail!("the pruning kept none of the core's tension terms (sgn x1', sgn x2', x2, 1)");
+    }
+    let core = if not_written.is_empty() {
+        FitReport {
+            model: "tension model written (core structure)".to_owned(),
+            ..simplified.clone()
+        }
+    } else {
+        let f = solve(&d, &core_idx, opts).context("refitting the core's tension model")?;
+        report(
+            "tension model written (core structure)",
+            &d,
+            &MODEL_C,
+            &core_idx,
+            &f,
+            1.0,
+            "N",
+        )
+    };
+    let chi_p = SIMPLIFIED_C.map(|r| core.value(r));
+    Ok(TensionResult {
+        theta_source: preps[0].theta_source.to_owned(),
+        b_m_used_nm_s_rad: f64::from(preps[0].cfg.dob.viscous_nm_s_rad),
+        model_a,
+        model_b,
+        model_c,
+        dropped,
+        simplified,
+        core,
+        chi_p,
+        not_written,
+    })
+}
+
+/// Errors of every tension model on another no-load log (N): models A, B, C
+/// (those that were fitted), the simplified one and the written one.
+pub fn validate_tension(
+    result: &TensionResult,
+    log: &Log,
+    config: &Config,
+    opts: &IdentOptions,
+) -> Result<Vec<(String, ErrorStats)>> {
+    let preps = prepare_all(&[("validation", log)], config, opts)?;
+    let mut out = Vec::new();
+    let models = [
+        result.model_a.as_ref().ok(),
+        result.model_b.as_ref().ok(),
+        Some(&result.model_c),
+        Some(&result.simplified),
+        Some(&result.core),
+    ];
+    for m in models.into_iter().flatten() {
+        out.push((
+            m.model.clone(),
+            evaluate(m, &preps, Target::Tension, opts, 1.0, "N")?,
+        ));
+    }
+    Ok(out)
+}
+
+impl TensionResult {
+    /// Write `chi_p` into the configuration.
+    pub fn apply(&self, config: &mut Config) {
+        let t = &mut config.tension;
+        t.f_sc1_n = self.chi_p[0] as f32;
+        t.f_cp2_n = self.chi_p[1] as f32;
+        t.k_s_n_m = self.chi_p[2] as f32;
+        t.f_0_n = self.chi_p[3] as f32;
+    }
+}

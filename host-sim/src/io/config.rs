@@ -1,0 +1,152 @@
+//! Configuration files, one way for every command: read (missing tables and
+//! keys take the datasheet defaults, then [`Config::validate`]) and written
+//! (checked first, atomically, for people to read and review).
+
+use std::path::Path;
+
+use anyhow::{anyhow, Context, Result};
+use cable_joint::Config;
+
+use crate::log::toml_error;
+use crate::output::Outputs;
+
+/// Read and check a configuration file (TOML). Missing tables and keys take
+/// the datasheet defaults; an unknown key, a type error or a value that
+/// [`Config::validate`] rejects is an error naming the file and the field.
+pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
+    let path = path.as_ref();
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading configuration {}", path.display()))?;
+    let config: Config = toml::from_str(&text)
+        .map_err(|e| anyhow!("{}: {}", path.display(), toml_error(&text, &e)))?;
+    config
+        .validate()
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    Ok(config)
+}
+
+/// [`load_config`] when a file is given, else the datasheet defaults.
+pub fn load_or_default(path: Option<&Path>) -> Result<Config> {
+    path.map_or_else(|| Ok(Config::default()), load_config)
+}
+
+/// `config` as the TOML text [`write_config`] writes: every number the
+/// shortest decimal that reads back to the same `f32` (the core's type:
+/// `0.0234`, not `0.023399999365210533`), only the effect terms in use,
+/// sections in the order of [`Config`]'s fields, units in the key names.
+pub fn to_toml(config: &Config) -> Result<String> {
+    let mut value = toml::Value::try_from(config).context("serializing the configuration")?;
+    shortest_f32(&mut value);
+    let text = toml::to_string_pretty(&value).context("serializing the configuration")?;
+    Ok(format!(
+        "# cable-joint configuration (SI units, the unit in each key's name), written by host-sim.\n\n{text}"
+    ))
+}
+
+/// Replace every float that is an `f32` by the shortest decimal that reads
+/// back to it (a float that is not an `f32` is left as it is).
+fn shortest_f32(v: &mut toml::Value) {
+    match v {
+        toml::Value::Float(x) => {
+            let f = *x as f32;
+            if f64::from(f) == *x {
+                if let Ok(short) = f.to_string().parse::<f64>() {
+                    if short as f32 == f {
+                        *x = short;
+                    }
+                }
+            }
+        }
+        toml::Value::Array(a) => a.iter_mut().for_each(shortest_f32),
+        toml::Value::Table(t) => t.iter_mut().for_each(|(_, v)| shortest_f32(v)),
+        _ => {}
+    }
+}
+
+/// Write `config` as TOML ([`to_toml`]), atomically ([`crate::output`]). An
+/// invalid configuration is refused before the file system is touched.
+pub fn write_config(path: impl AsRef<Path>, config: &Config) -> Result<()> {
+    let mut out = Outputs::new();
+    stage_config(&mut out, path, config)?;
+    out.commit()?;
+    Ok(())
+}
+
+/// Stage `config` as TOML among a command's outputs (written by
+/// [`Outputs::commit`], all or none); checked as [`write_config`].
+pub fn stage_config(out: &mut Outputs, path: impl AsRef<Path>, config: &Config) -> Result<()> {
+    let path = path.as_ref();
+    config
+        .validate()
+        .map_err(|e| anyhow!("refusing to write {}: {e}", path.display()))?;
+    out.bytes(path, to_toml(config)?.as_bytes())?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cable_joint::effects::{EffectKind, Term};
+    use cable_joint::model::sig;
+
+    #[test]
+    fn numbers_are_written_shortest_and_read_back_equal() {
+        let mut c = Config::default();
+        c.jae.c_pos_rad_m = 264.902_68;
+        c.jae.sign_switch_m_s = 2e-4;
+        c.dob.viscous_nm_s_rad = 1.6934e-5;
+        let text = to_toml(&c).unwrap();
+        assert!(text.contains("sign_switch_m_s = 0.0002\n"), "{text}");
+        assert!(text.contains("c_pos_rad_m = 264.90268\n"), "{text}");
+        assert!(!text.contains("0.00019999"), "{text}");
+        assert_eq!(toml::from_str::<Config>(&text).unwrap(), c);
+    }
+
+    #[test]
+    fn only_the_effect_terms_in_use_are_written_with_their_signals_named() {
+        let mut c = Config::default();
+        let none = to_toml(&c).unwrap();
+        assert!(!none.contains("added"), "no term, no table: {none}");
+        let stop = EffectKind::Stop {
+            half_width: 1.738e-5,
+        };
+        assert!(c.jae.added.push(Term::new(stop, sig::X2_M), 54.8));
+        let product = Term::with_aux(EffectKind::Product, sig::X2_M, sig::I_MEAS_A);
+        assert!(c.tension.added.push(product, -3.5));
+        let text = to_toml(&c).unwrap();
+        assert!(
+            text.contains("[[jae.added]]\ninput = \"x2_m\"\ncoef = 54.8\n"),
+            "{text}"
+        );
+        assert!(text.contains("half_width = 0.00001738"), "{text}");
+        assert!(text.contains("aux = \"i_meas_a\""), "{text}");
+        assert_eq!(
+            text.matches("[[").count(),
+            2,
+            "two terms, no empty slots: {text}"
+        );
+        assert_eq!(toml::from_str::<Config>(&text).unwrap(), c);
+    }
+
+    #[test]
+    fn the_slot_form_of_earlier_versions_is_still_read() {
+        // As the slot writer wrote it: every slot, the unused ones constant.
+        let mut text = String::from(
+            "[jae.added]\nlen = 1\ncoef = [2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n\n\
+             [[jae.added.terms]]\nkind = \"Linear\"\ninput = 9\naux = 0\n",
+        );
+        for _ in 1..8 {
+            text.push_str("\n[[jae.added.terms]]\nkind = \"Constant\"\ninput = 0\naux = 0\n");
+        }
+        let c: Config = toml::from_str(&text).unwrap();
+        assert_eq!(c.jae.added.active(), &[Term::new(EffectKind::Linear, 9)]);
+        assert_eq!(c.jae.added.coef[0], 2.0);
+    }
+
+    #[test]
+    fn an_unknown_signal_name_is_refused_with_the_names() {
+        let text = "[[jae.added]]\ninput = \"x3_m\"\ncoef = 1.0\nkind = \"Linear\"\n";
+        let e = toml::from_str::<Config>(text).unwrap_err().to_string();
+        assert!(e.contains("x3_m") && e.contains("theta_motor_rad"), "{e}");
+    }
+}

@@ -1,0 +1,3 @@
+//! Reading and writing the project's files.
+
+pub mod config;

@@ -7,32 +7,41 @@
 #
 #   bash scripts/report-unchanged.sh            # working tree against HEAD
 #   bash scripts/report-unchanged.sh 94e3fc3    # against a revision
+#   bash scripts/report-unchanged.sh --dir D    # against a report already
+#                                               # written to D (no base build)
 #
 # Exit 0: identical; 1: a difference (listed); 2: a build or run failed.
 # The base build goes to target/report-base (its own target directory, the
 # first run compiles everything once: about 3 minutes on two cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+base_dir=""
+if [ "${1:-}" = "--dir" ]; then
+  base_dir="${2:?--dir needs a report directory}"
+  set -- HEAD
+fi
 base_rev="${1:-HEAD}"
 work="$(mktemp -d)"
 # The base's worktree sits at a fixed path so that its build is reused.
 tree="$PWD/target/report-base/src"
 trap 'git worktree remove --force "$tree" >/dev/null 2>&1 || true; rm -rf "$work"' EXIT
 
-git worktree remove --force "$tree" >/dev/null 2>&1 || rm -rf "$tree"
-git worktree prune
-git worktree add --detach --quiet "$tree" "$base_rev"
-echo "building the base ($(git rev-parse --short "$base_rev")) ..."
-CARGO_TARGET_DIR="$PWD/target/report-base" \
-  cargo build --release --quiet -p host-sim --manifest-path "$tree/Cargo.toml" || exit 2
+if [ -z "$base_dir" ]; then
+  git worktree remove --force "$tree" >/dev/null 2>&1 || rm -rf "$tree"
+  git worktree prune
+  git worktree add --detach --quiet "$tree" "$base_rev"
+  echo "building the base ($(git rev-parse --short "$base_rev")) ..."
+  CARGO_TARGET_DIR="$PWD/target/report-base" \
+    cargo build --release --quiet -p host-sim --manifest-path "$tree/Cargo.toml" || exit 2
+  target/report-base/release/host-sim report --quiet --out "$work/base" >/dev/null || exit 2
+  base_dir="$work/base"
+fi
 echo "building the working tree ..."
 cargo build --release --quiet -p host-sim || exit 2
-
-echo "running both reports ..."
-target/report-base/release/host-sim report --quiet --out "$work/base" >/dev/null || exit 2
+echo "running the report ..."
 target/release/host-sim report --quiet --out "$work/new" >/dev/null || exit 2
 
-python3 - "$work/base" "$work/new" <<'PY'
+python3 - "$base_dir" "$work/new" <<'PY'
 import json, os, re, sys
 
 base, new = sys.argv[1], sys.argv[2]

@@ -64,33 +64,33 @@ fn jae_feedback_tracks_better_than_motor_encoder_feedback() {
     let (track, est) = (jae.tracking.expect("tracking"), jae.jae.expect("JAE stats"));
     eprintln!(
         "motor-only: mean|e| {:.3}° max {:.3}°; JAE: mean|e| {:.3}° max {:.3}°, estimate mean|e| {:.3}°",
-        motor.mean_abs_deg,
-        motor.max_abs_deg(),
-        track.mean_abs_deg,
-        track.max_abs_deg(),
-        est.mean_abs_deg
+        motor.mean_abs,
+        motor.max_abs(),
+        track.mean_abs,
+        track.max_abs(),
+        est.mean_abs
     );
     // Cable stretch makes motor-encoder feedback err by degrees (seed Fig. 10).
     assert!(
-        motor.mean_abs_deg > 1.0,
+        motor.mean_abs > 1.0,
         "motor-only error implausibly small: {motor:?}"
     );
     assert!(
-        track.mean_abs_deg < motor.mean_abs_deg / 5.0,
+        track.mean_abs < motor.mean_abs / 5.0,
         "JAE feedback mean error {:.3}° not 5x below motor-only {:.3}°",
-        track.mean_abs_deg,
-        motor.mean_abs_deg
+        track.mean_abs,
+        motor.mean_abs
     );
     assert!(
-        track.max_abs_deg() < motor.max_abs_deg() / 2.0,
+        track.max_abs() < motor.max_abs() / 2.0,
         "JAE feedback max error {:.3}° not 2x below motor-only {:.3}°",
-        track.max_abs_deg(),
-        motor.max_abs_deg()
+        track.max_abs(),
+        motor.max_abs()
     );
     assert!(
-        est.mean_abs_deg < 0.3,
+        est.mean_abs < 0.3,
         "JAE estimate error {:.3}°",
-        est.mean_abs_deg
+        est.mean_abs
     );
 }
 

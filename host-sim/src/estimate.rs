@@ -24,7 +24,7 @@ use cable_joint::Config;
 
 use crate::derive::{config_for_log_noted, derive};
 use crate::log::{Log, Schema};
-use crate::sim::{Acc, Summary};
+use crate::stats::{Acc, Summary};
 
 /// Arguments of `host-sim estimate`.
 #[derive(clap::Args, Debug, Clone)]

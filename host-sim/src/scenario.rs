@@ -30,7 +30,8 @@ use cable_joint::trajectory::Trajectory;
 use cable_joint::{Command, Config, Fault, Mode};
 
 use crate::plant::PlantParams;
-use crate::sim::{ErrorStats, ForceProfile, Recorder, Sim, Stats, TickRecord};
+use crate::sim::{AngleErrors, ForceProfile, Recorder, Sim, TickRecord};
+use crate::stats::Summary;
 
 /// Standard gravity, m/s² (weights on the tip: `F = m g`).
 pub const G_M_S2: f64 = 9.81;
@@ -439,9 +440,9 @@ pub struct RunSummary {
     /// Tracking error (desired − magnetic encoder; desired − motor-implied
     /// angle for `bm-noload`) over the `Track` phases, or over every enabled
     /// tick if the scenario has none.
-    pub tracking: Option<Stats>,
+    pub tracking: Option<Summary>,
     /// JAE error (estimate − magnetic encoder), same ticks.
-    pub jae: Option<Stats>,
+    pub jae: Option<Summary>,
     /// Force-estimate error in the `Stable` phases (estimate − applied), N:
     /// `(mean, max |error|)`.
     pub force_error_n: Option<(f64, f64)>,
@@ -539,7 +540,7 @@ pub fn run<R: Recorder + ?Sized>(
     // (A decoupled motor's slack check is switched off by `Sim::new`.)
     let mut sim = Sim::new(plant, config, seed)?;
     let has_track = plan.segments.iter().any(|s| s.phase == Phase::Track);
-    let mut errors = ErrorStats::new(0.0);
+    let mut errors = AngleErrors::new(0.0);
     errors.against_motor = plan.motor_decoupled;
     if has_track {
         errors.phases = vec![Phase::Track.code()];

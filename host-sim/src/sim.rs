@@ -24,12 +24,11 @@
 
 use std::path::Path;
 
-use serde::Serialize;
-
 use cable_joint::{Command, Config, Controller, Fault, Mode, Output, RawSample};
 
 use crate::log::Log;
 use crate::plant::{Plant, PlantParams, PlantState, Tensions};
+use crate::stats::{Acc, Summary};
 
 /// External tip force over time, N (> 0 opposes positive rotation). Time is
 /// counted from the moment the profile is set ([`Sim::set_external_force`]).
@@ -687,147 +686,12 @@ impl Recorder for RawTrace {
     }
 }
 
-/// Running statistics of an error signal, in degrees.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Stats {
-    /// Samples.
-    pub n: u64,
-    /// Mean, °.
-    pub mean_deg: f64,
-    /// Mean of the absolute value, °.
-    pub mean_abs_deg: f64,
-    /// Root mean square, °.
-    pub rms_deg: f64,
-    /// Largest value, °.
-    pub max_deg: f64,
-    /// Smallest value, °.
-    pub min_deg: f64,
-}
-
-impl Stats {
-    /// Largest absolute value, °.
-    pub fn max_abs_deg(&self) -> f64 {
-        self.max_deg.abs().max(self.min_deg.abs())
-    }
-}
-
-/// Running statistics of a signal.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Acc {
-    n: u64,
-    sum: f64,
-    sum_abs: f64,
-    sum_sq: f64,
-    max: f64,
-    min: f64,
-}
-
-impl Acc {
-    /// Add a value (non-finite values are skipped).
-    pub fn push(&mut self, v: f64) {
-        if !v.is_finite() {
-            return;
-        }
-        if self.n == 0 {
-            self.max = v;
-            self.min = v;
-        }
-        self.n += 1;
-        self.sum += v;
-        self.sum_abs += v.abs();
-        self.sum_sq += v * v;
-        self.max = self.max.max(v);
-        self.min = self.min.min(v);
-    }
-
-    /// Merge another accumulator into this one.
-    pub fn merge(&mut self, o: &Acc) {
-        if o.n == 0 {
-            return;
-        }
-        if self.n == 0 {
-            *self = *o;
-            return;
-        }
-        self.n += o.n;
-        self.sum += o.sum;
-        self.sum_abs += o.sum_abs;
-        self.sum_sq += o.sum_sq;
-        self.max = self.max.max(o.max);
-        self.min = self.min.min(o.min);
-    }
-
-    /// The statistics, each value multiplied by `scale` (NaN when empty).
-    pub fn summary(&self, scale: f64) -> Summary {
-        if self.n == 0 {
-            return Summary {
-                n: 0,
-                mean: f64::NAN,
-                mean_abs: f64::NAN,
-                rms: f64::NAN,
-                max: f64::NAN,
-                min: f64::NAN,
-            };
-        }
-        let n = self.n as f64;
-        Summary {
-            n: self.n,
-            mean: self.sum / n * scale,
-            mean_abs: self.sum_abs / n * scale.abs(),
-            rms: (self.sum_sq / n).sqrt() * scale.abs(),
-            max: if scale >= 0.0 { self.max } else { self.min } * scale,
-            min: if scale >= 0.0 { self.min } else { self.max } * scale,
-        }
-    }
-}
-
-/// Statistics of an error signal (`max`/`min` signed; NaN when `n == 0`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Summary {
-    /// Samples.
-    pub n: u64,
-    /// Mean.
-    pub mean: f64,
-    /// Mean of the absolute value.
-    pub mean_abs: f64,
-    /// Root mean square.
-    pub rms: f64,
-    /// Largest value.
-    pub max: f64,
-    /// Smallest value.
-    pub min: f64,
-}
-
-impl Summary {
-    /// Largest absolute value.
-    pub fn max_abs(&self) -> f64 {
-        self.max.abs().max(self.min.abs())
-    }
-}
-
-impl Acc {
-    /// The statistics in degrees of a signal in radians, if any sample.
-    fn stats(&self) -> Option<Stats> {
-        (self.n > 0).then(|| {
-            let s = self.summary(180.0 / std::f64::consts::PI);
-            Stats {
-                n: s.n,
-                mean_deg: s.mean,
-                mean_abs_deg: s.mean_abs,
-                rms_deg: s.rms,
-                max_deg: s.max,
-                min_deg: s.min,
-            }
-        })
-    }
-}
-
 /// Tracking error `theta_ref - theta_mag` (desired minus the quantized
 /// magnetic encoder, as the seed measures it) and JAE error
 /// `theta_hat - theta_mag`, over the ticks with the drive enabled, from
 /// `start_s` on, optionally only in some phases.
 #[derive(Clone, Debug, Default)]
-pub struct ErrorStats {
+pub struct AngleErrors {
     /// Ignore ticks before this time, s.
     pub start_s: f64,
     /// Only these phases (empty = all).
@@ -839,7 +703,7 @@ pub struct ErrorStats {
     jae: Acc,
 }
 
-impl ErrorStats {
+impl AngleErrors {
     /// Statistics over every enabled tick from `start_s` on.
     pub fn new(start_s: f64) -> Self {
         Self {
@@ -848,18 +712,20 @@ impl ErrorStats {
         }
     }
 
-    /// Tracking error statistics (desired − magnetic encoder), if any tick counted.
-    pub fn tracking(&self) -> Option<Stats> {
-        self.tracking.stats()
+    /// Tracking error statistics (desired − magnetic encoder), degrees, if
+    /// any tick counted.
+    pub fn tracking(&self) -> Option<Summary> {
+        self.tracking.degrees()
     }
 
-    /// JAE error statistics (estimate − magnetic encoder), if any tick counted.
-    pub fn jae(&self) -> Option<Stats> {
-        self.jae.stats()
+    /// JAE error statistics (estimate − magnetic encoder), degrees, if any
+    /// tick counted.
+    pub fn jae(&self) -> Option<Summary> {
+        self.jae.degrees()
     }
 }
 
-impl Recorder for ErrorStats {
+impl Recorder for AngleErrors {
     fn record(&mut self, rec: &TickRecord) {
         if rec.t_s < self.start_s
             || !rec.output.drive_enable

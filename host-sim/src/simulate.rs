@@ -24,7 +24,8 @@ use crate::cli;
 use crate::output::Outputs;
 use crate::plant::PlantParams;
 use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
-use crate::sim::{LogRecorder, RawTrace, Stats};
+use crate::sim::{LogRecorder, RawTrace};
+use crate::stats::Summary;
 
 /// Arguments of `host-sim simulate`.
 #[derive(clap::Args, Debug, Clone)]
@@ -106,11 +107,11 @@ fn read(path: &PathBuf) -> anyhow::Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
 }
 
-fn fmt_stats(s: &Option<Stats>) -> String {
+fn fmt_stats(s: &Option<Summary>) -> String {
     match s {
         Some(s) => format!(
             "mean {:+.3}°, mean|e| {:.3}°, max {:+.3}°, min {:+.3}°",
-            s.mean_deg, s.mean_abs_deg, s.max_deg, s.min_deg
+            s.mean, s.mean_abs, s.max, s.min
         ),
         None => "n/a".to_owned(),
     }

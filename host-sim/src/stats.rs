@@ -1,6 +1,152 @@
-//! Statistics of errors and residuals, one place for the whole host crate.
+//! Statistics of errors and residuals, one place for the whole host crate:
+//!
+//! * [`Acc`] / [`Summary`]: running moments of a signal over a run (the
+//!   simulator's recorders, the report, `estimate`), merged across runs with
+//!   [`Acc::merge`] or, from summaries alone, [`band`];
+//! * [`ErrorStats`]: a fitted model's error over the rows of a fit, with its
+//!   unit (`identify`, the residual loop);
+//! * [`correlation_time`]: the integrated autocorrelation time of a residual.
 
 use serde::Serialize;
+
+/// Degrees per radian.
+pub const DEG_PER_RAD: f64 = 180.0 / std::f64::consts::PI;
+
+/// Running statistics of a signal.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Acc {
+    n: u64,
+    sum: f64,
+    sum_abs: f64,
+    sum_sq: f64,
+    max: f64,
+    min: f64,
+}
+
+impl Acc {
+    /// Samples counted.
+    pub fn n(&self) -> u64 {
+        self.n
+    }
+
+    /// The statistics in degrees of a signal in radians, if any sample.
+    pub fn degrees(&self) -> Option<Summary> {
+        (self.n > 0).then(|| self.summary(DEG_PER_RAD))
+    }
+
+    /// Add a value (non-finite values are skipped).
+    pub fn push(&mut self, v: f64) {
+        if !v.is_finite() {
+            return;
+        }
+        if self.n == 0 {
+            self.max = v;
+            self.min = v;
+        }
+        self.n += 1;
+        self.sum += v;
+        self.sum_abs += v.abs();
+        self.sum_sq += v * v;
+        self.max = self.max.max(v);
+        self.min = self.min.min(v);
+    }
+
+    /// Merge another accumulator into this one.
+    pub fn merge(&mut self, o: &Acc) {
+        if o.n == 0 {
+            return;
+        }
+        if self.n == 0 {
+            *self = *o;
+            return;
+        }
+        self.n += o.n;
+        self.sum += o.sum;
+        self.sum_abs += o.sum_abs;
+        self.sum_sq += o.sum_sq;
+        self.max = self.max.max(o.max);
+        self.min = self.min.min(o.min);
+    }
+
+    /// The statistics, each value multiplied by `scale` (NaN when empty).
+    pub fn summary(&self, scale: f64) -> Summary {
+        if self.n == 0 {
+            return Summary {
+                n: 0,
+                mean: f64::NAN,
+                mean_abs: f64::NAN,
+                rms: f64::NAN,
+                max: f64::NAN,
+                min: f64::NAN,
+            };
+        }
+        let n = self.n as f64;
+        Summary {
+            n: self.n,
+            mean: self.sum / n * scale,
+            mean_abs: self.sum_abs / n * scale.abs(),
+            rms: (self.sum_sq / n).sqrt() * scale.abs(),
+            max: if scale >= 0.0 { self.max } else { self.min } * scale,
+            min: if scale >= 0.0 { self.min } else { self.max } * scale,
+        }
+    }
+}
+
+/// Statistics of an error signal (`max`/`min` signed; NaN when `n == 0`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Samples.
+    pub n: u64,
+    /// Mean.
+    pub mean: f64,
+    /// Mean of the absolute value.
+    pub mean_abs: f64,
+    /// Root mean square.
+    pub rms: f64,
+    /// Largest value.
+    pub max: f64,
+    /// Smallest value.
+    pub min: f64,
+}
+
+impl Summary {
+    /// Largest absolute value.
+    pub fn max_abs(&self) -> f64 {
+        self.max.abs().max(self.min.abs())
+    }
+}
+
+/// Accumulate the f_ext estimate of several cases' regions into one band.
+pub fn band<'a>(cases: impl IntoIterator<Item = &'a Summary>) -> Summary {
+    // Recombine from the summaries: n-weighted mean and rms, extremes.
+    let mut n = 0u64;
+    let (mut s, mut sa, mut sq) = (0.0, 0.0, 0.0);
+    let (mut max, mut min) = (f64::NEG_INFINITY, f64::INFINITY);
+    for c in cases {
+        if c.n == 0 {
+            continue;
+        }
+        let k = c.n as f64;
+        n += c.n;
+        s += c.mean * k;
+        sa += c.mean_abs * k;
+        sq += c.rms * c.rms * k;
+        max = max.max(c.max);
+        min = min.min(c.min);
+    }
+    if n == 0 {
+        return Acc::default().summary(1.0);
+    }
+    let k = n as f64;
+    Summary {
+        n,
+        mean: s / k,
+        mean_abs: sa / k,
+        rms: (sq / k).sqrt(),
+        max,
+        min,
+    }
+}
 
 /// Error statistics of a model's output against the measured one
 /// (`model - measured`).
@@ -123,6 +269,29 @@ pub(crate) mod test_rng {
 mod tests {
     use super::test_rng::Rng;
     use super::*;
+
+    #[test]
+    fn summary_and_band_agree_with_direct_statistics() {
+        let a: Vec<f64> = vec![1.0, -2.0, 3.0];
+        let b: Vec<f64> = vec![0.5, 4.0];
+        let (mut x, mut y, mut all) = (Acc::default(), Acc::default(), Acc::default());
+        a.iter().for_each(|v| x.push(*v));
+        b.iter().for_each(|v| y.push(*v));
+        a.iter().chain(&b).for_each(|v| all.push(*v));
+        let direct = all.summary(1.0);
+        let merged = band([&x.summary(1.0), &y.summary(1.0)]);
+        assert_eq!(merged.n, 5);
+        assert!((merged.mean - direct.mean).abs() < 1e-12);
+        assert!((merged.rms - direct.rms).abs() < 1e-12);
+        assert_eq!((merged.max, merged.min), (4.0, -2.0));
+        // A negative scale swaps the extremes.
+        let neg = x.summary(-1.0);
+        assert_eq!((neg.max, neg.min), (2.0, -3.0));
+        let mut z = x;
+        z.merge(&y);
+        assert_eq!(z.summary(1.0), direct);
+        assert!(Acc::default().summary(1.0).mean.is_nan());
+    }
 
     #[test]
     fn correlation_time_of_white_and_ar1_noise() {

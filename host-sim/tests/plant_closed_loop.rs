@@ -40,18 +40,18 @@ fn motor_only_tracking_error_is_seed_like_and_jae_is_better() {
     let t = motor.tracking.unwrap();
     assert_eq!(motor.fault, None);
     assert!(
-        t.mean_abs_deg > 0.6 && t.mean_abs_deg < 6.0,
+        t.mean_abs > 0.6 && t.mean_abs < 6.0,
         "motor-only mean |error| {:.2}° (seed 1.9°)",
-        t.mean_abs_deg
+        t.mean_abs
     );
     assert!(
-        t.max_abs_deg() > 1.4 && t.max_abs_deg() < 12.0,
+        t.max_abs() > 1.4 && t.max_abs() < 12.0,
         "motor-only worst error {:.2}° (seed 4.1°)",
-        t.max_abs_deg()
+        t.max_abs()
     );
     // The error is cable stretch: it changes sign with the direction of
     // motion, so its mean is much smaller than its mean magnitude.
-    assert!(t.mean_deg.abs() < 0.5 * t.mean_abs_deg);
+    assert!(t.mean.abs() < 0.5 * t.mean_abs);
 
     let jae = scenario::run(
         "track-jae",
@@ -65,15 +65,15 @@ fn motor_only_tracking_error_is_seed_like_and_jae_is_better() {
     let j = jae.tracking.unwrap();
     assert_eq!(jae.fault, None);
     assert!(
-        j.max_abs_deg() < 2.5,
+        j.max_abs() < 2.5,
         "JAE feedback worst error {:.2}° (seed 0.97°)",
-        j.max_abs_deg()
+        j.max_abs()
     );
     assert!(
-        j.mean_abs_deg < 0.25 * t.mean_abs_deg,
+        j.mean_abs < 0.25 * t.mean_abs,
         "JAE {:.3}° should beat motor-only {:.3}°",
-        j.mean_abs_deg,
-        t.mean_abs_deg
+        j.mean_abs,
+        t.mean_abs
     );
 }
 

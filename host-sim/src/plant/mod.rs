@@ -69,7 +69,6 @@ pub use params::{
     STATIC_OVER_KINETIC,
 };
 
-
 use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount, CODE_MAX_12BIT};
 use cable_joint::RawSample;
 use rand::SeedableRng;

@@ -7,11 +7,10 @@ use serde::Serialize;
 use crate::log::Log;
 use crate::plant::PlantParams;
 use crate::scenario::{self, Direction, Phase, ScenarioOptions};
-pub use crate::sim::{Acc, Summary};
 use crate::sim::{LogRecorder, Recorder, TickRecord};
-
-/// Degrees per radian.
-pub const DEG_PER_RAD: f64 = 180.0 / std::f64::consts::PI;
+use crate::stats::Acc;
+// Re-exported for `render.rs` until its own imports name `stats`.
+pub use crate::stats::{Summary, DEG_PER_RAD};
 
 /// Keep every `TRACE_EVERY`-th tick in the figure traces (500 Hz at 2 kHz).
 pub const TRACE_EVERY: u64 = 4;
@@ -305,64 +304,4 @@ pub fn loading_case(
         seed,
         trace: rec.trace,
     })
-}
-
-/// Accumulate the f_ext estimate of several cases' regions into one band.
-pub fn band<'a>(cases: impl IntoIterator<Item = &'a Summary>) -> Summary {
-    // Recombine from the summaries: n-weighted mean and rms, extremes.
-    let mut n = 0u64;
-    let (mut s, mut sa, mut sq) = (0.0, 0.0, 0.0);
-    let (mut max, mut min) = (f64::NEG_INFINITY, f64::INFINITY);
-    for c in cases {
-        if c.n == 0 {
-            continue;
-        }
-        let k = c.n as f64;
-        n += c.n;
-        s += c.mean * k;
-        sa += c.mean_abs * k;
-        sq += c.rms * c.rms * k;
-        max = max.max(c.max);
-        min = min.min(c.min);
-    }
-    if n == 0 {
-        return Acc::default().summary(1.0);
-    }
-    let k = n as f64;
-    Summary {
-        n,
-        mean: s / k,
-        mean_abs: sa / k,
-        rms: (sq / k).sqrt(),
-        max,
-        min,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn summary_and_band_agree_with_direct_statistics() {
-        let a: Vec<f64> = vec![1.0, -2.0, 3.0];
-        let b: Vec<f64> = vec![0.5, 4.0];
-        let (mut x, mut y, mut all) = (Acc::default(), Acc::default(), Acc::default());
-        a.iter().for_each(|v| x.push(*v));
-        b.iter().for_each(|v| y.push(*v));
-        a.iter().chain(&b).for_each(|v| all.push(*v));
-        let direct = all.summary(1.0);
-        let merged = band([&x.summary(1.0), &y.summary(1.0)]);
-        assert_eq!(merged.n, 5);
-        assert!((merged.mean - direct.mean).abs() < 1e-12);
-        assert!((merged.rms - direct.rms).abs() < 1e-12);
-        assert_eq!((merged.max, merged.min), (4.0, -2.0));
-        // A negative scale swaps the extremes.
-        let neg = x.summary(-1.0);
-        assert_eq!((neg.max, neg.min), (2.0, -3.0));
-        let mut z = x;
-        z.merge(&y);
-        assert_eq!(z.summary(1.0), direct);
-        assert!(Acc::default().summary(1.0).mean.is_nan());
-    }
 }

@@ -5,13 +5,14 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::experiments::{LoadCase, TrackRun, DEG_PER_RAD, TRACE_EVERY};
+use super::experiments::{LoadCase, TrackRun, TRACE_EVERY};
 use super::programme::{Evaluation, Identification};
 use super::regressors::Replay;
 use crate::ident::FitReport;
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Panel, Series};
 use crate::scenario::LOADING_MASSES_G;
+use crate::stats::DEG_PER_RAD;
 
 /// One written figure: its file stem (relative to the report directory)
 /// and caption.

@@ -52,7 +52,7 @@ use crate::io::config::stage_config;
 use crate::log::Log;
 use crate::output::Outputs;
 use crate::plant::{Effects, PlantParams};
-use experiments::{Acc, Summary, DEG_PER_RAD};
+use crate::stats::{Acc, Summary, DEG_PER_RAD};
 use figures::Written;
 use programme::{Evaluation, Identification, Progress, ResidualStep, Settings};
 

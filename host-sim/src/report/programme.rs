@@ -8,13 +8,14 @@ use anyhow::{Context, Result};
 use cable_joint::Config;
 use serde::Serialize;
 
-use super::experiments::{self, band, LoadCase, Summary, TrackRun};
+use super::experiments::{self, LoadCase, TrackRun};
 use crate::ident::{self, BmResult, IdentOptions, JaeResult, TensionResult};
 use crate::log::Log;
 use crate::plant::PlantParams;
 use crate::residual::{self, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions};
 use crate::scenario::{Direction, LOADING_ANGLES_DEG, LOADING_MASSES_G};
 use crate::stats::ErrorStats;
+use crate::stats::{band, Summary};
 
 /// Progress lines on stderr (`[  12.3 s] clean: ...`).
 #[derive(Clone, Copy, Debug)]

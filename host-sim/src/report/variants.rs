@@ -13,11 +13,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::experiments::DEG_PER_RAD;
 use super::programme::{identify_config, run_seed, Settings};
 use crate::plant::PlantParams;
 use crate::scenario::{self, Direction, Phase, ScenarioOptions, G_M_S2};
-use crate::sim::{Acc, Recorder, TickRecord};
+use crate::sim::{Recorder, TickRecord};
+use crate::stats::Acc;
+use crate::stats::DEG_PER_RAD;
 
 /// Angles, weights of the protocol as run on every variant.
 const ANGLES_DEG: [f64; 3] = [0.0, 30.0, -40.0];

@@ -54,7 +54,7 @@
 
 use std::fmt;
 use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::log::{Log, LogError, LogErrorKind, Schema, DEFAULT_MIN_ROWS};
 
@@ -460,79 +460,6 @@ fn parse_header(meta: &mut MrdlabMeta) {
             meta.torque_percent = number_after(&lower, "torque of");
         }
     }
-}
-
-/// Input formats `host-sim import` understands.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ImportFormat {
-    /// MRDLab da Vinci tool characterisation run (`XY.TXT`, `XY.TXT.gz`).
-    Mrdlab,
-}
-
-/// `host-sim import FORMAT IN --out OUT`: convert a measured run to the
-/// project's CSV log.
-#[derive(Debug, Clone, clap::Args)]
-pub struct ImportArgs {
-    /// Format of the input file.
-    #[arg(value_enum)]
-    pub format: ImportFormat,
-    /// Input file (`.gz` is decompressed).
-    pub input: PathBuf,
-    /// Output CSV log (written atomically; `.csv.gz` is compressed).
-    #[arg(long, short)]
-    pub out: PathBuf,
-}
-
-fn range(values: &[f64]) -> (f64, f64) {
-    values
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        })
-}
-
-/// One line describing an imported run.
-pub fn summary(run: &MrdlabRun) -> String {
-    use fmt::Write as _;
-    let log = &run.log;
-    let mut s = format!("{} ({}): {} rows", run.meta.source, run.meta, log.len());
-    if let Ok(t) = log.time_s() {
-        if let (Some(first), Some(last)) = (t.first(), t.last()) {
-            let dur = last - first;
-            let _ = write!(s, ", {dur:.3} s");
-            if t.len() > 1 && dur > 0.0 {
-                let _ = write!(s, " at {:.0} Hz", (t.len() - 1) as f64 / dur);
-            }
-        }
-    }
-    for (name, unit, scale) in [
-        ("phi_rad", "rad", 1.0),
-        ("theta_rad", "deg", 180.0 / std::f64::consts::PI),
-        ("i_meas_a", "A", 1.0),
-        ("tau_in_nm", "mN·m", 1e3),
-        ("tau_ext_nm", "mN·m", 1e3),
-    ] {
-        if let Some(c) = log.col(name) {
-            let (lo, hi) = range(c);
-            let _ = write!(s, "; {name} {:.3}..{:.3} {unit}", lo * scale, hi * scale);
-        }
-    }
-    s
-}
-
-/// Runs `host-sim import`.
-///
-/// # Errors
-/// The input cannot be imported or the output cannot be written.
-pub fn run(args: ImportArgs) -> anyhow::Result<()> {
-    match args.format {
-        ImportFormat::Mrdlab => {
-            let run = import_mrdlab_run(&args.input)?;
-            run.log.write(&args.out)?;
-            println!("{} -> {}", summary(&run), args.out.display());
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

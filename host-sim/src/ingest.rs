@@ -24,35 +24,14 @@
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{bail, Context};
 use cable_joint::telemetry::{parse_line, Record, StartRecord, TickRecord};
 use cable_joint::units::{Extender16, GratingCount, Scales};
 use cable_joint::Config;
 
-use crate::log::{Log, DEFAULT_MIN_ROWS};
-
-/// Arguments of `host-sim ingest`.
-#[derive(clap::Args, Debug, Clone)]
-pub struct IngestArgs {
-    /// Decoded defmt text (from `probe-rs run` or `defmt-print`); `-` reads
-    /// standard input.
-    pub file: PathBuf,
-    /// CSV log to write (written to a temporary file, then renamed).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Core configuration (TOML) for the sensor scales; defaults to the
-    /// datasheet values the firmware is built with.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
-    /// The magnetic joint encoder is fitted: add the `theta_rad` column.
-    #[arg(long)]
-    pub magnetic: bool,
-    /// Print min/median/max cycle counts per control stage.
-    #[arg(long)]
-    pub stats: bool,
-}
+use crate::log::Log;
 
 /// Options of the conversion.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -308,50 +287,6 @@ impl std::fmt::Display for CycleStats {
             "tick", t.min, t.median, t.max
         )
     }
-}
-
-/// `host-sim ingest`.
-pub fn run(args: IngestArgs) -> anyhow::Result<()> {
-    let config = crate::io::config::load_or_default(args.config.as_deref())?;
-    let records = read_stream(&args.file)?;
-    let ticks: Vec<TickRecord> = records
-        .iter()
-        .filter_map(|r| match r {
-            Record::Tick(t) => Some(*t),
-            _ => None,
-        })
-        .collect();
-    if ticks.is_empty() {
-        bail!(
-            "{}: no telemetry record (`tlm [..]` lines) found",
-            args.file.display()
-        );
-    }
-    let opts = LogOptions {
-        magnetic: args.magnetic,
-    };
-    let log =
-        to_log(&records, &config, &opts).with_context(|| format!("{}", args.file.display()))?;
-    anyhow::ensure!(
-        log.len() >= DEFAULT_MIN_ROWS,
-        "{}: {} tick records; a log needs at least {DEFAULT_MIN_ROWS} rows (the other commands \
-         would refuse it)",
-        args.file.display(),
-        log.len()
-    );
-    log.write(&args.out)?;
-    eprintln!(
-        "{}: {} tick records -> {}",
-        args.file.display(),
-        ticks.len(),
-        args.out.display()
-    );
-    if args.stats {
-        if let Some(s) = cycle_stats(&ticks) {
-            println!("{s}");
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -16,6 +16,5 @@ pub mod report;
 pub mod residual;
 pub mod scenario;
 pub mod sim;
-pub mod simulate;
 pub mod stats;
 pub mod trace;

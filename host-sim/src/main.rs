@@ -31,21 +31,21 @@ struct Cli {
 enum Command {
     // Each helper adds its variant here: `Name(host_sim::module::Args)`.
     /// Convert a measured run (MRDLab) to the project's CSV log.
-    Import(host_sim::import::ImportArgs),
+    Import(host_sim::cli::import::ImportArgs),
     /// Decoded defmt telemetry (probe-rs run / defmt-print) to a CSV log.
-    Ingest(host_sim::ingest::IngestArgs),
+    Ingest(host_sim::cli::ingest::IngestArgs),
     /// Record the sensor trace the QEMU firmware replays.
-    Trace(host_sim::trace::TraceArgs),
+    Trace(host_sim::cli::trace::TraceArgs),
     /// Run one scenario on the simulated prototype and write the CSV log.
-    Simulate(host_sim::simulate::SimulateArgs),
+    Simulate(host_sim::cli::simulate::SimulateArgs),
     /// Tool payload identification and tool-end wrench estimation (KUKA wrist data).
     Payload(host_sim::payload::PayloadArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
     Identify(host_sim::cli::identify::IdentifyArgs),
     /// Replay a log (any rate) through the core; write every estimate and the force bound.
-    Estimate(host_sim::estimate::EstimateArgs),
+    Estimate(host_sim::cli::estimate::EstimateArgs),
     /// Residual analysis: rank and add effect terms, judged on validation data.
-    Residual(host_sim::residual::ResidualArgs),
+    Residual(host_sim::cli::residual::ResidualArgs),
     /// The seed's experimental programme on the simulated prototype, with a report (default).
     Report(host_sim::report::ReportArgs),
 }
@@ -54,14 +54,14 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
         None => host_sim::report::run(host_sim::report::ReportArgs::default()),
-        Some(Command::Import(args)) => host_sim::import::run(args),
-        Some(Command::Ingest(args)) => host_sim::ingest::run(args),
-        Some(Command::Trace(args)) => host_sim::trace::run(args),
-        Some(Command::Simulate(a)) => host_sim::simulate::run(a),
+        Some(Command::Import(args)) => host_sim::cli::import::run(args),
+        Some(Command::Ingest(args)) => host_sim::cli::ingest::run(args),
+        Some(Command::Trace(args)) => host_sim::cli::trace::run(args),
+        Some(Command::Simulate(a)) => host_sim::cli::simulate::run(a),
         Some(Command::Payload(a)) => host_sim::payload::run(a),
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
-        Some(Command::Residual(a)) => host_sim::residual::run(a),
-        Some(Command::Estimate(a)) => host_sim::estimate::run(a),
+        Some(Command::Residual(a)) => host_sim::cli::residual::run(a),
+        Some(Command::Estimate(a)) => host_sim::cli::estimate::run(a),
         Some(Command::Report(a)) => host_sim::report::run(a),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),

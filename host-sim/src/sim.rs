@@ -19,7 +19,7 @@
 //!
 //! Recorders: [`LogRecorder`] (DESIGN.md's CSV columns plus estimates and
 //! ground truth), [`RawTrace`] (raw counts and codes with the controller's
-//! output, for replay on the firmware under QEMU), [`ErrorStats`] (tracking
+//! output, for replay on the firmware under QEMU), [`AngleErrors`] (tracking
 //! and JAE errors), `Vec<TickRecord>`, [`FnRecorder`] and tuples of these.
 
 use std::path::Path;
@@ -744,6 +744,23 @@ impl Recorder for AngleErrors {
             self.jae.push((e.theta_hat_rad - e.theta_mag_rad) as f64);
         }
     }
+}
+
+/// Most control ticks one simulated run records: 500 s at 2 kHz. The whole
+/// log is kept in memory (about 0.4 kB a tick, twice while it is written).
+pub const MAX_TICKS: f64 = 1e6;
+
+/// `duration_s` at `rate_hz` is at most [`MAX_TICKS`] control ticks; the
+/// error names `what` (the option that set the duration) and the limit.
+pub fn check_ticks(what: &str, duration_s: f64, rate_hz: f64) -> anyhow::Result<()> {
+    let ticks = duration_s * rate_hz;
+    anyhow::ensure!(
+        ticks <= MAX_TICKS,
+        "{what}: {duration_s} s is {ticks:.3e} control ticks at {rate_hz} Hz; one run records \
+         at most {MAX_TICKS:.0} ticks ({} s at this rate), all kept in memory",
+        MAX_TICKS / rate_hz
+    );
+    Ok(())
 }
 
 /// Convenience: one command for `seconds` from rest; returns the records.

@@ -29,10 +29,6 @@
 //! Output: the binary trace (layout in [`cable_joint::board::trace`]) and,
 //! with `--csv`, the firmware logic's own telemetry as a project CSV log.
 
-use std::fs;
-use std::path::{Path, PathBuf};
-
-use anyhow::Context;
 use cable_joint::board::trace::trace_header;
 use cable_joint::board::{
     firmware_config, ControlLoop, Harness, Program, Request, TickOutcome, TraceSample,
@@ -41,52 +37,26 @@ use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
 use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
 use cable_joint::RawSample;
 
-use crate::cli;
-use crate::output::Outputs;
 use crate::plant::{PlantParams, Tensions};
+use crate::sim::check_ticks;
 use crate::sim::{NullRecorder, Sim};
-use crate::simulate::check_ticks;
-
-/// Arguments of `host-sim trace`.
-#[derive(clap::Args, Debug, Clone)]
-pub struct TraceArgs {
-    /// Trace file to write (the qemu firmware embeds `firmware/trace.bin`).
-    #[arg(long, default_value = "firmware/trace.bin")]
-    pub out: PathBuf,
-    /// Also write the firmware logic's telemetry as a CSV log.
-    #[arg(long)]
-    pub csv: Option<PathBuf>,
-    /// Plant parameters (TOML, merged over the prototype's defaults).
-    #[arg(long)]
-    pub plant: Option<PathBuf>,
-    #[command(flatten)]
-    pub options: TraceOptions,
-}
 
 /// What the recorded run does.
-#[derive(clap::Args, Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TraceOptions {
-    /// Seconds recorded after boot (at most
-    /// [`crate::simulate::MAX_TICKS`] control ticks).
-    #[arg(long, default_value_t = 2.6, value_parser = cli::f64_above(0.0, f64::MAX))]
+    /// Seconds recorded after boot (at most [`crate::sim::MAX_TICKS`]
+    /// control ticks).
     pub duration_s: f64,
     /// Seconds the mechanism relaxes with the drive off before boot.
-    #[arg(long, default_value_t = 1.5, value_parser = cli::f64_in(0.0, f64::MAX))]
     pub relax_s: f64,
     /// Weight hung on the tip during the hold, N.
-    #[arg(long, default_value_t = 0.49, allow_negative_numbers = true,
-          value_parser = cli::f64_in(-100.0, 100.0))]
     pub load_n: f64,
     /// When the weight is hung (ramped in over 50 ms), s after boot.
-    #[arg(long, default_value_t = 1.0, value_parser = cli::f64_in(0.0, 1e6))]
     pub load_at_s: f64,
     /// When the drive's fault line is asserted, s after boot (negative:
     /// never).
-    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true,
-          value_parser = cli::f64_in(-1e6, 1e6))]
     pub drive_fault_at_s: f64,
     /// Noise seed.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
 }
 
@@ -280,54 +250,6 @@ pub fn split(records: &[Record]) -> (Vec<OriginRecord>, Vec<TickRecord>) {
         }
     }
     (origins, ticks)
-}
-
-fn load_plant(path: Option<&Path>) -> anyhow::Result<PlantParams> {
-    match path {
-        None => Ok(PlantParams::default()),
-        Some(p) => {
-            let text = fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            PlantParams::from_toml_str(&text).with_context(|| format!("{}", p.display()))
-        }
-    }
-}
-
-/// `host-sim trace`.
-pub fn run(args: TraceArgs) -> anyhow::Result<()> {
-    let plant = load_plant(args.plant.as_deref())?;
-    let rec = record(plant, &args.options)?;
-    // The trace and the CSV log are written together, or neither is.
-    let mut out = Outputs::new();
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
-    out.bytes(&args.out, &rec.trace_bytes())?;
-    if let Some(csv) = &args.csv {
-        let log = crate::ingest::to_log(
-            &rec.telemetry(),
-            &firmware_config(),
-            &crate::ingest::LogOptions::default(),
-        )?;
-        log.stage(&mut out, csv)?;
-    }
-    out.commit()?;
-    let homed = rec
-        .outcomes
-        .iter()
-        .rev()
-        .find_map(|o| o.origin)
-        .map(|o| o.tick);
-    eprintln!(
-        "wrote {} ({} ticks at {} Hz; homed at tick {:?})",
-        args.out.display(),
-        rec.samples.len(),
-        rec.control_rate_hz,
-        homed
-    );
-    if let Some(csv) = &args.csv {
-        eprintln!("wrote {}", csv.display());
-    }
-    Ok(())
 }
 
 #[cfg(test)]

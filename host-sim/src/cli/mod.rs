@@ -15,7 +15,13 @@
 //! [`check_f64`] is the same check for a value that does not come from the
 //! command line (a library caller filling an argument structure).
 
+pub mod estimate;
 pub mod identify;
+pub mod import;
+pub mod ingest;
+pub mod residual;
+pub mod simulate;
+pub mod trace;
 
 use std::fmt::Display;
 use std::str::FromStr;

@@ -1,6 +1,7 @@
 //! Configuration files, one way for every command: read (missing tables and
 //! keys take the datasheet defaults, then [`Config::validate`]) and written
-//! (checked first, atomically, for people to read and review).
+//! (checked first, atomically, for people to read and review); the
+//! simulated plant's parameters.
 
 use std::path::Path;
 
@@ -9,6 +10,7 @@ use cable_joint::Config;
 
 use crate::log::toml_error;
 use crate::output::Outputs;
+use crate::plant::PlantParams;
 
 /// Read and check a configuration file (TOML). Missing tables and keys take
 /// the datasheet defaults; an unknown key, a type error or a value that
@@ -28,6 +30,18 @@ pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
 /// [`load_config`] when a file is given, else the datasheet defaults.
 pub fn load_or_default(path: Option<&Path>) -> Result<Config> {
     path.map_or_else(|| Ok(Config::default()), load_config)
+}
+
+/// The plant parameters of a TOML file (merged key by key onto the
+/// prototype's, [`PlantParams::from_toml_str`]), or the prototype's when no
+/// file is given.
+pub fn load_plant(path: Option<&Path>) -> Result<PlantParams> {
+    let Some(path) = path else {
+        return Ok(PlantParams::default());
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading plant parameters {}", path.display()))?;
+    PlantParams::from_toml_str(&text).with_context(|| path.display().to_string())
 }
 
 /// `config` as the TOML text [`write_config`] writes: every number the

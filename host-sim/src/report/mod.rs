@@ -254,7 +254,7 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
             opts.mass_g = Some(250.0);
             opts.direction = Some(crate::scenario::Direction::Pos);
         }
-        crate::simulate::check_ticks(
+        crate::sim::check_ticks(
             &format!(
                 "--duration-scale {} (scenario {})",
                 args.duration_scale, info.name

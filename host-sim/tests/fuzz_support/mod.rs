@@ -28,7 +28,8 @@ use cable_joint::board::{firmware_config, ControlLoop, Harness, Request, Trace, 
 use cable_joint::board::{trace::trace_header, Program};
 use cable_joint::telemetry::{Record, MAX_RECORD_LEN};
 use cable_joint::Config;
-use host_sim::import::{mrdlab_schema, read_mrdlab, summary};
+use host_sim::cli::import::summary;
+use host_sim::import::{mrdlab_schema, read_mrdlab};
 use host_sim::ingest::{columns, cycle_stats, parse_stream, to_log, LogOptions};
 use host_sim::log::{Log, LogError, Schema};
 use host_sim::payload;

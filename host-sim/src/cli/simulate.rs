@@ -22,9 +22,8 @@ use cable_joint::Config;
 
 use crate::cli;
 use crate::output::Outputs;
-use crate::plant::PlantParams;
 use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
-use crate::sim::{LogRecorder, RawTrace};
+use crate::sim::{check_ticks, LogRecorder, RawTrace};
 use crate::stats::Summary;
 
 /// Arguments of `host-sim simulate`.
@@ -53,7 +52,7 @@ pub struct SimulateArgs {
     #[arg(long, value_delimiter = ',')]
     pub effect: Vec<String>,
     /// Total simulated duration, s (scales every segment; at most
-    /// [`MAX_TICKS`] control ticks).
+    /// [`MAX_TICKS`](crate::sim::MAX_TICKS) control ticks).
     #[arg(long, conflicts_with = "duration_scale", value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration: Option<f64>,
     /// Scale of every segment's duration.
@@ -86,27 +85,6 @@ pub struct SimulateArgs {
     pub print_plant: bool,
 }
 
-/// Most control ticks one simulated run records: 500 s at 2 kHz. The whole
-/// log is kept in memory (about 0.4 kB a tick, twice while it is written).
-pub const MAX_TICKS: f64 = 1e6;
-
-/// `duration_s` at `rate_hz` is at most [`MAX_TICKS`] control ticks; the
-/// error names `what` (the option that set the duration) and the limit.
-pub fn check_ticks(what: &str, duration_s: f64, rate_hz: f64) -> anyhow::Result<()> {
-    let ticks = duration_s * rate_hz;
-    anyhow::ensure!(
-        ticks <= MAX_TICKS,
-        "{what}: {duration_s} s is {ticks:.3e} control ticks at {rate_hz} Hz; one run records \
-         at most {MAX_TICKS:.0} ticks ({} s at this rate), all kept in memory",
-        MAX_TICKS / rate_hz
-    );
-    Ok(())
-}
-
-fn read(path: &PathBuf) -> anyhow::Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
-}
-
 fn fmt_stats(s: &Option<Summary>) -> String {
     match s {
         Some(s) => format!(
@@ -125,12 +103,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let mut plant = match &args.plant {
-        Some(p) => {
-            PlantParams::from_toml_str(&read(p)?).with_context(|| format!("in {}", p.display()))?
-        }
-        None => PlantParams::default(),
-    };
+    let mut plant = crate::io::config::load_plant(args.plant.as_deref())?;
     for e in &args.effect {
         if !e.trim().is_empty() {
             plant.effects.enable(e)?;

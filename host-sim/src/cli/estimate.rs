@@ -1,0 +1,134 @@
+//! `host-sim estimate`: its arguments, its run and what it prints.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use cable_joint::Config;
+
+use crate::estimate::{estimate, EstimateSummary};
+use crate::log::{Log, Schema};
+
+/// Arguments of `host-sim estimate`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct EstimateArgs {
+    /// Input log (project CSV schema, any control rate).
+    #[arg(long)]
+    pub log: PathBuf,
+    /// Controller configuration (TOML; default: the datasheet values).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Output CSV with every estimate.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `host-sim estimate`.
+pub fn run(args: EstimateArgs) -> Result<()> {
+    let config = match &args.config {
+        Some(p) => crate::io::config::load_config(p)?,
+        None => Config::default(),
+    };
+    let name = args.log.display().to_string();
+    let log = Log::read_with(&args.log, &Schema::project())?;
+    let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
+    for d in &s.derived {
+        eprintln!("estimate: {d}");
+    }
+    for w in row_loss_warnings(&name, &s) {
+        eprintln!("{w}");
+    }
+    out.write(&args.out)?;
+    println!("{}", format_summary(&name, &s));
+    println!("wrote {} ({} rows)", args.out.display(), s.rows);
+    Ok(())
+}
+
+/// Warnings about rows the comparison with the reference left out.
+pub fn row_loss_warnings(name: &str, s: &EstimateSummary) -> Vec<String> {
+    let mut w = Vec::new();
+    let Some(r) = &s.against_reference else {
+        return w;
+    };
+    if let (n, Some(first)) = r.not_measured {
+        w.push(format!(
+            "warning: {name}: column f_ext_n is not measured on {n} of {} rows (first at line {}): \
+             they are left out of the comparison with the reference",
+            s.rows,
+            first + 2
+        ));
+    }
+    if r.faulted > 0 {
+        let at = s
+            .first_fault
+            .as_ref()
+            .map(|(k, code, text)| {
+                format!(
+                    " ({text}, code {code}, at line {})",
+                    crate::log::line_of_row(*k)
+                )
+            })
+            .unwrap_or_default();
+        w.push(format!(
+            "warning: {name}: {} of {} rows are left out of the comparison with the reference: \
+             the replay had latched a fault{at}",
+            r.faulted, s.rows
+        ));
+    }
+    w
+}
+
+/// The terminal summary.
+pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
+    use std::fmt::Write as _;
+    let mut t = String::new();
+    let _ = writeln!(t, "{name}: {} rows replayed through the core", s.rows);
+    match &s.first_fault {
+        Some((k, code, text)) => {
+            let _ = writeln!(
+                t,
+                "  fault latched at row {} (code {code}: {text}); estimates after it are the idle replay's",
+                crate::log::line_of_row(*k)
+            );
+        }
+        None => {
+            let _ = writeln!(t, "  no fault");
+        }
+    }
+    let _ = writeln!(
+        t,
+        "  slider 1 stuck in {:.1} % of rows (DOB blind to its friction band there); DOB and stretch disagree in {:.1} %",
+        100.0 * s.slider1_stuck_share,
+        100.0 * s.inconsistent_share
+    );
+    let _ = writeln!(
+        t,
+        "  mean width of the force bound: {:.3} N",
+        s.mean_bound_width_n
+    );
+    if let Some(r) = &s.against_reference {
+        let _ = writeln!(
+            t,
+            "  against the logged f_ext_n on {} of {} rows (estimate − reference, N):",
+            r.rows, s.rows
+        );
+        for (label, e) in [
+            ("DOB (seed)", &r.dob_n),
+            ("stretch", &r.stretch_n),
+            ("fused", &r.fused_n),
+        ] {
+            let _ = writeln!(
+                t,
+                "    {label:<11} mean {:+.3}  rms {:.3}  max |e| {:.3}",
+                e.mean,
+                e.rms,
+                e.max_abs()
+            );
+        }
+        let _ = writeln!(
+            t,
+            "  bound covers the reference in {:.1} % of rows",
+            100.0 * r.coverage
+        );
+    }
+    t.trim_end().to_owned()
+}

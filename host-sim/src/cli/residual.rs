@@ -1,0 +1,165 @@
+//! `host-sim residual`: its arguments and its run (the analysis is
+//! [`crate::residual`]).
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use cable_joint::model::MAX_TERMS;
+use cable_joint::Config;
+
+use crate::cli;
+use crate::output::Outputs;
+use crate::residual::{
+    analyse, config_with, read_logs, report, BuildOptions, ModelKind, MrdlabZero, SelectOptions,
+};
+
+/// Model choice on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModelArg {
+    /// Joint-angle estimator, target `theta_rad`.
+    Jae,
+    /// No-load tension model, target `tension1_hat_n`.
+    Tension,
+    /// External force on top of the DOB, target `f_ext_n`.
+    Force,
+}
+
+/// Arguments of `host-sim residual`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ResidualArgs {
+    /// Logs to fit (project CSV, or MRDLab .TXT/.TXT.gz).
+    #[arg(long = "log", required = true, num_args = 1..)]
+    pub logs: Vec<PathBuf>,
+    /// Model to fit.
+    #[arg(long, value_enum, conflicts_with_all = ["target", "inputs"])]
+    pub model: Option<ModelArg>,
+    /// Target column of a generic fit.
+    #[arg(long)]
+    pub target: Option<String>,
+    /// Input columns of a generic fit (default: every non-reference column).
+    #[arg(long, value_delimiter = ',', requires = "target")]
+    pub inputs: Option<Vec<String>>,
+    /// Logs to judge on (default: the last --holdout share of each --log).
+    #[arg(long = "validate", num_args = 1..)]
+    pub validate: Vec<PathBuf>,
+    /// Share of each fitting log held out when no --validate is given.
+    #[arg(long, default_value_t = 0.3, value_parser = cli::f64_in(0.0, 0.95))]
+    pub holdout: f64,
+    /// Write the result as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write plots (SVG and PNG) into this directory.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Configuration (TOML; default: the datasheet values).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Write the configuration with the fitted model (jae, tension, force).
+    #[arg(long = "config-out")]
+    pub config_out: Option<PathBuf>,
+    /// Most effects added.
+    #[arg(long, default_value_t = MAX_TERMS, value_parser = cli::usize_in(0, MAX_TERMS))]
+    pub max_terms: usize,
+    /// Smallest relative cut of the validation RMSE that keeps an effect.
+    #[arg(long, default_value_t = 0.01, value_parser = cli::f64_in(0.0, 1.0))]
+    pub min_gain: f64,
+    /// Candidates set aside in a row before the selection stops.
+    #[arg(long, default_value_t = 20, value_parser = cli::usize_in(0, 100_000))]
+    pub patience: usize,
+    /// Fit on every N-th row (default: enough to keep about 30 000 fitting rows).
+    #[arg(long, value_parser = cli::usize_in(1, 1_000_000))]
+    pub decimate: Option<usize>,
+    /// Use only the first SECONDS of every log.
+    #[arg(long = "t-max", value_parser = cli::f64_above(0.0, 1e6))]
+    pub t_max_s: Option<f64>,
+    /// Leave the first SECONDS of every log out of fitting and validation
+    /// (the terms still run from the first sample).
+    #[arg(long = "settle", default_value_t = 0.0, value_parser = cli::f64_in(0.0, 1e6))]
+    pub settle_s: f64,
+    /// jae/tension: keep the terms already in the configuration's `added`
+    /// (refitted with the baseline) and add new ones after them.
+    #[arg(long = "keep-added")]
+    pub keep_added: bool,
+    /// MRDLab runs: keep the importer's per-run zero of the angles (each
+    /// run's first sample) instead of the encoders' common zero.
+    #[arg(long = "mrdlab-first-zero")]
+    pub mrdlab_first_zero: bool,
+    /// jae/tension/force: also offer terms that read sensors the model does
+    /// not (for the JAE the motor encoder and grating 1). Such a term is
+    /// sensor fusion, not a physical effect, and is labelled `fusion`.
+    #[arg(long = "other-sensors")]
+    pub other_sensors: bool,
+}
+
+/// Run the subcommand.
+pub fn run(args: ResidualArgs) -> Result<()> {
+    let kind = match (&args.model, &args.target) {
+        (Some(ModelArg::Jae), _) => ModelKind::Jae,
+        (Some(ModelArg::Tension), _) => ModelKind::Tension,
+        (Some(ModelArg::Force), _) => ModelKind::Force,
+        (None, Some(t)) => ModelKind::Generic {
+            target: t.clone(),
+            inputs: args.inputs.clone(),
+        },
+        (None, None) => bail!("give --model jae|tension|force or --target COLUMN"),
+    };
+    if args.config_out.is_some() && matches!(kind, ModelKind::Generic { .. }) {
+        bail!("--config-out needs --model jae, tension or force");
+    }
+    let config = match &args.config {
+        Some(p) => crate::io::config::load_config(p)?,
+        None => Config::default(),
+    };
+    let project = !matches!(kind, ModelKind::Generic { .. });
+    let zero = if args.mrdlab_first_zero {
+        MrdlabZero::FirstSample
+    } else {
+        MrdlabZero::Encoder
+    };
+    let fit = read_logs(&args.logs, project, zero, args.t_max_s)?;
+    let validate = read_logs(&args.validate, project, zero, args.t_max_s)?;
+    let options = SelectOptions {
+        max_terms: args.max_terms,
+        min_gain: args.min_gain,
+        patience: args.patience,
+        decimate: args.decimate.unwrap_or(0),
+        ..SelectOptions::default()
+    };
+    let build_opts = BuildOptions {
+        holdout: args.holdout,
+        keep_added: args.keep_added,
+        settle_s: args.settle_s,
+        other_sensors: args.other_sensors,
+        holdout_with_validate: false,
+    };
+    let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
+    print!("{}", report::table(&a));
+    // Every output is staged first and written only if all of them can be:
+    // a failure leaves every existing file as it was.
+    let mut out = Outputs::new();
+    if let Some(path) = &args.config_out {
+        let cfg = config_with(&a, &config)?;
+        crate::io::config::stage_config(&mut out, path, &cfg)?;
+    }
+    if let Some(path) = &args.json {
+        let mut v = report::json(&a);
+        if let Some(c) = &args.config_out {
+            v["config_out"] = serde_json::Value::String(c.display().to_string());
+        }
+        let text = serde_json::to_string_pretty(&v)?;
+        out.bytes(path, text.as_bytes())?;
+    }
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        report::stage_plots(&mut out, &a, dir)?;
+    }
+    let written: Vec<String> = out
+        .commit()?
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    if !written.is_empty() {
+        println!("wrote {}", written.join(", "));
+    }
+    Ok(())
+}

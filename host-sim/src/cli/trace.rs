@@ -1,0 +1,104 @@
+//! `host-sim trace`: its arguments and its run (the recording is
+//! [`crate::trace`]).
+
+use std::fs;
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::cli;
+use crate::output::Outputs;
+use cable_joint::board::firmware_config;
+
+use crate::trace::{record, TraceOptions};
+
+/// Arguments of `host-sim trace`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct TraceArgs {
+    /// Trace file to write (the qemu firmware embeds `firmware/trace.bin`).
+    #[arg(long, default_value = "firmware/trace.bin")]
+    pub out: PathBuf,
+    /// Also write the firmware logic's telemetry as a CSV log.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Plant parameters (TOML, merged over the prototype's defaults).
+    #[arg(long)]
+    pub plant: Option<PathBuf>,
+    /// Seconds recorded after boot (at most [`crate::sim::MAX_TICKS`]
+    /// control ticks).
+    #[arg(long, default_value_t = TraceOptions::default().duration_s,
+          value_parser = cli::f64_above(0.0, f64::MAX))]
+    pub duration_s: f64,
+    /// Seconds the mechanism relaxes with the drive off before boot.
+    #[arg(long, default_value_t = TraceOptions::default().relax_s,
+          value_parser = cli::f64_in(0.0, f64::MAX))]
+    pub relax_s: f64,
+    /// Weight hung on the tip during the hold, N.
+    #[arg(long, default_value_t = TraceOptions::default().load_n, allow_negative_numbers = true,
+          value_parser = cli::f64_in(-100.0, 100.0))]
+    pub load_n: f64,
+    /// When the weight is hung (ramped in over 50 ms), s after boot.
+    #[arg(long, default_value_t = TraceOptions::default().load_at_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
+    pub load_at_s: f64,
+    /// When the drive's fault line is asserted, s after boot (negative:
+    /// never).
+    #[arg(long, default_value_t = TraceOptions::default().drive_fault_at_s,
+          allow_negative_numbers = true, value_parser = cli::f64_in(-1e6, 1e6))]
+    pub drive_fault_at_s: f64,
+    /// Noise seed.
+    #[arg(long, default_value_t = TraceOptions::default().seed)]
+    pub seed: u64,
+}
+
+impl TraceArgs {
+    /// The run these arguments ask for.
+    pub fn options(&self) -> TraceOptions {
+        TraceOptions {
+            duration_s: self.duration_s,
+            relax_s: self.relax_s,
+            load_n: self.load_n,
+            load_at_s: self.load_at_s,
+            drive_fault_at_s: self.drive_fault_at_s,
+            seed: self.seed,
+        }
+    }
+}
+
+/// `host-sim trace`.
+pub fn run(args: TraceArgs) -> anyhow::Result<()> {
+    let plant = crate::io::config::load_plant(args.plant.as_deref())?;
+    let rec = record(plant, &args.options())?;
+    // The trace and the CSV log are written together, or neither is.
+    let mut out = Outputs::new();
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    out.bytes(&args.out, &rec.trace_bytes())?;
+    if let Some(csv) = &args.csv {
+        let log = crate::ingest::to_log(
+            &rec.telemetry(),
+            &firmware_config(),
+            &crate::ingest::LogOptions::default(),
+        )?;
+        log.stage(&mut out, csv)?;
+    }
+    out.commit()?;
+    let homed = rec
+        .outcomes
+        .iter()
+        .rev()
+        .find_map(|o| o.origin)
+        .map(|o| o.tick);
+    eprintln!(
+        "wrote {} ({} ticks at {} Hz; homed at tick {:?})",
+        args.out.display(),
+        rec.samples.len(),
+        rec.control_rate_hz,
+        homed
+    );
+    if let Some(csv) = &args.csv {
+        eprintln!("wrote {}", csv.display());
+    }
+    Ok(())
+}

@@ -9,11 +9,8 @@ use cable_joint::Config;
 use serde::Serialize;
 
 use crate::cli;
-use crate::ident::{
-    identify_bm_with, identify_jae_with, identify_tension_with, validate_bm, validate_jae,
-    validate_tension, FitReport, IdentOptions, IdentifyReport, Validation,
-};
-use crate::io::config::{load_config, stage_config};
+use crate::ident::{identify_in_order, FitReport, IdentOptions, IdentifyReport, Runs};
+use crate::io::config::stage_config;
 use crate::log::Log;
 use crate::output::Outputs;
 use crate::stats::ErrorStats;
@@ -153,17 +150,12 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
         ..IdentOptions::default()
     };
     opts.check()?;
-    let mut config = match &args.config {
-        Some(p) => load_config(p)?,
-        None => Config::default(),
-    };
+    let config = crate::io::config::load_or_default(args.config.as_deref())?;
     let fits = assign(&args.log, args.procedure)?;
     let vals = assign(&args.validate, args.procedure)?;
     let wants = |p: Procedure| args.procedure == p || args.procedure == Procedure::All;
-    let mut rep = IdentifyReport {
-        options: Some(opts),
-        ..IdentifyReport::default()
-    };
+    // Every log is read before the first fit: a bad file fails fast.
+    let mut read = Vec::new();
     for p in [Procedure::Bm, Procedure::Jae, Procedure::Tension] {
         if !wants(p) {
             continue;
@@ -172,57 +164,21 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
         if logs.is_empty() {
             bail!("no log for the {p:?} procedure");
         }
-        let vlogs = read_logs(&vals, p)?;
-        let logs = refs(&logs);
-        match p {
-            Procedure::Bm => {
-                let r = identify_bm_with(&logs, &config, &opts)?;
-                r.apply(&mut config);
-                for (name, log) in &vlogs {
-                    let e = validate_bm(&r, log, &config, &opts)
-                        .with_context(|| format!("validating B_m on {name}"))?;
-                    rep.validation.push(Validation {
-                        log: name.clone(),
-                        model: r.fit.model.clone(),
-                        errors: e,
-                    });
-                }
-                rep.bm = Some(r);
-            }
-            Procedure::Jae => {
-                let r = identify_jae_with(&logs, &config, &opts)?;
-                r.apply(&mut config);
-                for (name, log) in &vlogs {
-                    let e = validate_jae(&r, log, &config, &opts)
-                        .with_context(|| format!("validating the JAE on {name}"))?;
-                    rep.validation.push(Validation {
-                        log: name.clone(),
-                        model: r.fit.model.clone(),
-                        errors: e,
-                    });
-                }
-                rep.jae = Some(r);
-            }
-            Procedure::Tension => {
-                let r = identify_tension_with(&logs, &config, &opts)?;
-                r.apply(&mut config);
-                for (name, log) in &vlogs {
-                    let v = validate_tension(&r, log, &config, &opts)
-                        .with_context(|| format!("validating the tension models on {name}"))?;
-                    for (model, e) in v {
-                        rep.validation.push(Validation {
-                            log: name.clone(),
-                            model,
-                            errors: e,
-                        });
-                    }
-                }
-                rep.tension = Some(r);
-            }
-            Procedure::All => unreachable!("expanded above"),
-        }
+        read.push((p, logs, read_logs(&vals, p)?));
     }
-    Ok((rep, config))
+    let runs = |p: Procedure| {
+        read.iter().find(|(q, _, _)| *q == p).map(|(_, f, v)| Runs {
+            fit: refs(f),
+            validate: refs(v),
+        })
+    };
+    identify_in_order(
+        runs(Procedure::Bm).as_ref(),
+        runs(Procedure::Jae).as_ref(),
+        runs(Procedure::Tension).as_ref(),
+        config,
+        &opts,
+    )
 }
 
 fn fmt_num(v: f64) -> String {

@@ -74,7 +74,8 @@
 //! (`replay.rs`, [`Prepared`]), the design matrix, least squares and the
 //! fit's report (`design.rs`), the pruning (`prune.rs`), one file per
 //! procedure (`bm.rs`, `jae.rs` with `spring.rs` and `joint.rs`,
-//! `tension.rs`) and the results (`results.rs`). The command line is
+//! `tension.rs`), the seed's order over all three (`sequence.rs`) and the
+//! results (`results.rs`). The command line is
 //! [`crate::cli::identify`]; configuration files are [`crate::io::config`].
 
 mod bm;
@@ -85,6 +86,7 @@ mod options;
 mod prune;
 mod replay;
 mod results;
+mod sequence;
 mod spring;
 mod tension;
 mod terms;
@@ -97,6 +99,7 @@ pub use replay::Prepared;
 pub use results::{
     BmResult, FitReport, IdentifyReport, JaeResult, ParamEstimate, TensionResult, Validation,
 };
+pub use sequence::{identify_in_order, Runs};
 pub use spring::{SpringFit, SPRING_MIN_TRAVEL_M};
 pub use tension::{identify_tension, identify_tension_with, validate_tension};
 use terms::term;

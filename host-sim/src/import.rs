@@ -149,6 +149,61 @@ pub struct MrdlabRun {
     pub log: Log,
     /// File name and header information.
     pub meta: MrdlabMeta,
+    /// The first data line's raw fields: the encoders' counts before the
+    /// angles were rebased to the first sample.
+    pub first_raw: [f64; RAW_FIELDS],
+}
+
+/// Zero of the angles of an imported MRDLab run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MrdlabZero {
+    /// The encoders' own zero, common to all runs (default): the jaw angle
+    /// from the jaw encoder's count, the spindle angle from the homing target
+    /// (raw column 10 at the first sample).
+    #[default]
+    Encoder,
+    /// Each run's first sample, as [`import_mrdlab`] gives them.
+    FirstSample,
+}
+
+impl MrdlabRun {
+    /// Put the jaw and spindle angles on `zero` (the import gives them on
+    /// the first sample).
+    ///
+    /// Why [`MrdlabZero::Encoder`]: the jaw and spindle encoders were not
+    /// reset between runs: every run starts with the spindle homed to the
+    /// same count (within 3 of 8192) while the jaw rests up to 20 of 4000
+    /// counts (1.8°) apart, the state the transmission's hysteresis was left
+    /// in. Rebased, each run would carry its own offset of up to 1.8° that no
+    /// input-side signal can explain.
+    ///
+    /// # Errors
+    /// The log lacks `theta_rad` or `spindle_rad`.
+    pub fn set_zero(&mut self, zero: MrdlabZero) -> Result<(), LogError> {
+        if zero == MrdlabZero::FirstSample {
+            return Ok(());
+        }
+        use std::f64::consts::TAU;
+        let first = &self.first_raw;
+        let jaw0 = first[4] * TAU / JAW_COUNTS_PER_REV;
+        // The importer gives (first - raw) for the spindle (sign flipped)
+        // and (raw - first) for the jaw.
+        let spindle0 = (first[9] - first[1]) * TAU / SPINDLE_COUNTS_PER_REV;
+        for (col, d) in [("theta_rad", jaw0), ("spindle_rad", spindle0)] {
+            let v: Vec<f64> = self.log.col_required(col)?.iter().map(|x| x + d).collect();
+            self.log.set_col(col, v)?;
+        }
+        Ok(())
+    }
+}
+
+/// Whether `path` names a raw MRDLab run (`.TXT`, `.TXT.gz`, any case).
+pub fn is_mrdlab_path(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    name.strip_suffix(".gz").unwrap_or(&name).ends_with(".txt")
 }
 
 /// Imports one MRDLab run (`.TXT`, or `.TXT.gz` gunzipped) as a log with the
@@ -304,7 +359,11 @@ pub fn read_mrdlab(reader: impl Read, name: &str) -> Result<MrdlabRun, LogError>
     }
     parse_header(&mut meta);
     let log = convert(&raw).map_err(|(row, col, kind)| err(lines[row], col, kind))?;
-    Ok(MrdlabRun { log, meta })
+    Ok(MrdlabRun {
+        log,
+        meta,
+        first_raw: raw[0],
+    })
 }
 
 /// Time since the first sample, rounded to the nanosecond so that 1 kHz

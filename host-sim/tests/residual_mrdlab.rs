@@ -8,8 +8,9 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use cable_joint::Config;
+use host_sim::import::MrdlabZero;
 use host_sim::residual::{
-    analyse, read_logs, Analysis, BuildOptions, ModelKind, MrdlabZero, NamedLog, SelectOptions,
+    analyse, read_logs, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions,
 };
 
 fn runs(names: &[&str], zero: MrdlabZero) -> Vec<NamedLog> {

@@ -8,9 +8,10 @@ use cable_joint::model::MAX_TERMS;
 use cable_joint::Config;
 
 use crate::cli;
+use crate::import::MrdlabZero;
 use crate::output::Outputs;
 use crate::residual::{
-    analyse, config_with, read_logs, report, BuildOptions, ModelKind, MrdlabZero, SelectOptions,
+    analyse, config_with, read_logs, report, BuildOptions, ModelKind, SelectOptions,
 };
 
 /// Model choice on the command line.

@@ -36,8 +36,10 @@ use anyhow::{bail, ensure, Context, Result};
 use cable_joint::model::{AddedTerms, MAX_TERMS};
 use cable_joint::Config;
 
+use crate::import::MrdlabZero;
+
 pub use problem::{
-    build, is_reference, load_log, BuildOptions, ModelKind, MrdlabZero, NamedLog, REFERENCE_COLUMNS,
+    build, is_reference, load_log, BuildOptions, ModelKind, NamedLog, REFERENCE_COLUMNS,
 };
 pub use select::{select, Outcome, Problem, SelectOptions};
 

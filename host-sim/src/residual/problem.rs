@@ -35,6 +35,7 @@ use cable_joint::Config;
 
 use super::select::{lowpass, reads_other_sensor, term_column, Problem, RunData};
 use crate::derive::{config_for_log, derive, held_sign, median_period_s};
+use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
 use crate::log::{Log, Schema};
 
 /// Which model to fit.
@@ -96,81 +97,15 @@ pub fn is_reference(name: &str) -> bool {
     REFERENCE_COLUMNS.contains(&name) || name.contains("_true")
 }
 
-/// Zero of the angles of an imported MRDLab run.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum MrdlabZero {
-    /// The encoders' own zero, common to all runs (default): the jaw angle
-    /// from the jaw encoder's count, the spindle angle from the homing target
-    /// (raw column 10 at the first sample).
-    #[default]
-    Encoder,
-    /// Each run's first sample, as [`crate::import`] gives them.
-    FirstSample,
-}
-
-/// The first data line of a raw MRDLab file (for the encoders' zero).
-fn mrdlab_first_row(path: &Path) -> Result<Vec<f64>> {
-    use std::io::BufRead;
-    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let gz = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
-    let reader: Box<dyn std::io::Read> = if gz {
-        Box::new(flate2::read::MultiGzDecoder::new(file))
-    } else {
-        Box::new(file)
-    };
-    for line in std::io::BufReader::new(reader).lines() {
-        let line = line.with_context(|| format!("reading {}", path.display()))?;
-        if line.starts_with('%') || line.trim().is_empty() {
-            continue;
-        }
-        return line
-            .split(',')
-            .map(|c| c.trim().parse::<f64>().map_err(anyhow::Error::from))
-            .collect::<Result<Vec<f64>>>()
-            .with_context(|| format!("{}: first data line", path.display()));
-    }
-    bail!("{}: no data line", path.display())
-}
-
-/// Read a log: MRDLab raw runs (`.TXT`, `.TXT.gz`) are imported (angles on
-/// `zero`), anything else is read as a CSV log (`project`: with the
-/// project's required columns; otherwise any columns, `t_s` required).
-///
-/// Why [`MrdlabZero::Encoder`]: the importer rebases every angle to the run's
-/// first sample. The jaw and spindle encoders were not reset between runs:
-/// every run starts with the spindle homed to the same count (within 3 of
-/// 8192) while the jaw rests up to 20 of 4000 counts (1.8°) apart, the state
-/// the transmission's hysteresis was left in. Rebased, each run would carry
-/// its own offset of up to 1.8° that no input-side signal can explain.
+/// Read a log: MRDLab raw runs (`.TXT`, `.TXT.gz`) are imported with their
+/// angles on `zero` ([`MrdlabRun::set_zero`](crate::import::MrdlabRun::set_zero)), anything else is read as a
+/// CSV log (`project`: with the project's required columns; otherwise any
+/// columns, `t_s` required).
 pub fn load_log(path: &Path, project: bool, zero: MrdlabZero) -> Result<Log> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    let stem = name.strip_suffix(".gz").unwrap_or(&name);
-    if stem.ends_with(".txt") {
-        let mut log = crate::import::import_mrdlab(path)?;
-        if zero == MrdlabZero::Encoder {
-            use crate::import::{JAW_COUNTS_PER_REV, SPINDLE_COUNTS_PER_REV};
-            use std::f64::consts::TAU;
-            let first = mrdlab_first_row(path)?;
-            ensure!(
-                first.len() >= 10,
-                "{}: short first data line",
-                path.display()
-            );
-            let jaw0 = first[4] * TAU / JAW_COUNTS_PER_REV;
-            // The importer gives (first - raw) for the spindle (sign flipped)
-            // and (raw - first) for the jaw.
-            let spindle0 = (first[9] - first[1]) * TAU / SPINDLE_COUNTS_PER_REV;
-            for (col, d) in [("theta_rad", jaw0), ("spindle_rad", spindle0)] {
-                let v: Vec<f64> = log.col_required(col)?.iter().map(|x| x + d).collect();
-                log.set_col(col, v)?;
-            }
-        }
-        return Ok(log);
+    if is_mrdlab_path(path) {
+        let mut run = import_mrdlab_run(path)?;
+        run.set_zero(zero)?;
+        return Ok(run.log);
     }
     let schema = if project {
         Schema::project()

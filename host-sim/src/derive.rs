@@ -45,6 +45,21 @@ pub fn held_sign(vel: impl IntoIterator<Item = f32>, switch_speed: f32) -> Vec<f
         .collect()
 }
 
+/// A first-order low-pass (the core's [`LowPass1`](cable_joint::filter::LowPass1),
+/// e.g. the DOB's `Q`) over a whole column, started settled at its first
+/// value (as the observer's reset does), in the core's `f32` arithmetic. The
+/// one implementation the identification, the residual loop and the report
+/// share.
+pub fn low_pass_column<T: Copy + Into<f64>>(
+    lp: cable_joint::filter::LowPass1,
+    u: &[T],
+) -> Vec<f64> {
+    let mut y = u.first().map(|v| (*v).into() as f32).unwrap_or(0.0);
+    u.iter()
+        .map(|v| f64::from(lp.update(&mut y, (*v).into() as f32)))
+        .collect()
+}
+
 /// Median time step of a log, s.
 pub fn median_period_s(t_s: &[f64]) -> Option<f64> {
     if t_s.len() < 2 {

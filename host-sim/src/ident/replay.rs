@@ -5,7 +5,7 @@ use cable_joint::filter::{Kinematics, LowPass1, TrackingObserver};
 use cable_joint::Config;
 
 use super::{IdentOptions, Regressor};
-use crate::derive::{config_for_log, derive, held_sign};
+use crate::derive::{config_for_log, derive, held_sign, low_pass_column};
 use crate::log::Log;
 
 /// A log replayed through the core, with the columns the models need (the
@@ -239,19 +239,15 @@ impl Prepared {
             (2.0 * std::f64::consts::PI * cutoff_hz) as f32,
             self.cfg.period_s(),
         );
-        let mut y = col.first().copied().unwrap_or(0.0) as f32;
-        col.iter()
-            .map(|u| f64::from(lp.update(&mut y, *u as f32)))
-            .collect()
+        low_pass_column(lp, col)
     }
 
     /// The DOB's low-pass `Q` over a whole column (state starts at the first
     /// value: the log starts at rest).
     pub fn dob_filter(&self, col: &[f64]) -> Vec<f64> {
-        let lp = LowPass1::new(self.cfg.dob.cutoff_rad_s, self.cfg.period_s());
-        let mut y = col.first().copied().unwrap_or(0.0) as f32;
-        col.iter()
-            .map(|u| f64::from(lp.update(&mut y, *u as f32)))
-            .collect()
+        low_pass_column(
+            LowPass1::new(self.cfg.dob.cutoff_rad_s, self.cfg.period_s()),
+            col,
+        )
     }
 }

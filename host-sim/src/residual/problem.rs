@@ -33,8 +33,8 @@ use cable_joint::filter::{LowPass1, TrackingObserver};
 use cable_joint::model::{sig, SIGNAL_NAMES};
 use cable_joint::Config;
 
-use super::select::{lowpass, reads_other_sensor, term_column, Problem, RunData};
-use crate::derive::{config_for_log, derive, held_sign, median_period_s};
+use super::select::{reads_other_sensor, term_column, Problem, RunData};
+use crate::derive::{config_for_log, derive, held_sign, low_pass_column, median_period_s};
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
 use crate::log::{Log, Schema};
 
@@ -488,9 +488,9 @@ fn core_run(
                 target,
                 vec![0.0; n],
                 vec![
-                    lowpass(lp, &s1),
-                    lowpass(lp, &s2),
-                    lowpass(lp, s(sig::X2_M)),
+                    low_pass_column(lp, &s1),
+                    low_pass_column(lp, &s2),
+                    low_pass_column(lp, s(sig::X2_M)),
                     vec![1.0; n],
                 ],
                 ["Q[sgn(x1_vel)]", "Q[sgn(x2_vel)]", "Q[x2_m]", "F_0", ""],

@@ -27,6 +27,8 @@ use cable_joint::effects::{EffectKind, Term, TermState};
 use cable_joint::filter::LowPass1;
 use cable_joint::lsq::{BatchLsq, Fit, LsqConfig};
 
+use crate::derive::low_pass_column;
+
 /// Largest number of regressors (baseline plus effects) in one fit.
 pub const MAX_COLUMNS: usize = 32;
 
@@ -405,18 +407,9 @@ pub fn term_column(
         out.push(term.update(&mut st, &row, dt));
     }
     match prefilter {
-        Some(lp) => lowpass(lp, &out),
+        Some(lp) => low_pass_column(lp, &out),
         None => out.into_iter().map(f64::from).collect(),
     }
-}
-
-/// The DOB's low-pass applied to a column, started settled at its first
-/// value (as the observer's reset does), in the core's `f32` arithmetic.
-pub fn lowpass<T: Copy + Into<f64>>(lp: LowPass1, u: &[T]) -> Vec<f64> {
-    let mut y = u.first().map(|v| (*v).into() as f32).unwrap_or(0.0);
-    u.iter()
-        .map(|v| f64::from(lp.update(&mut y, (*v).into() as f32)))
-        .collect()
 }
 
 /// Rows and columns of one data split, column-major.

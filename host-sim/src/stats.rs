@@ -213,6 +213,14 @@ impl ErrorStats {
     }
 }
 
+/// Root mean square of `v` (NaN when empty).
+pub fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    (v.iter().zip(v).map(|(x, y)| x * y).sum::<f64>() / v.len() as f64).sqrt()
+}
+
 /// Integrated autocorrelation time of a series, in samples, by batch
 /// means: for blocks of `L = 1, 2, 4, ...` samples (at least 20 blocks),
 /// `tau_L = L var(block means) / var(samples)`; the largest is returned. It

@@ -26,9 +26,12 @@
 //!   selected terms in `added` (at most [`MAX_TERMS`]), which the core's
 //!   estimators evaluate at run time.
 
+pub mod families;
+pub mod outcome;
 pub mod problem;
 pub mod report;
 pub mod select;
+mod split;
 
 use std::path::PathBuf;
 
@@ -38,10 +41,11 @@ use cable_joint::Config;
 
 use crate::import::MrdlabZero;
 
+pub use outcome::Outcome;
 pub use problem::{
     build, is_reference, load_log, BuildOptions, ModelKind, NamedLog, REFERENCE_COLUMNS,
 };
-pub use select::{select, Outcome, Problem, SelectOptions};
+pub use select::{select, Problem, SelectOptions};
 
 /// Fitting rows the automatic decimation aims at.
 pub const AUTO_FIT_ROWS: usize = 30_000;

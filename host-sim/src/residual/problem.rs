@@ -33,7 +33,8 @@ use cable_joint::filter::{LowPass1, TrackingObserver};
 use cable_joint::model::{sig, SIGNAL_NAMES};
 use cable_joint::Config;
 
-use super::select::{reads_other_sensor, term_column, Problem, RunData};
+use super::families::{reads_other_sensor, term_column, term_label};
+use super::select::{Problem, RunData};
 use crate::derive::{config_for_log, derive, held_sign, low_pass_column, median_period_s};
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
 use crate::log::{Log, Schema};
@@ -548,7 +549,7 @@ fn core_run(
             ));
             problem
                 .baseline_names
-                .push(super::select::term_label(t, &problem.signal_names));
+                .push(term_label(t, &problem.signal_names));
         }
         problem.kept = added.active().to_vec();
     }

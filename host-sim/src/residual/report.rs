@@ -7,7 +7,7 @@ use anyhow::Result;
 use cable_joint::effects::Term;
 use serde_json::{json, Value};
 
-use super::select::{Coef, Diagnostics, Step};
+use super::outcome::{Coef, Diagnostics, Step};
 use super::Analysis;
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Panel, Series};

@@ -12,13 +12,16 @@
 //!   directory and renames it over the target: a failed write leaves the old
 //!   file as it was.
 //! * A path ending in `.gz` is gunzipped on reading and gzipped on writing.
+//! * Records are split and written by the `csv` crate: quoted cells and
+//!   names (a spreadsheet's export), a BOM and CRLF line ends are read as
+//!   the plain file; cells are trimmed.
 //!
 //! Numbers are written in Rust's shortest round-trip form, so a log read back
 //! is bit-identical to the one written.
 
 use std::fmt;
 use std::fs::File;
-use std::io::{self, BufRead, BufReader, BufWriter, Read, Write};
+use std::io::{self, Read, Write};
 use std::path::Path;
 
 use crate::output::{OutputError, Outputs};
@@ -709,25 +712,41 @@ impl Log {
     /// # Errors
     /// The first problem found, naming `name`, line and column.
     pub fn from_reader(reader: impl Read, name: &str, schema: &Schema) -> Result<Self, LogError> {
-        let mut lines = BufReader::new(reader);
-        let mut buf = String::new();
-        let mut line_no = 0usize;
+        // The `csv` crate splits the records (quoted fields, CRLF, a BOM);
+        // cells are trimmed and checked here.
+        let mut rdr = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .from_reader(MarkLineEnds::new(reader));
+        let mut rec = csv::StringRecord::new();
+        let read = |rdr: &mut csv::Reader<_>, rec: &mut csv::StringRecord, next_line: usize| {
+            let more = rdr
+                .read_record(rec)
+                .map_err(|e| csv_error(name, e, next_line))?;
+            let line = rec.position().map_or(next_line, |p| p.line() as usize);
+            // A cell spanning lines would shift every later line number.
+            if more && rec.iter().any(|f| f.contains(['\n', '\r'])) {
+                let cell = rec.iter().find(|f| f.contains(['\n', '\r'])).unwrap_or("");
+                return Err(
+                    LogError::new(name, LogErrorKind::NotANumber(cell.to_owned())).at_line(line),
+                );
+            }
+            Ok::<_, LogError>(more.then_some(line))
+        };
 
-        // Header.
-        let n = lines
-            .read_line(&mut buf)
-            .map_err(|e| LogError::io(name, e).at_line(1))?;
-        if n == 0 {
-            return Err(LogError::new(name, LogErrorKind::EmptyFile).at_line(1));
-        }
-        line_no += 1;
-        let header = buf.trim_end_matches(['\n', '\r']);
-        let header = header.strip_prefix('\u{feff}').unwrap_or(header);
-        if header.trim().is_empty() {
+        // Header: the first line.
+        let header_line = read(&mut rdr, &mut rec, 1)?;
+        let blank = |rec: &csv::StringRecord| rec.len() == 1 && rec[0].trim().is_empty();
+        if header_line != Some(1) || blank(&rec) {
             return Err(LogError::new(name, LogErrorKind::EmptyFile).at_line(1));
         }
         let mut log = Self::new();
-        for field in header.split(',') {
+        for (i, field) in rec.iter().enumerate() {
+            let field = if i == 0 {
+                field.strip_prefix('\u{feff}').unwrap_or(field)
+            } else {
+                field
+            };
             let field = field.trim();
             if !check_name(field) {
                 return Err(LogError::new(name, LogErrorKind::BadName)
@@ -791,26 +810,20 @@ impl Log {
         // ignored, before another row they are rows (of one empty cell), so
         // data row `k` (0-based) is always on line `k + 2`.
         let mut pending_blank: Vec<usize> = Vec::new();
-        loop {
-            buf.clear();
-            let n = lines
-                .read_line(&mut buf)
-                .map_err(|e| LogError::io(name, e).at_line(line_no + 1))?;
-            if n == 0 {
-                break;
-            }
-            line_no += 1;
-            let text = buf.trim_end_matches(['\n', '\r']);
-            if text.trim().is_empty() {
-                pending_blank.push(line_no);
+        let mut next_line = 2usize;
+        let blank_row = csv::StringRecord::from(vec![""]);
+        while let Some(line) = read(&mut rdr, &mut rec, next_line)? {
+            next_line = line + 1;
+            if blank(&rec) {
+                pending_blank.push(line);
                 continue;
             }
             for blank_line in std::mem::take(&mut pending_blank) {
-                log.parse_row(name, blank_line, "", &required)?;
+                log.parse_row(name, blank_line, &blank_row, &required)?;
                 check_time(&log, blank_line)?;
             }
-            log.parse_row(name, line_no, text, &required)?;
-            check_time(&log, line_no)?;
+            log.parse_row(name, line, &rec, &required)?;
+            check_time(&log, line)?;
         }
         log.validate_at(schema, name, line_of_row, 1)?;
         Ok(log)
@@ -820,11 +833,11 @@ impl Log {
         &mut self,
         file: &str,
         line: usize,
-        text: &str,
+        fields: &csv::StringRecord,
         required: &[bool],
     ) -> Result<(), LogError> {
         let ncols = self.cols.len();
-        if text.is_empty() && ncols > 1 {
+        if fields.len() == 1 && fields[0].trim().is_empty() && ncols > 1 {
             return Err(LogError::new(
                 file,
                 LogErrorKind::TooFewFields {
@@ -837,7 +850,7 @@ impl Log {
         }
         let mut count = 0usize;
         let mut parsed: Vec<Option<f64>> = Vec::with_capacity(ncols);
-        for field in text.split(',') {
+        for field in fields {
             count += 1;
             if count > ncols {
                 continue;
@@ -935,28 +948,20 @@ impl Log {
     }
 
     fn write_unchecked(&self, w: impl Write) -> io::Result<()> {
-        let mut w = BufWriter::new(w);
-        let mut line = String::new();
-        for (i, col) in self.cols.iter().enumerate() {
-            if i > 0 {
-                line.push(',');
-            }
-            line.push_str(&col.name);
-        }
-        line.push('\n');
-        w.write_all(line.as_bytes())?;
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(false)
+            .terminator(csv::Terminator::Any(b'\n'))
+            .from_writer(w);
+        w.write_record(self.cols.iter().map(|c| c.name.as_str()))?;
+        let mut cells = vec![String::new(); self.cols.len()];
         for row in 0..self.rows {
-            line.clear();
-            for (i, col) in self.cols.iter().enumerate() {
-                if i > 0 {
-                    line.push(',');
-                }
+            for (cell, col) in cells.iter_mut().zip(&self.cols) {
+                cell.clear();
                 if col.is_measured(row) {
-                    fmt_value(&mut line, col.values[row]);
+                    fmt_value(cell, col.values[row]);
                 }
             }
-            line.push('\n');
-            w.write_all(line.as_bytes())?;
+            w.write_record(&cells)?;
         }
         w.flush()
     }
@@ -1003,6 +1008,81 @@ impl Log {
 
 fn output_err(e: OutputError) -> LogError {
     LogError::new(e.path.display().to_string(), LogErrorKind::Io(e.error))
+}
+
+/// A reader that ends every line with a space and a bare `\n`. The `csv`
+/// crate skips empty lines and, after a CRLF, numbers the next record from
+/// the line before; with every line break a plain ` \n`, a blank line is a
+/// record of one blank cell (cells are trimmed), so blank lines keep their
+/// meaning (see [`Log::read`]) and every record's line number is its
+/// line's. A carriage return not followed by `\n` is kept (after a space).
+struct MarkLineEnds<R> {
+    inner: R,
+    buf: Vec<u8>,
+    pos: usize,
+    /// A carriage return was read and not yet written.
+    pending_cr: bool,
+    done: bool,
+}
+
+impl<R> MarkLineEnds<R> {
+    fn new(inner: R) -> Self {
+        Self {
+            inner,
+            buf: Vec::new(),
+            pos: 0,
+            pending_cr: false,
+            done: false,
+        }
+    }
+}
+
+impl<R: Read> Read for MarkLineEnds<R> {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        while self.pos == self.buf.len() && !self.done {
+            let mut raw = [0u8; 8192];
+            let n = self.inner.read(&mut raw)?;
+            self.buf.clear();
+            self.pos = 0;
+            if n == 0 {
+                self.done = true;
+                if std::mem::take(&mut self.pending_cr) {
+                    self.buf.extend_from_slice(b" \r");
+                }
+            }
+            for &b in &raw[..n] {
+                if std::mem::take(&mut self.pending_cr) && b != b'\n' {
+                    self.buf.extend_from_slice(b" \r");
+                }
+                match b {
+                    b'\r' => self.pending_cr = true,
+                    b'\n' => self.buf.extend_from_slice(b" \n"),
+                    _ => self.buf.push(b),
+                }
+            }
+        }
+        let k = out.len().min(self.buf.len() - self.pos);
+        out[..k].copy_from_slice(&self.buf[self.pos..self.pos + k]);
+        self.pos += k;
+        Ok(k)
+    }
+}
+
+/// A reading error of the `csv` crate as the log's error: I/O or text that
+/// is not UTF-8, at the line it was found on.
+fn csv_error(name: &str, e: csv::Error, next_line: usize) -> LogError {
+    let line = e.position().map_or(next_line, |p| p.line() as usize);
+    let kind = match e.into_kind() {
+        csv::ErrorKind::Io(io) => LogErrorKind::Io(io),
+        other => LogErrorKind::Io(io::Error::new(
+            io::ErrorKind::InvalidData,
+            match other {
+                csv::ErrorKind::Utf8 { .. } => "stream did not contain valid UTF-8".to_owned(),
+                other => format!("{other:?}"),
+            },
+        )),
+    };
+    LogError::new(name, kind).at_line(line)
 }
 
 /// 1-based line of 0-based data row `row` of a log read from a file (the

@@ -161,6 +161,43 @@ fn reader_accepts_crlf_bom_spaces_and_trailing_blank_lines() {
     assert_eq!(log.col("i_ref_a").unwrap(), &[0.5; 12]);
 }
 
+/// A spreadsheet's export: every cell quoted, a BOM, CRLF line ends. It
+/// reads as the plain file does; line numbers in errors stay the file's.
+#[test]
+fn quoted_cells_and_names_from_a_spreadsheet_read_as_the_plain_file() {
+    let plain = join(&good_lines(12));
+    let quote = |line: &str| {
+        line.split(',')
+            .map(|c| format!("\"{c}\""))
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    let mut quoted: String = plain.lines().map(|l| quote(l) + "\r\n").collect();
+    quoted.insert(0, '\u{feff}');
+    let a = Log::from_reader(plain.as_bytes(), "plain.csv", &Schema::project()).unwrap();
+    let b = Log::from_reader(quoted.as_bytes(), "quoted.csv", &Schema::project()).unwrap();
+    assert_bit_identical(&a, &b);
+    // A bad quoted cell is named at its own line, as an unquoted one is.
+    let bad = quoted.replacen("\"0.5\"", "\"abc\"", 4);
+    let e = read_err(&bad, &Schema::project());
+    assert!(
+        matches!(e.kind, LogErrorKind::NotANumber(ref c) if c == "abc"),
+        "{e}"
+    );
+    assert_eq!(
+        (e.line, e.column.as_deref()),
+        (Some(2), Some("i_ref_a")),
+        "{e}"
+    );
+    // A quoted cell that spans lines would shift every later line: refused.
+    let e = read_err(
+        &quoted.replacen("\"0.5\"", "\"0.5\n\"", 1),
+        &Schema::project(),
+    );
+    assert!(matches!(e.kind, LogErrorKind::NotANumber(_)), "{e}");
+    assert_eq!(e.line, Some(2), "{e}");
+}
+
 #[test]
 fn non_numeric_cell_names_file_line_and_column() {
     let mut lines = good_lines(30);

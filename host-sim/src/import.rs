@@ -240,6 +240,9 @@ pub fn import_mrdlab_run(path: impl AsRef<Path>) -> Result<MrdlabRun, LogError> 
 /// used in messages and, if its file name has the form `XY.TXT...`, for
 /// [`MrdlabMeta::freq_index`] and [`MrdlabMeta::torque_index`].
 ///
+/// One pass over the lines (header comments, data, blank lines), each check
+/// next to the error it names; split, it would pass the line state around.
+///
 /// # Errors
 /// As [`import_mrdlab`].
 pub fn read_mrdlab(reader: impl Read, name: &str) -> Result<MrdlabRun, LogError> {

@@ -297,7 +297,8 @@ fn complex(amplitude_deg: f64, base_freq_hz: f32) -> Trajectory {
     }
 }
 
-/// Build a scenario's plan.
+/// Build a scenario's plan. Long by design: one `match` arm per scenario,
+/// each a short list of segments, read best side by side.
 pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
     anyhow::ensure!(
         opts.duration_scale.is_finite() && opts.duration_scale > 0.0,

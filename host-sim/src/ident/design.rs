@@ -44,6 +44,11 @@ pub(super) struct Design {
     pub(super) y: Vec<f64>,
 }
 
+/// The design matrix of `regs` against `target` over the usable rows of
+/// every replayed log (after the start-up, not faulted, not still for the
+/// tension fits, finite), with a warning for each log that lost rows to its
+/// data. One loop per log keeps each row's reason for being left out next
+/// to the row count it goes into.
 pub(super) fn design(
     preps: &[Prepared],
     regs: &[Regressor],

@@ -295,22 +295,41 @@ pub fn build(
         "settle time must be >= 0, got {}",
         opts.settle_s
     );
-    let mut runs = Vec::new();
     let mut problem = Problem {
         model: kind.name().to_owned(),
         target: kind.target().to_owned(),
         ..Default::default()
     };
+    let period0 = median_period_s(fit[0].log.time_s()?).context("log too short")?;
+    let (runs, info) = build_runs(kind, fit, validate, config, opts, period0, &mut problem)?;
+    problem.runs = runs;
+    let roles = roles_of(kind, &problem.signal_names);
+    problem.other_sensors = other_sensors_of(kind);
+    problem.candidates = candidates(kind, &roles, &problem, period0, opts);
+    Ok((problem, info))
+}
+
+/// Every log replayed into a run (its signals, target and baseline), with
+/// its fitting and validation rows; the configuration at the logs' rate.
+fn build_runs(
+    kind: &ModelKind,
+    fit: &[NamedLog],
+    validate: &[NamedLog],
+    config: &Config,
+    opts: BuildOptions,
+    period0: f64,
+    problem: &mut Problem,
+) -> Result<(Vec<RunData>, BuildInfo)> {
     let mut info = BuildInfo { config: *config };
     let all = fit
         .iter()
         .map(|l| (l, true))
         .chain(validate.iter().map(|l| (l, false)));
-    let period0 = median_period_s(fit[0].log.time_s()?).context("log too short")?;
     let generic_cols = match kind {
         ModelKind::Generic { target, inputs } => Some(generic_columns(&fit[0], target, inputs)?),
         _ => None,
     };
+    let mut runs = Vec::new();
     for (nl, is_fit) in all {
         let n = nl.log.len();
         let p = median_period_s(nl.log.time_s()?).context("log too short")?;
@@ -328,10 +347,10 @@ pub fn build(
         let mut run = match kind {
             ModelKind::Generic { target, .. } => {
                 let (inputs, velocities) = generic_cols.as_ref().map(|c| (&c.0, &c.1)).unwrap();
-                generic_run(nl, target, inputs, velocities, config, &mut problem)?
+                generic_run(nl, target, inputs, velocities, config, problem)?
             }
             _ => {
-                let (run, cfg) = core_run(kind, nl, config, opts.keep_added, &mut problem)?;
+                let (run, cfg) = core_run(kind, nl, config, opts.keep_added, problem)?;
                 info.config = cfg;
                 run
             }
@@ -352,9 +371,12 @@ pub fn build(
         run.val_rows = v;
         runs.push(run);
     }
-    problem.runs = runs;
+    Ok((runs, info))
+}
 
-    let roles = match kind {
+/// The signals each role's candidates read.
+fn roles_of(kind: &ModelKind, signal_names: &[String]) -> Roles {
+    match kind {
         ModelKind::Jae => Roles {
             position: vec![sig::X2_M, sig::X1_M, sig::THETA_MOTOR_RAD],
             velocity: vec![sig::X2_VEL_M_S, sig::X1_VEL_M_S, sig::PHI_VEL_RAD_S],
@@ -373,12 +395,17 @@ pub fn build(
             current: vec![sig::I_REF_A],
             load: vec![sig::I_REF_A],
         },
-        ModelKind::Generic { .. } => generic_roles(&problem.signal_names),
-    };
+        ModelKind::Generic { .. } => generic_roles(signal_names),
+    }
+}
+
+/// The signals of sensors the model does not read (terms on them are
+/// fusion, offered only when asked).
+fn other_sensors_of(kind: &ModelKind) -> Vec<u8> {
     // The JAE (Eq. 26) reads slider 2 alone: the motor encoder and grating 1
     // are other sensors for it. The tension and force models read both
     // sliders and the motor's speed; the motor's angle is not in them.
-    problem.other_sensors = match kind {
+    match kind {
         ModelKind::Jae => vec![
             sig::X1_M,
             sig::X1_VEL_M_S,
@@ -388,8 +415,19 @@ pub fn build(
         ],
         ModelKind::Tension | ModelKind::Force => vec![sig::PHI_RAD, sig::THETA_MOTOR_RAD],
         ModelKind::Generic { .. } => Vec::new(),
-    };
-    let mut lib = library(&roles, &problem.runs, period0, duration_s(&problem.runs));
+    }
+}
+
+/// The candidate effect terms for `kind`: the library on its roles, less
+/// what its physics rules out.
+fn candidates(
+    kind: &ModelKind,
+    roles: &Roles,
+    problem: &Problem,
+    period0: f64,
+    opts: BuildOptions,
+) -> Vec<Term> {
+    let mut lib = library(roles, &problem.runs, period0, duration_s(&problem.runs));
     if !opts.other_sensors {
         lib.retain(|t| !reads_other_sensor(t, &problem.other_sensors));
     }
@@ -415,8 +453,7 @@ pub fn build(
             !reads_current || matches!(t.kind, EffectKind::Thermal { .. })
         });
     }
-    problem.candidates = lib;
-    Ok((problem, info))
+    lib
 }
 
 fn core_run(
@@ -506,52 +543,14 @@ fn core_run(
         ModelKind::Generic { .. } => bail!("internal: generic model in core_run"),
     };
     warn_unmeasured(&nl.name, kind.target(), &target);
-    // Ticks the replay flags as faulted are neither fitted nor judged.
-    if let Some(fault) = d.col("fault_code") {
-        if let Some(k) = fault.iter().position(|f| *f != 0.0) {
-            let code = fault[k] as u8;
-            let name = cable_joint::Fault::from_code(code)
-                .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
-            eprintln!(
-                "warning: {}: the replay latched {name} at line {} (t = {} s): {} of {n} rows \
-                 are neither fitted nor judged",
-                nl.name,
-                crate::log::line_of_row(k),
-                t_s[k],
-                fault.iter().filter(|f| **f != 0.0).count()
-            );
-        }
-        for (y, f) in target.iter_mut().zip(fault) {
-            if *f != 0.0 {
-                *y = f64::NAN;
-            }
-        }
-    }
+    drop_faulted_rows(&nl.name, &d, &t_s, &mut target);
     problem.baseline_names = names
         .iter()
         .take(baseline.len())
         .map(|s| (*s).to_owned())
         .collect();
     if keep_added {
-        let (added, prefilter) = match kind {
-            ModelKind::Jae => (cfg.jae.added, None),
-            ModelKind::Tension => (cfg.tension.added, Some(lp)),
-            // The force estimate already contains config.tension.added.
-            _ => (Default::default(), None),
-        };
-        for t in added.active() {
-            baseline.push(term_column(
-                t,
-                &signals,
-                &t_s,
-                Some(cfg.period_s()),
-                prefilter,
-            ));
-            problem
-                .baseline_names
-                .push(term_label(t, &problem.signal_names));
-        }
-        problem.kept = added.active().to_vec();
+        keep_added_terms(kind, &cfg, &signals, &t_s, &mut baseline, problem);
     }
     Ok((
         RunData {
@@ -566,6 +565,65 @@ fn core_run(
         },
         cfg,
     ))
+}
+
+/// Ticks the replay flags as faulted are neither fitted nor judged: their
+/// target becomes NaN, with one warning naming the first fault.
+fn drop_faulted_rows(name: &str, d: &Log, t_s: &[f64], target: &mut [f64]) {
+    let Some(fault) = d.col("fault_code") else {
+        return;
+    };
+    if let Some(k) = fault.iter().position(|f| *f != 0.0) {
+        let code = fault[k] as u8;
+        let what = cable_joint::Fault::from_code(code)
+            .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+        eprintln!(
+            "warning: {name}: the replay latched {what} at line {} (t = {} s): {} of {} rows \
+             are neither fitted nor judged",
+            crate::log::line_of_row(k),
+            t_s[k],
+            fault.iter().filter(|f| **f != 0.0).count(),
+            t_s.len()
+        );
+    }
+    for (y, f) in target.iter_mut().zip(fault) {
+        if *f != 0.0 {
+            *y = f64::NAN;
+        }
+    }
+}
+
+/// `--keep-added`: the configuration's terms already in the model become
+/// baseline columns (the tension's through the DOB's `Q`), so the loop
+/// continues from them.
+fn keep_added_terms(
+    kind: &ModelKind,
+    cfg: &Config,
+    signals: &[Vec<f32>],
+    t_s: &[f64],
+    baseline: &mut Vec<Vec<f64>>,
+    problem: &mut Problem,
+) {
+    let lp = LowPass1::new(cfg.dob.cutoff_rad_s, cfg.period_s());
+    let (added, prefilter) = match kind {
+        ModelKind::Jae => (cfg.jae.added, None),
+        ModelKind::Tension => (cfg.tension.added, Some(lp)),
+        // The force estimate already contains config.tension.added.
+        _ => (Default::default(), None),
+    };
+    for t in added.active() {
+        baseline.push(term_column(
+            t,
+            signals,
+            t_s,
+            Some(cfg.period_s()),
+            prefilter,
+        ));
+        problem
+            .baseline_names
+            .push(term_label(t, &problem.signal_names));
+    }
+    problem.kept = added.active().to_vec();
 }
 
 /// Inputs and derived velocities `(position input, velocity name)` of a

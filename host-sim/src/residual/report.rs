@@ -7,7 +7,7 @@ use anyhow::Result;
 use cable_joint::effects::Term;
 use serde_json::{json, Value};
 
-use super::outcome::{Coef, Diagnostics, Step};
+use super::outcome::{Coef, Diagnostics, Outcome, Step};
 use super::Analysis;
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Panel, Series};
@@ -259,6 +259,26 @@ pub fn table(a: &Analysis) -> String {
         o.baseline.val_rmse * scale,
         o.baseline.train_rmse * scale
     );
+    accepted_rows(&mut s, o, scale);
+    let _ = writeln!(
+        s,
+        "{:<4}{:<44} {:>12.4} {:>12.4}   ({:.1} % lower than the baseline)",
+        "",
+        "final",
+        o.final_fit.val_rmse * scale,
+        o.final_fit.train_rmse * scale,
+        100.0 * (1.0 - o.final_fit.val_rmse / o.baseline.val_rmse)
+    );
+    rejected_rows(&mut s, a, scale, unit);
+    other_sensors_row(&mut s, a);
+    diag_rows(&mut s, &o.before, &o.after, scale, unit);
+    run_rows(&mut s, o, scale, unit);
+    s
+}
+
+/// Each kept term: its errors, family, meaning and coefficient, its
+/// evidence and a rival family.
+fn accepted_rows(s: &mut String, o: &Outcome, scale: f64) {
     let nb = o.baseline.coefs.len();
     for (k, st) in o.accepted.iter().enumerate() {
         let _ = writeln!(
@@ -297,15 +317,11 @@ pub fn table(a: &Analysis) -> String {
             );
         }
     }
-    let _ = writeln!(
-        s,
-        "{:<4}{:<44} {:>12.4} {:>12.4}   ({:.1} % lower than the baseline)",
-        "",
-        "final",
-        o.final_fit.val_rmse * scale,
-        o.final_fit.train_rmse * scale,
-        100.0 * (1.0 - o.final_fit.val_rmse / o.baseline.val_rmse)
-    );
+}
+
+/// The terms set aside and why.
+fn rejected_rows(s: &mut String, a: &Analysis, scale: f64, unit: &str) {
+    let o = &a.outcome;
     if !o.rejected.is_empty() {
         let _ = writeln!(
             s,
@@ -328,6 +344,10 @@ pub fn table(a: &Analysis) -> String {
             );
         }
     }
+}
+
+/// Whether terms on other sensors were offered.
+fn other_sensors_row(s: &mut String, a: &Analysis) {
     if !a.problem.other_sensors.is_empty() {
         let names: Vec<&str> = a
             .problem
@@ -346,7 +366,10 @@ pub fn table(a: &Analysis) -> String {
             }
         );
     }
-    diag_rows(&mut s, &o.before, &o.after, scale, unit);
+}
+
+/// Each validation run's error before and after (with several runs).
+fn run_rows(s: &mut String, o: &Outcome, scale: f64, unit: &str) {
     if o.runs.len() > 1 {
         let _ = writeln!(
             s,
@@ -363,7 +386,6 @@ pub fn table(a: &Analysis) -> String {
             );
         }
     }
-    s
 }
 
 /// Stage `residual_time` (residual before and after over time, per

@@ -26,7 +26,9 @@
 //!   selected terms in `added` (at most [`MAX_TERMS`]), which the core's
 //!   estimators evaluate at run time.
 
+mod candidates;
 pub mod families;
+mod generic;
 pub mod outcome;
 pub mod problem;
 pub mod report;

@@ -28,12 +28,13 @@
 use std::path::Path;
 
 use anyhow::{bail, ensure, Context, Result};
-use cable_joint::effects::{candidate_library, EffectKind, LibrarySpec, SignalRange, Term};
-use cable_joint::filter::{LowPass1, TrackingObserver};
+use cable_joint::filter::LowPass1;
 use cable_joint::model::{sig, SIGNAL_NAMES};
 use cable_joint::Config;
 
-use super::families::{reads_other_sensor, term_column, term_label};
+use super::candidates::offer_candidates;
+use super::families::{term_column, term_label};
+use super::generic::{generic_columns, generic_run};
 use super::select::{Problem, RunData};
 use crate::derive::{config_for_log, derive, held_sign, low_pass_column, median_period_s};
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
@@ -91,7 +92,7 @@ pub const REFERENCE_COLUMNS: [&str; 6] = [
 ];
 
 /// Bookkeeping columns, never inputs.
-const BOOKKEEPING: [&str; 4] = ["t_s", "mode", "fault_code", "phase"];
+pub(super) const BOOKKEEPING: [&str; 4] = ["t_s", "mode", "fault_code", "phase"];
 
 /// Whether a column is a reference (ground truth or a reference sensor).
 pub fn is_reference(name: &str) -> bool {
@@ -159,96 +160,8 @@ impl Default for BuildOptions {
     }
 }
 
-fn f32s(v: &[f64]) -> Vec<f32> {
+pub(super) fn f32s(v: &[f64]) -> Vec<f32> {
     v.iter().map(|x| *x as f32).collect()
-}
-
-/// Signals by role for the candidate library.
-#[derive(Clone, Debug, Default)]
-struct Roles {
-    position: Vec<u8>,
-    velocity: Vec<u8>,
-    current: Vec<u8>,
-    load: Vec<u8>,
-}
-
-/// Per-signal range over the fitting rows of all runs.
-fn signal_range(runs: &[RunData], index: u8) -> Option<SignalRange> {
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for r in runs {
-        let s = &r.signals[index as usize];
-        for k in r.fit_rows.clone() {
-            let v = s[k];
-            if v.is_finite() {
-                lo = lo.min(v);
-                hi = hi.max(v);
-            }
-        }
-    }
-    (lo.is_finite() && hi > lo).then_some(SignalRange {
-        index,
-        min: lo,
-        max: hi,
-    })
-}
-
-/// The union of [`candidate_library`] over the roles' signals (without
-/// repeats): each position, velocity and current alone, each load with the
-/// first position and the first velocity (for the load x position products
-/// and the load-dependent friction).
-fn library(roles: &Roles, runs: &[RunData], period_s: f64, duration_s: f64) -> Vec<Term> {
-    let base = LibrarySpec {
-        position: None,
-        velocity: None,
-        current: None,
-        load: None,
-        sample_period_s: period_s as f32,
-        duration_s: duration_s as f32,
-    };
-    let range = |i: u8| signal_range(runs, i);
-    let mut specs = vec![base];
-    for &p in &roles.position {
-        specs.push(LibrarySpec {
-            position: range(p),
-            ..base
-        });
-    }
-    for &v in &roles.velocity {
-        specs.push(LibrarySpec {
-            velocity: range(v),
-            ..base
-        });
-    }
-    for &c in &roles.current {
-        specs.push(LibrarySpec {
-            current: range(c),
-            ..base
-        });
-    }
-    for &l in &roles.load {
-        specs.push(LibrarySpec {
-            load: range(l),
-            position: roles.position.first().and_then(|&p| range(p)),
-            velocity: roles.velocity.first().and_then(|&v| range(v)),
-            ..base
-        });
-    }
-    let mut out: Vec<Term> = Vec::new();
-    for s in specs {
-        for t in candidate_library(&s) {
-            if !out.contains(&t) {
-                out.push(t);
-            }
-        }
-    }
-    out
-}
-
-fn duration_s(runs: &[RunData]) -> f64 {
-    runs.iter()
-        .filter(|r| !r.fit_rows.is_empty())
-        .map(|r| r.t_s[r.fit_rows.end - 1] - r.t_s[r.fit_rows.start])
-        .fold(0.0, f64::max)
 }
 
 /// The run-time signals of a log as the core sees them (positions relative
@@ -303,9 +216,7 @@ pub fn build(
     let period0 = median_period_s(fit[0].log.time_s()?).context("log too short")?;
     let (runs, info) = build_runs(kind, fit, validate, config, opts, period0, &mut problem)?;
     problem.runs = runs;
-    let roles = roles_of(kind, &problem.signal_names);
-    problem.other_sensors = other_sensors_of(kind);
-    problem.candidates = candidates(kind, &roles, &problem, period0, opts);
+    offer_candidates(kind, &mut problem, period0, opts);
     Ok((problem, info))
 }
 
@@ -372,88 +283,6 @@ fn build_runs(
         runs.push(run);
     }
     Ok((runs, info))
-}
-
-/// The signals each role's candidates read.
-fn roles_of(kind: &ModelKind, signal_names: &[String]) -> Roles {
-    match kind {
-        ModelKind::Jae => Roles {
-            position: vec![sig::X2_M, sig::X1_M, sig::THETA_MOTOR_RAD],
-            velocity: vec![sig::X2_VEL_M_S, sig::X1_VEL_M_S, sig::PHI_VEL_RAD_S],
-            current: vec![sig::I_REF_A],
-            load: vec![sig::I_REF_A],
-        },
-        ModelKind::Tension => Roles {
-            position: vec![sig::X2_M, sig::X1_M],
-            velocity: vec![sig::X1_VEL_M_S, sig::X2_VEL_M_S, sig::PHI_VEL_RAD_S],
-            current: vec![sig::I_REF_A],
-            load: vec![],
-        },
-        ModelKind::Force => Roles {
-            position: vec![sig::X2_M, sig::X1_M],
-            velocity: vec![sig::X1_VEL_M_S, sig::X2_VEL_M_S, sig::PHI_VEL_RAD_S],
-            current: vec![sig::I_REF_A],
-            load: vec![sig::I_REF_A],
-        },
-        ModelKind::Generic { .. } => generic_roles(signal_names),
-    }
-}
-
-/// The signals of sensors the model does not read (terms on them are
-/// fusion, offered only when asked).
-fn other_sensors_of(kind: &ModelKind) -> Vec<u8> {
-    // The JAE (Eq. 26) reads slider 2 alone: the motor encoder and grating 1
-    // are other sensors for it. The tension and force models read both
-    // sliders and the motor's speed; the motor's angle is not in them.
-    match kind {
-        ModelKind::Jae => vec![
-            sig::X1_M,
-            sig::X1_VEL_M_S,
-            sig::PHI_RAD,
-            sig::PHI_VEL_RAD_S,
-            sig::THETA_MOTOR_RAD,
-        ],
-        ModelKind::Tension | ModelKind::Force => vec![sig::PHI_RAD, sig::THETA_MOTOR_RAD],
-        ModelKind::Generic { .. } => Vec::new(),
-    }
-}
-
-/// The candidate effect terms for `kind`: the library on its roles, less
-/// what its physics rules out.
-fn candidates(
-    kind: &ModelKind,
-    roles: &Roles,
-    problem: &Problem,
-    period0: f64,
-    opts: BuildOptions,
-) -> Vec<Term> {
-    let mut lib = library(roles, &problem.runs, period0, duration_s(&problem.runs));
-    if !opts.other_sensors {
-        lib.retain(|t| !reads_other_sensor(t, &problem.other_sensors));
-    }
-    if !matches!(kind, ModelKind::Generic { .. }) {
-        // The load memory stands for a transmission that self-locks when
-        // back-driven, so the current stops carrying the load on one stroke
-        // (the da Vinci tool). The prototype's drive is back-drivable (the
-        // DOB rests on it): its current carries the load on both strokes.
-        lib.retain(|t| !matches!(t.kind, EffectKind::LoadMemory { .. }));
-    }
-    if *kind == ModelKind::Jae {
-        // The JAE maps slider 2 to the joint through cable 2 and the return
-        // spring: the current reaches it only as a load (cable stretch,
-        // load-dependent friction), never through the winding's heat.
-        lib.retain(|t| !matches!(t.kind, EffectKind::Thermal { .. }));
-    }
-    if *kind == ModelKind::Tension {
-        // Current only through the winding temperature (see the module doc).
-        lib.retain(|t| {
-            let reads_current = t.kind.uses_input()
-                && (t.input == sig::I_REF_A
-                    || (t.kind == EffectKind::Product && t.aux == sig::I_REF_A));
-            !reads_current || matches!(t.kind, EffectKind::Thermal { .. })
-        });
-    }
-    lib
 }
 
 fn core_run(
@@ -626,147 +455,9 @@ fn keep_added_terms(
     problem.kept = added.active().to_vec();
 }
 
-/// Inputs and derived velocities `(position input, velocity name)` of a
-/// generic model.
-type GenericCols = (Vec<String>, Vec<(String, String)>);
-
-fn generic_columns(
-    first: &NamedLog,
-    target: &str,
-    inputs: &Option<Vec<String>>,
-) -> Result<GenericCols> {
-    let log = &first.log;
-    ensure!(
-        log.has(target),
-        "{}: no target column {} (columns: {})",
-        first.name,
-        crate::log::quoted(target),
-        column_list(log)
-    );
-    let inputs: Vec<String> = match inputs {
-        Some(v) => v.clone(),
-        None => log
-            .names()
-            .into_iter()
-            .filter(|n| *n != target && !BOOKKEEPING.contains(n) && !is_reference(n))
-            .map(str::to_owned)
-            .collect(),
-    };
-    ensure!(!inputs.is_empty(), "no input columns");
-    ensure!(
-        !inputs.iter().any(|i| i == target),
-        "the target `{target}` is also an input"
-    );
-    ensure!(
-        inputs.len() + 1 + cable_joint::model::MAX_TERMS <= super::select::MAX_COLUMNS,
-        "{} inputs: too many for one fit; name them with --inputs",
-        inputs.len()
-    );
-    let mut vel = Vec::new();
-    for i in &inputs {
-        let v = if let Some(stem) = i.strip_suffix("_rad") {
-            format!("{stem}_vel_rad_s")
-        } else if let Some(stem) = i.strip_suffix("_m") {
-            format!("{stem}_vel_m_s")
-        } else {
-            continue;
-        };
-        if !inputs.contains(&v) {
-            vel.push((i.clone(), v));
-        }
-    }
-    Ok((inputs, vel))
-}
-
-fn generic_run(
-    nl: &NamedLog,
-    target: &str,
-    inputs: &[String],
-    velocities: &[(String, String)],
-    config: &Config,
-    problem: &mut Problem,
-) -> Result<RunData> {
-    let log = &nl.log;
-    let t_s = log.time_s()?.to_vec();
-    let n = t_s.len();
-    let period = median_period_s(&t_s).context("log too short")? as f32;
-    let col = |name: &str| -> Result<Vec<f64>> {
-        log.col(name).map(<[f64]>::to_vec).with_context(|| {
-            format!(
-                "{}: no column {} (columns: {})",
-                nl.name,
-                crate::log::quoted(name),
-                column_list(log)
-            )
-        })
-    };
-    let target_v = col(target)?;
-    warn_unmeasured(&nl.name, target, &target_v);
-    let mut baseline = Vec::new();
-    let mut signals = Vec::new();
-    for i in inputs {
-        let v = col(i)?;
-        warn_unmeasured(&nl.name, i, &v);
-        signals.push(f32s(&v));
-        baseline.push(v);
-    }
-    baseline.push(vec![1.0; n]);
-    for (pos, _) in velocities {
-        let bw = if pos.ends_with("_rad") {
-            config.differentiators.motor_bandwidth_hz
-        } else {
-            config.differentiators.grating_bandwidth_hz
-        };
-        let obs = TrackingObserver::new(bw, period);
-        let x = col(pos)?;
-        let mut st = Default::default();
-        // A cell not measured holds the last reading (as the core's replay
-        // does), so one empty cell does not poison every later velocity.
-        let mut held = x.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0);
-        obs.reset(&mut st, held as f32);
-        signals.push(
-            x.iter()
-                .map(|v| {
-                    if v.is_finite() {
-                        held = *v;
-                    }
-                    obs.update(&mut st, held as f32).vel
-                })
-                .collect(),
-        );
-    }
-    problem.baseline_names = inputs.iter().cloned().chain(["const".to_owned()]).collect();
-    problem.signal_names = inputs
-        .iter()
-        .cloned()
-        .chain(velocities.iter().map(|v| v.1.clone()))
-        .collect();
-    problem.term_dt_s = None;
-    Ok(RunData {
-        name: nl.name.clone(),
-        t_s,
-        target: target_v,
-        fixed: vec![0.0; n],
-        baseline,
-        signals,
-        fit_rows: 0..0,
-        val_rows: 0..0,
-    })
-}
-
-/// The log's column names for a message, each cut by [`crate::log::quoted`]
-/// (a 5 MB header cell never floods the terminal).
-fn column_list(log: &Log) -> String {
-    log.names()
-        .iter()
-        .map(|n| crate::log::quoted(n))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
 /// Warns on stderr when a column (the target or an input) is not measured
 /// (or not finite) on some rows: those rows are neither fitted nor judged.
-fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
+pub(super) fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
     if let Some(k) = target.iter().position(|v| !v.is_finite()) {
         eprintln!(
             "warning: {log}: column {column} is not measured on {} of {} rows (first at line {}): \
@@ -776,26 +467,4 @@ fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
             crate::log::line_of_row(k)
         );
     }
-}
-
-fn generic_roles(names: &[String]) -> Roles {
-    let mut r = Roles::default();
-    for (k, n) in names.iter().enumerate() {
-        let k = k as u8;
-        if n.ends_with("_m_s2") || n.ends_with("_rad_s2") {
-            continue;
-        } else if n.ends_with("_m_s") || n.ends_with("_rad_s") {
-            r.velocity.push(k);
-        } else if n.ends_with("_m") || n.ends_with("_rad") {
-            r.position.push(k);
-        } else if n.ends_with("_a") {
-            r.current.push(k);
-        } else if n.ends_with("_n") || n.ends_with("_nm") {
-            r.load.push(k);
-        }
-    }
-    if r.load.is_empty() {
-        r.load = r.current.clone();
-    }
-    r
 }

@@ -40,7 +40,6 @@
 //! Bad input files fail with one error naming the file, the line and the
 //! column.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -54,72 +53,83 @@ use cable_joint::payload::{
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
-use crate::cli;
 use crate::log::{Log, Schema};
 use crate::output::Outputs;
 
-/// Arguments of `host-sim payload`.
-#[derive(clap::Args, Debug, Clone)]
-pub struct PayloadArgs {
+/// What [`analyse`] reads and how (the defaults are those of
+/// `host-sim payload`, whose arguments are [`crate::cli::payload::PayloadArgs`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PayloadOptions {
     /// Directory of the data set (`<run>_wrench.csv`, `<run>_accel.csv`,
     /// `<run>_orientations.csv`, `0-calibration_fts-accel.csv`,
     /// `0-steady-state_wrench.csv`).
-    #[arg(long, default_value = "host-sim/tests/data/kuka-wrist")]
     pub dir: PathBuf,
     /// Run to identify on (no contact).
-    #[arg(long, default_value = "1-baseline")]
     pub fit: String,
-    /// Runs to validate on, comma separated. A run whose name contains
-    /// "contact" is treated as having contact (no error statistics).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "2-vibrations,3-vibrations-contact"
-    )]
+    /// Runs to validate on. A run whose name contains "contact" is treated
+    /// as having contact (no error statistics).
     pub validate: Vec<String>,
-    /// Source of `g - a`: `accel` (accelerometer, includes the linear
-    /// acceleration) or `orient` (gravity from the orientation, no linear
-    /// acceleration).
-    #[arg(long, value_enum, default_value_t = GravitySource::Accel)]
+    /// Source of `g - a`.
     pub gravity: GravitySource,
-    /// Lag of the IMU stream behind the wrench stream, ms (default: estimated
-    /// on the fit run).
-    #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-1000.0, 1000.0))]
+    /// Lag of the IMU stream behind the wrench stream, ms (`None`: estimated
+    /// on the fit run with [`GravitySource::Accel`], 0 with
+    /// [`GravitySource::Orient`]).
     pub accel_lag_ms: Option<f64>,
     /// Low-pass cut-off applied identically to the wrench and to the
     /// kinematics (two cascaded first-order sections of the core's
     /// `LowPass1`, causal), Hz; 0 = unfiltered.
-    #[arg(long, default_value_t = 10.0, value_parser = cli::f64_in(0.0, 1000.0))]
     pub lowpass_hz: f64,
     /// Include the rotational terms (angular velocity and acceleration from
     /// differentiated orientations).
-    #[arg(long)]
     pub rotational: bool,
-    /// Also identify the six inertia entries (needs `--rotational`).
-    #[arg(long, requires = "rotational")]
+    /// Also identify the six inertia entries (meaningful with
+    /// [`Self::rotational`]).
     pub inertia: bool,
     /// Candidate creep time constants, s, for the compensation selection.
-    #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2,4,8,16",
-          value_parser = cli::f32_above(0.0, 1e4))]
     pub creep_taus: Vec<f32>,
     /// Known no-contact window at the start of each run, s (offset tracker).
-    #[arg(long, default_value_t = 0.25, value_parser = cli::f64_in(0.0, 1e4))]
     pub tare_s: f64,
-    /// Write the report as JSON.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-    /// Write the per-sample estimates of every run as CSV
-    /// (`DIR/payload_<run>.csv`: `t_s`, the raw sensor minus its start, `F_e`
-    /// of the base and of the selected model, after the tare).
-    #[arg(long)]
-    pub csv: Option<PathBuf>,
-    /// Write one figure per run (SVG and PNG) into this directory.
-    #[arg(long)]
-    pub plot: Option<PathBuf>,
+}
+
+impl Default for PayloadOptions {
+    fn default() -> Self {
+        Self {
+            dir: PathBuf::from("host-sim/tests/data/kuka-wrist"),
+            fit: "1-baseline".to_owned(),
+            validate: vec!["2-vibrations".to_owned(), "3-vibrations-contact".to_owned()],
+            gravity: GravitySource::Accel,
+            accel_lag_ms: None,
+            lowpass_hz: 10.0,
+            rotational: false,
+            inertia: false,
+            creep_taus: vec![0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0],
+            tare_s: 0.25,
+        }
+    }
+}
+
+impl PayloadOptions {
+    /// The checks [`analyse`] makes before it reads anything.
+    ///
+    /// # Errors
+    /// `tare_s` negative or NaN, `lowpass_hz` negative or not finite, a
+    /// creep time constant not positive and finite.
+    pub fn check(&self) -> Result<()> {
+        if self.tare_s.is_nan() || self.tare_s < 0.0 {
+            bail!("--tare-s must be non-negative");
+        }
+        if !(self.lowpass_hz >= 0.0 && self.lowpass_hz.is_finite()) {
+            bail!("--lowpass-hz must be finite and non-negative");
+        }
+        if self.creep_taus.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
+            bail!("--creep-taus must be positive");
+        }
+        Ok(())
+    }
 }
 
 /// Where `g - a` comes from.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum GravitySource {
     /// Accelerometer (specific force), calibrated into the sensor frame.
@@ -1070,9 +1080,9 @@ fn is_contact(name: &str) -> bool {
     name.contains("contact")
 }
 
-fn ident_config(args: &PayloadArgs, weight: [f64; 6], comp: CompConfig) -> IdentConfig {
+fn ident_config(inertia: bool, weight: [f64; 6], comp: CompConfig) -> IdentConfig {
     IdentConfig {
-        inertia: args.inertia,
+        inertia,
         comp,
         axis_weight: weight,
         ..IdentConfig::default()
@@ -1166,8 +1176,13 @@ pub fn identify_comp(
 }
 
 /// Run the whole analysis (no output files).
-pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
-    let dir = &args.dir;
+///
+/// # Errors
+/// The options fail [`PayloadOptions::check`]; a file is missing or bad; a
+/// fit or an estimate fails.
+pub fn analyse(opts: &PayloadOptions) -> Result<(Report, Vec<RunEstimates>)> {
+    opts.check()?;
+    let dir = &opts.dir;
     let poses = load_static_poses(&dir.join("0-calibration_fts-accel.csv"))?;
     let noise = steady_state_noise(&dir.join("0-steady-state_wrench.csv"))?;
     if noise.iter().any(|s| s.is_nan() || *s <= 0.0) {
@@ -1183,7 +1198,7 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
         ..IdentConfig::default()
     };
 
-    let fit_run = load_run(dir, &args.fit).with_context(|| format!("loading run {}", args.fit))?;
+    let fit_run = load_run(dir, &opts.fit).with_context(|| format!("loading run {}", opts.fit))?;
     if is_contact(&fit_run.name) {
         bail!(
             "fit run {} has contact; identify on a no-contact run",
@@ -1191,11 +1206,11 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
         );
     }
     let mut val_runs = Vec::new();
-    for v in &args.validate {
+    for v in &opts.validate {
         val_runs.push(load_run(dir, v).with_context(|| format!("loading run {v}"))?);
     }
 
-    let (lag_s, lag_curve) = match (args.accel_lag_ms, args.gravity) {
+    let (lag_s, lag_curve) = match (opts.accel_lag_ms, opts.gravity) {
         (Some(ms), _) => (ms * 1e-3, Vec::new()),
         (None, GravitySource::Orient) => (0.0, Vec::new()),
         (None, GravitySource::Accel) => {
@@ -1204,24 +1219,27 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
             (l, c.into_iter().map(|(l, r)| (l * 1e3, r)).collect())
         }
     };
-    let opts = KinOptions {
-        gravity: args.gravity,
+    let kin_opts = KinOptions {
+        gravity: opts.gravity,
         accel_lag_s: lag_s,
-        rotational: args.rotational,
-        lowpass_hz: (args.lowpass_hz > 0.0).then_some(args.lowpass_hz),
+        rotational: opts.rotational,
+        lowpass_hz: (opts.lowpass_hz > 0.0).then_some(opts.lowpass_hz),
     };
     // The lag is estimated on the unfiltered data (the vibration carries the
     // timing); everything from here on sees the filtered wrench.
-    let fit_run = filtered_run(&fit_run, &opts);
-    let val_runs: Vec<Run> = val_runs.iter().map(|r| filtered_run(r, &opts)).collect();
-    let fit_kin = kinematics(&fit_run, &opts, &conv, &cal);
+    let fit_run = filtered_run(&fit_run, &kin_opts);
+    let val_runs: Vec<Run> = val_runs
+        .iter()
+        .map(|r| filtered_run(r, &kin_opts))
+        .collect();
+    let fit_kin = kinematics(&fit_run, &kin_opts, &conv, &cal);
     let val_kin: Vec<Vec<Kinematics<f64>>> = val_runs
         .iter()
-        .map(|r| kinematics(r, &opts, &conv, &cal))
+        .map(|r| kinematics(r, &kin_opts, &conv, &cal))
         .collect();
 
     // Base model.
-    let base_cfg = ident_config(args, weight, CompConfig::NONE);
+    let base_cfg = ident_config(opts.inertia, weight, CompConfig::NONE);
     let (base_fit, ident_time_s) = identify(&fit_run, &fit_kin, base_cfg)?;
 
     // Rotational magnitude on the fit run (always from the orientation).
@@ -1253,7 +1271,7 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
 
     // Creep/drift candidates.
     let mut comps = vec![CompConfig::NONE, CompConfig::all_axes(None, true)];
-    for &tau in &args.creep_taus {
+    for &tau in &opts.creep_taus {
         for drift in [false, true] {
             comps.push(CompConfig::all_axes(Some(tau), drift));
         }
@@ -1270,16 +1288,16 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
             identify_comp(
                 &fit_run,
                 &fit_kin,
-                ident_config(args, weight, comp),
+                ident_config(opts.inertia, weight, comp),
                 &base_fit,
             )?
         };
         let model = PayloadModel::new(&fit.params, cfg.comp)?;
-        let e_fit = estimate(&fit_run, &fit_kin, &model, args.tare_s)?;
+        let e_fit = estimate(&fit_run, &fit_kin, &model, opts.tare_s)?;
         let fit_score = weighted_score(&rms(&e_fit.tracked), &noise);
         let mut pooled = Vec::new();
         for &i in &nc_val {
-            pooled.extend(estimate(&val_runs[i], &val_kin[i], &model, args.tare_s)?.tracked);
+            pooled.extend(estimate(&val_runs[i], &val_kin[i], &model, opts.tare_s)?.tracked);
         }
         let vr = rms(&pooled);
         let validation_score = if pooled.is_empty() {
@@ -1315,19 +1333,19 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
         .chain(val_runs.iter().zip(val_kin.iter()))
         .collect();
     for (run, kin) in all {
-        let base = estimate(run, kin, &base_model, args.tare_s)?;
-        let sel = estimate(run, kin, sel_model, args.tare_s)?;
+        let base = estimate(run, kin, &base_model, opts.tare_s)?;
+        let sel = estimate(run, kin, sel_model, opts.tare_s)?;
         let peak =
             std::array::from_fn(|k| sel.tracked.iter().map(|r| r[k].abs()).fold(0.0, f64::max));
         runs.push(RunReport {
             name: run.name.clone(),
             contact: is_contact(&run.name),
             samples: run.wrench.len(),
-            raw: rms(&raw_minus_start(run, args.tare_s)),
+            raw: rms(&raw_minus_start(run, opts.tare_s)),
             ident: rms(&base.raw_model),
             ident_tare: rms(&base.tracked),
             comp_tare: rms(&sel.tracked),
-            affine_tare: rms(&affine_residual(run, kin, &affine, args.tare_s)),
+            affine_tare: rms(&affine_residual(run, kin, &affine, opts.tare_s)),
             tare_correction: base
                 .raw_model
                 .last()
@@ -1350,7 +1368,7 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
         }
         estimates.push(RunEstimates {
             run: run.clone(),
-            raw: raw_minus_start(run, args.tare_s),
+            raw: raw_minus_start(run, opts.tare_s),
             base,
             selected: sel,
         });
@@ -1361,11 +1379,11 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
         accel_calibration: cal,
         noise_std: noise,
         static_params: param_table(&stat, &static_cfg),
-        gravity: args.gravity,
+        gravity: opts.gravity,
         accel_lag_ms: lag_s * 1e3,
         lag_curve,
-        rotational: args.rotational,
-        lowpass_hz: args.lowpass_hz,
+        rotational: opts.rotational,
+        lowpass_hz: opts.lowpass_hz,
         max_omega_rad_s: max_w,
         max_alpha_rad_s2: max_a,
         rot_force_rms_n: (sf / nf).sqrt(),
@@ -1383,156 +1401,4 @@ pub fn analyse(args: &PayloadArgs) -> Result<(Report, Vec<RunEstimates>)> {
         contact_intervals,
     };
     Ok((report, estimates))
-}
-
-fn row6(out: &mut String, label: &str, v: &[f64; 6]) {
-    let _ = writeln!(
-        out,
-        "  {label:<12} {:>7.3} {:>7.3} {:>7.3}   {:>7.4} {:>7.4} {:>7.4}",
-        v[0], v[1], v[2], v[3], v[4], v[5]
-    );
-}
-
-fn params_text(out: &mut String, title: &str, ps: &[ParamReport]) {
-    let _ = writeln!(out, "{title}");
-    for p in ps {
-        let _ = writeln!(
-            out,
-            "  {:<16} {:>12.5} ± {:<10.3e} ({:.2} %σ)",
-            p.name, p.value, p.std, p.pct_sigma
-        );
-    }
-}
-
-/// The human-readable report.
-pub fn format_report(r: &Report) -> String {
-    let mut s = String::new();
-    let c = &r.convention;
-    let _ = writeln!(
-        s,
-        "orientation convention: g_s = {} g_w, g_w = ({:.5}, {:.5}, {:.5}) m/s² (max error {:.2e} m/s²; best alternative {:.2} m/s²)",
-        if c.transpose { "R^T" } else { "R" },
-        c.world_gravity_m_s2[0],
-        c.world_gravity_m_s2[1],
-        c.world_gravity_m_s2[2],
-        c.max_err_m_s2,
-        c.runner_up_max_err_m_s2
-    );
-    let rot = &r.accel_calibration.rotation;
-    let _ = writeln!(
-        s,
-        "accelerometer -> sensor frame: rotation rows {:?} {:?} {:?}, offset c = {:.3?} m/s², rms residual {:.3} m/s²",
-        rot[0].map(|v| (v * 1e3).round() / 1e3),
-        rot[1].map(|v| (v * 1e3).round() / 1e3),
-        rot[2].map(|v| (v * 1e3).round() / 1e3),
-        r.accel_calibration.c,
-        r.accel_calibration.rms_m_s2
-    );
-    let _ = writeln!(s, "steady-state noise std (weights^-1):");
-    row6(&mut s, "", &r.noise_std);
-    params_text(
-        &mut s,
-        "static calibration poses (24) -> payload:",
-        &r.static_params,
-    );
-    let _ = writeln!(
-        s,
-        "g - a from: {:?}; low-pass {} Hz; IMU lag {:.1} ms{}; rotational terms: {}",
-        r.gravity,
-        r.lowpass_hz,
-        r.accel_lag_ms,
-        if r.lag_curve.is_empty() {
-            " (given)"
-        } else {
-            " (estimated)"
-        },
-        r.rotational
-    );
-    let _ = writeln!(
-        s,
-        "fit run {}: max |omega| {:.3} rad/s, max |alpha| {:.2} rad/s²; rms rotational force {:.4} N; inertia torque bound {:.4} N·m",
-        r.fit_run, r.max_omega_rad_s, r.max_alpha_rad_s2, r.rot_force_rms_n, r.rot_torque_bound_nm
-    );
-    let _ = writeln!(
-        s,
-        "identification: {} samples ({:.2} s of data), {:.1} ms wall time, condition number {:.1}",
-        r.fit_samples,
-        r.fit_duration_s,
-        r.ident_time_s * 1e3,
-        r.condition
-    );
-    params_text(&mut s, "identified (base model):", &r.params);
-    let _ = writeln!(
-        s,
-        "creep/drift candidates (weighted score = mean (rmse/sigma)^2, after tare):"
-    );
-    for (i, c) in r.candidates.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            " {} creep tau {:>6} drift {:<5} kept creep {:<17} drift {:<17} fit {:>7.2} validation {:>7.2}",
-            if i == r.selected { "*" } else { " " },
-            c.creep_tau_s.map_or("-".to_owned(), |t| format!("{t}s")),
-            c.drift,
-            c.creep_axes,
-            c.drift_axes,
-            c.fit_score,
-            c.validation_score
-        );
-    }
-    params_text(&mut s, "selected model:", &r.selected_params);
-    for run in &r.runs {
-        let _ = writeln!(
-            s,
-            "run {} ({} samples{}):          fx      fy      fz        tx      ty      tz",
-            run.name,
-            run.samples,
-            if run.contact {
-                ", CONTACT: F_e is the contact wrench, not an error"
-            } else {
-                ""
-            }
-        );
-        row6(&mut s, "raw-start", &run.raw);
-        row6(&mut s, "ident", &run.ident);
-        row6(&mut s, "ident+tare", &run.ident_tare);
-        row6(&mut s, "comp+tare", &run.comp_tare);
-        row6(&mut s, "affine+tare", &run.affine_tare);
-        row6(&mut s, "tare corr.", &run.tare_correction);
-        row6(&mut s, "peak |F_e|", &run.peak);
-    }
-    for (name, a, b) in &r.contact_intervals {
-        let _ = writeln!(s, "{name}: |f_e| > 1.5 N from {a:.2} s to {b:.2} s");
-    }
-    s
-}
-
-/// `host-sim payload`.
-pub fn run(args: PayloadArgs) -> Result<()> {
-    if args.tare_s.is_nan() || args.tare_s < 0.0 {
-        bail!("--tare-s must be non-negative");
-    }
-    if !(args.lowpass_hz >= 0.0 && args.lowpass_hz.is_finite()) {
-        bail!("--lowpass-hz must be finite and non-negative");
-    }
-    if args.creep_taus.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
-        bail!("--creep-taus must be positive");
-    }
-    let (report, estimates) = analyse(&args)?;
-    print!("{}", format_report(&report));
-    // Every output is written, or none is.
-    let mut out = Outputs::new();
-    if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&report)?;
-        out.bytes(path, text.as_bytes())?;
-    }
-    if let Some(dir) = &args.csv {
-        write_csv(&mut out, &estimates, dir)?;
-    }
-    if let Some(dir) = &args.plot {
-        plot_runs(&mut out, &estimates, dir)?;
-    }
-    for p in out.commit()? {
-        println!("wrote {}", p.display());
-    }
-    Ok(())
 }

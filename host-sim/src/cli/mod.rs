@@ -19,6 +19,7 @@ pub mod estimate;
 pub mod identify;
 pub mod import;
 pub mod ingest;
+pub mod payload;
 pub mod residual;
 pub mod simulate;
 pub mod trace;

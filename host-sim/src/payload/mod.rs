@@ -1,6 +1,7 @@
-//! `host-sim payload`: tool payload identification and tool-end wrench
-//! estimation (seed 001) on the measured KUKA wrist data set
-//! (`tests/data/kuka-wrist`, CC BY 4.0).
+//! Tool payload identification and tool-end wrench estimation (seed 001) on
+//! the measured KUKA wrist data set (`tests/data/kuka-wrist`, CC BY 4.0):
+//! [`analyse`] with [`PayloadOptions`], behind `host-sim payload` (the
+//! command-line flags below are the options' names).
 //!
 //! ```text
 //! host-sim payload --dir host-sim/tests/data/kuka-wrist --fit 1-baseline \

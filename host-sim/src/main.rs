@@ -39,7 +39,7 @@ enum Command {
     /// Run one scenario on the simulated prototype and write the CSV log.
     Simulate(host_sim::cli::simulate::SimulateArgs),
     /// Tool payload identification and tool-end wrench estimation (KUKA wrist data).
-    Payload(host_sim::payload::PayloadArgs),
+    Payload(host_sim::cli::payload::PayloadArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
     Identify(host_sim::cli::identify::IdentifyArgs),
     /// Replay a log (any rate) through the core; write every estimate and the force bound.
@@ -58,7 +58,7 @@ fn main() -> ExitCode {
         Some(Command::Ingest(args)) => host_sim::cli::ingest::run(args),
         Some(Command::Trace(args)) => host_sim::cli::trace::run(args),
         Some(Command::Simulate(a)) => host_sim::cli::simulate::run(a),
-        Some(Command::Payload(a)) => host_sim::payload::run(a),
+        Some(Command::Payload(a)) => host_sim::cli::payload::run(a),
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
         Some(Command::Residual(a)) => host_sim::cli::residual::run(a),
         Some(Command::Estimate(a)) => host_sim::cli::estimate::run(a),

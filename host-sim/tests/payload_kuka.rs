@@ -6,8 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
+use host_sim::cli::payload::PayloadArgs;
 use host_sim::payload::{
-    analyse, check_convention, fit_accel_calibration, load_run, load_static_poses, PayloadArgs,
+    analyse, check_convention, fit_accel_calibration, load_run, load_static_poses, PayloadOptions,
 };
 
 fn data_dir() -> PathBuf {
@@ -21,11 +22,11 @@ struct Cli {
 }
 
 /// The CLI's defaults with the test data directory and extra flags.
-fn args(extra: &[&str]) -> PayloadArgs {
+fn args(extra: &[&str]) -> PayloadOptions {
     let dir = data_dir();
     let mut v = vec!["payload", "--dir", dir.to_str().unwrap()];
     v.extend_from_slice(extra);
-    Cli::parse_from(v).args
+    Cli::parse_from(v).args.options()
 }
 
 /// `0-calibration_fts-accel.csv` has gravity in the sensor frame and the
@@ -191,4 +192,43 @@ fn bad_input_names_file_line_column() {
     a.dir = tmp.path().to_path_buf();
     let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
     assert!(msg.contains("2-vibrations"), "{msg}");
+}
+
+/// A library caller of `analyse` gets the checks of the command line's
+/// run (before any file is read).
+#[test]
+fn analyse_checks_its_options() {
+    let cases = [
+        (
+            PayloadOptions {
+                tare_s: f64::NAN,
+                ..PayloadOptions::default()
+            },
+            "--tare-s",
+        ),
+        (
+            PayloadOptions {
+                lowpass_hz: f64::INFINITY,
+                ..PayloadOptions::default()
+            },
+            "--lowpass-hz",
+        ),
+        (
+            PayloadOptions {
+                creep_taus: vec![1.0, 0.0],
+                ..PayloadOptions::default()
+            },
+            "--creep-taus",
+        ),
+    ];
+    for (opts, flag) in cases {
+        let msg = format!("{:#}", analyse(&opts).err().expect("must fail"));
+        assert!(msg.starts_with(flag), "{msg}");
+        assert_eq!(
+            opts.check().unwrap_err().to_string(),
+            msg,
+            "analyse fails on the check"
+        );
+    }
+    assert!(PayloadOptions::default().check().is_ok());
 }

@@ -1,6 +1,6 @@
 //! The command line: each subcommand's arguments, its run and its printing
-//! live in a module here (so far `identify`; the other subcommands still
-//! own theirs in their library modules), and the checks of numeric options
+//! live in a module here (every subcommand but `report`, which still owns
+//! its arguments in [`crate::report`]), and the checks of numeric options
 //! below are shared by every subcommand.
 //!
 //! Each numeric option names its range with one of these parsers
@@ -19,6 +19,7 @@ pub mod estimate;
 pub mod identify;
 pub mod import;
 pub mod ingest;
+pub mod payload;
 pub mod residual;
 pub mod simulate;
 pub mod trace;

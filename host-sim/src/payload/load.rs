@@ -1,0 +1,214 @@
+//! Reading the data set: the three streams of a run on one clock, the
+//! static calibration poses and the steady-state noise (errors name the
+//! file, the line and the column).
+
+use std::path::Path;
+
+use anyhow::{bail, Result};
+
+use crate::log::{Log, Schema};
+
+/// A time series of `N`-vectors, time in s.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stream<const N: usize> {
+    /// Sample times, s, strictly increasing.
+    pub t_s: Vec<f64>,
+    /// Values.
+    pub v: Vec<[f64; N]>,
+}
+
+impl<const N: usize> Stream<N> {
+    /// Linear interpolation at `t` (held at the ends).
+    pub fn at(&self, t: f64) -> [f64; N] {
+        let n = self.t_s.len();
+        if n == 0 {
+            return [f64::NAN; N];
+        }
+        let i = self.t_s.partition_point(|&x| x <= t);
+        if i == 0 {
+            return self.v[0];
+        }
+        if i >= n {
+            return self.v[n - 1];
+        }
+        let (t0, t1) = (self.t_s[i - 1], self.t_s[i]);
+        let s = (t - t0) / (t1 - t0);
+        let (a, b) = (&self.v[i - 1], &self.v[i]);
+        std::array::from_fn(|k| a[k] + s * (b[k] - a[k]))
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// No sample.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+}
+
+/// Optional time column and rows of a CSV.
+type Columns<const N: usize> = (Option<Vec<f64>>, Vec<[f64; N]>);
+
+/// Read the named columns of a CSV into rows (errors name file, line,
+/// column).
+fn read_columns<const N: usize>(
+    path: &Path,
+    cols: [&str; N],
+    time: Option<&str>,
+    min_rows: usize,
+) -> Result<Columns<N>> {
+    let mut required: Vec<&str> = cols.to_vec();
+    if let Some(t) = time {
+        required.push(t);
+    }
+    let schema = Schema::with_required(&required)
+        .time_column(time)
+        .min_rows(min_rows);
+    let log = Log::read_with(path, &schema)?;
+    let c: Vec<&[f64]> = cols
+        .iter()
+        .map(|n| log.col_required(n))
+        .collect::<std::result::Result<_, _>>()?;
+    let rows = (0..log.len())
+        .map(|r| std::array::from_fn(|k| c[k][r]))
+        .collect();
+    let t = match time {
+        Some(t) => Some(log.col_required(t)?.to_vec()),
+        None => None,
+    };
+    Ok((t, rows))
+}
+
+/// One measured run: the three streams on a common clock (s since the first
+/// wrench sample).
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// Run name (file prefix).
+    pub name: String,
+    /// Wrench, N and N·m.
+    pub wrench: Stream<6>,
+    /// Accelerometer, g.
+    pub accel_g: Stream<3>,
+    /// Orientation `r11..r33`, row major.
+    pub orient: Stream<9>,
+}
+
+/// Wrench column names in the data set.
+pub const WRENCH_COLS: [&str; 6] = ["fx", "fy", "fz", "tx", "ty", "tz"];
+/// Accelerometer column names.
+pub const ACCEL_COLS: [&str; 3] = ["ax", "ay", "az"];
+/// Orientation column names.
+pub const ORIENT_COLS: [&str; 9] = [
+    "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33",
+];
+
+/// Load `<dir>/<prefix>_{wrench,accel,orientations}.csv` (timestamps in µs,
+/// rebased to s after the first wrench sample; a time that is no longer
+/// finite and increasing once rebased is an error naming the file and line).
+pub fn load_run(dir: &Path, prefix: &str) -> Result<Run> {
+    let p = |s: &str| dir.join(format!("{prefix}_{s}.csv"));
+    let (tw, w) = read_columns(&p("wrench"), WRENCH_COLS, Some("t"), 10)?;
+    let (ta, a) = read_columns(&p("accel"), ACCEL_COLS, Some("t"), 10)?;
+    let (to, o) = read_columns(&p("orientations"), ORIENT_COLS, Some("t"), 10)?;
+    let (tw, ta, to) = (
+        tw.unwrap_or_default(),
+        ta.unwrap_or_default(),
+        to.unwrap_or_default(),
+    );
+    let t0 = tw[0];
+    Ok(Run {
+        name: prefix.to_owned(),
+        wrench: Stream {
+            t_s: rebase_us(&p("wrench"), &tw, t0)?,
+            v: w,
+        },
+        accel_g: Stream {
+            t_s: rebase_us(&p("accel"), &ta, t0)?,
+            v: a,
+        },
+        orient: Stream {
+            t_s: rebase_us(&p("orientations"), &to, t0)?,
+            v: o,
+        },
+    })
+}
+
+/// Times in µs to s since `t0_us` (the first wrench sample).
+///
+/// # Errors
+/// A time that is not finite, or no longer after the previous one, once
+/// rebased (times too large or too far from `t0_us` for an `f64`), naming
+/// the file and the line.
+fn rebase_us(path: &Path, t_us: &[f64], t0_us: f64) -> Result<Vec<f64>> {
+    let t_s: Vec<f64> = t_us.iter().map(|x| (x - t0_us) * 1e-6).collect();
+    for k in 0..t_s.len() {
+        let what = if !t_s[k].is_finite() {
+            "not a finite time"
+        } else if k > 0 && t_s[k] <= t_s[k - 1] {
+            "not after the previous sample's"
+        } else {
+            continue;
+        };
+        bail!(
+            "{}:{}: column \"t\": {:e} µs is {:e} s after the first wrench sample: {what} (times too \
+             large or too far apart)",
+            path.display(),
+            crate::log::line_of_row(k),
+            t_us[k],
+            t_s[k],
+        );
+    }
+    Ok(t_s)
+}
+
+/// The static calibration poses.
+#[derive(Clone, Debug)]
+pub struct StaticPoses {
+    /// Wrench per pose, N and N·m.
+    pub wrench: Vec<[f64; 6]>,
+    /// Accelerometer per pose, g.
+    pub accel_g: Vec<[f64; 3]>,
+    /// Gravity in the sensor frame per pose, m/s² (from the file).
+    pub gravity_m_s2: Vec<[f64; 3]>,
+    /// `r11..r33` per pose.
+    pub orient: Vec<[f64; 9]>,
+}
+
+/// Load `0-calibration_fts-accel.csv`.
+pub fn load_static_poses(path: &Path) -> Result<StaticPoses> {
+    let (_, wrench) = read_columns(path, WRENCH_COLS, None, 6)?;
+    let (_, accel_g) = read_columns(path, ACCEL_COLS, None, 6)?;
+    let (_, gravity_m_s2) = read_columns(path, ["gx", "gy", "gz"], None, 6)?;
+    let (_, orient) = read_columns(path, ORIENT_COLS, None, 6)?;
+    Ok(StaticPoses {
+        wrench,
+        accel_g,
+        gravity_m_s2,
+        orient,
+    })
+}
+
+/// Per-axis standard deviation of `0-steady-state_wrench.csv` (sensor at
+/// rest), N and N·m. An axis whose deviation overflows (finite but huge
+/// cells) is an error naming the file and the column.
+pub fn steady_state_noise(path: &Path) -> Result<[f64; 6]> {
+    let (_, w) = read_columns(path, WRENCH_COLS, None, 10)?;
+    let n = w.len() as f64;
+    let sd: [f64; 6] = std::array::from_fn(|k| {
+        let m = w.iter().map(|r| r[k]).sum::<f64>() / n;
+        (w.iter().map(|r| (r[k] - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    });
+    // Finite cells can still overflow the sum or the squares; an infinite
+    // standard deviation would silently give its axis a zero weight.
+    if let Some(k) = sd.iter().position(|s| !s.is_finite()) {
+        bail!(
+            "{}: column \"{}\": the standard deviation is {}: values too large",
+            path.display(),
+            WRENCH_COLS[k],
+            sd[k]
+        );
+    }
+    Ok(sd)
+}

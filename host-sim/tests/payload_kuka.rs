@@ -220,6 +220,21 @@ fn analyse_checks_its_options() {
             },
             "--creep-taus",
         ),
+        (
+            PayloadOptions {
+                accel_lag_ms: Some(f64::NAN),
+                ..PayloadOptions::default()
+            },
+            "--accel-lag-ms",
+        ),
+        (
+            PayloadOptions {
+                inertia: true,
+                rotational: false,
+                ..PayloadOptions::default()
+            },
+            "--inertia",
+        ),
     ];
     for (opts, flag) in cases {
         let msg = format!("{:#}", analyse(&opts).err().expect("must fail"));

@@ -138,14 +138,32 @@ impl PayloadOptions {
     /// `tare_s` negative or NaN, `lowpass_hz` negative or not finite, a
     /// creep time constant not positive and finite.
     pub fn check(&self) -> Result<()> {
-        if self.tare_s.is_nan() || self.tare_s < 0.0 {
-            bail!("--tare-s must be non-negative");
+        // The same ranges the command line's parsers enforce, so that a
+        // library caller cannot pass what the command refuses.
+        let within = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
+        if !within(self.tare_s, 0.0, 1e4) {
+            bail!("--tare-s must be in [0, 1e4] s, got {}", self.tare_s);
         }
-        if !(self.lowpass_hz >= 0.0 && self.lowpass_hz.is_finite()) {
-            bail!("--lowpass-hz must be finite and non-negative");
+        if !within(self.lowpass_hz, 0.0, 1000.0) {
+            bail!(
+                "--lowpass-hz must be in [0, 1000] Hz, got {}",
+                self.lowpass_hz
+            );
         }
-        if self.creep_taus.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
-            bail!("--creep-taus must be positive");
+        if self
+            .creep_taus
+            .iter()
+            .any(|t| !(*t > 0.0 && within(f64::from(*t), 0.0, 1e4)))
+        {
+            bail!("--creep-taus must be positive and at most 1e4 s");
+        }
+        if let Some(lag) = self.accel_lag_ms {
+            if !within(lag, -1000.0, 1000.0) {
+                bail!("--accel-lag-ms must be in [-1000, 1000] ms, got {lag}");
+            }
+        }
+        if self.inertia && !self.rotational {
+            bail!("--inertia needs --rotational (the inertia multiplies the rotational terms)");
         }
         Ok(())
     }

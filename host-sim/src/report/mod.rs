@@ -264,6 +264,14 @@ pub fn generate(args: &ReportArgs) -> Result<Report> {
         )?;
     }
     let progress = Progress::new(args.quiet);
+    // The spinner is cleared however the report ends (an error included).
+    struct ClearOnExit(Progress);
+    impl Drop for ClearOnExit {
+        fn drop(&mut self) {
+            self.0.finish();
+        }
+    }
+    let _clear = ClearOnExit(progress);
     let s = Settings {
         seed: args.seed,
         scale: args.duration_scale,

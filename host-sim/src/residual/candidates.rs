@@ -2,10 +2,11 @@
 //! signals of each role (positions, velocities, currents, loads), less what
 //! a model's physics rules out.
 
-use cable_joint::effects::{candidate_library, EffectKind, LibrarySpec, SignalRange, Term};
+use cable_joint::effects::{EffectKind, Term};
 use cable_joint::model::sig;
 
 use super::families::reads_other_sensor;
+use super::library::{candidate_library, LibrarySpec, SignalRange};
 use super::problem::{BuildOptions, ModelKind};
 use super::select::{Problem, RunData};
 

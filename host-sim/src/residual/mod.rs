@@ -29,6 +29,7 @@
 mod candidates;
 pub mod families;
 mod generic;
+pub mod library;
 pub mod outcome;
 pub mod problem;
 pub mod report;

@@ -1,0 +1,246 @@
+//! The standard candidate effect terms for a log (host-side: the firmware
+//! only evaluates the terms the residual loop chose, `cable_joint::model`).
+//! Widths and time constants are computed in `f32` through the core's
+//! `math` module, as the core computes its terms.
+
+use cable_joint::effects::{EffectKind, Term};
+use cable_joint::math;
+
+/// A signal of the log for the [`candidate_library`]: its index and the range
+/// it covers in the data at hand.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SignalRange {
+    /// Index in the per-sample slice.
+    pub index: u8,
+    /// Smallest value in the log.
+    pub min: f32,
+    /// Largest value in the log.
+    pub max: f32,
+}
+
+impl SignalRange {
+    fn span(&self) -> Option<f32> {
+        let s = self.max - self.min;
+        (s > 0.0 && s.is_finite()).then_some(s)
+    }
+
+    fn magnitude(&self) -> f32 {
+        let (a, b) = (math::abs(self.min), math::abs(self.max));
+        if a > b {
+            a
+        } else {
+            b
+        }
+    }
+}
+
+/// What the [`candidate_library`] knows about a log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LibrarySpec {
+    /// A position signal (e.g. `x2_m`), or none.
+    pub position: Option<SignalRange>,
+    /// A velocity signal (e.g. the differentiated `x2`), or none.
+    pub velocity: Option<SignalRange>,
+    /// A motor current signal (`i_ref_a` / `i_meas_a`), or none.
+    pub current: Option<SignalRange>,
+    /// A load signal (tension or force), or none.
+    pub load: Option<SignalRange>,
+    /// Sample period, s.
+    pub sample_period_s: f32,
+    /// Length of the log, s.
+    pub duration_s: f32,
+}
+
+/// The standard candidate set for a log, with widths scaled to each signal's
+/// range and time constants spread between the sample rate and the log length:
+///
+/// * always: `const`, `time` (per hour), `warmup` at three time constants;
+/// * position: linear, `sqr_sign`, `cube`, `stop` and `dahl` at 0.5/2/8 % of
+///   the span, `deadzone` at 1/5 % of the span (centred on 0 when the range
+///   holds 0, else mid-range), `creep` at three time constants;
+/// * velocity: linear (viscous), `coulomb` at 0.5/2 % and `stribeck` at 5/20 %
+///   of the largest speed;
+/// * current: linear, `thermal` at three time constants;
+/// * load: linear, `load x position`, `load^2`, `creep` at three time constants;
+///   with a velocity, `load_coulomb` at the `coulomb` widths; with a
+///   position, `load_dahl` at the `dahl` lengths.
+///
+/// Time constants are `tau_lo = max(20 dt, T/100)`, `tau_hi = T/3` and their
+/// geometric mean. `play` and `relax` are left out because with the linear
+/// term present they span the same space as `stop` and `creep`. Signals with
+/// an empty range are skipped.
+pub fn candidate_library(spec: &LibrarySpec) -> Vec<Term> {
+    let mut v = Vec::new();
+    let mut add = |t: Term| v.push(t);
+    let dt = if spec.sample_period_s > 0.0 {
+        spec.sample_period_s
+    } else {
+        1e-3
+    };
+    let t_total = if spec.duration_s > dt {
+        spec.duration_s
+    } else {
+        dt
+    };
+    let lo = (20.0 * dt).max(t_total / 100.0);
+    let hi = (t_total / 3.0).max(lo);
+    let taus = [lo, math::sqrt(lo * hi), hi];
+
+    add(Term::CONSTANT);
+    add(Term::new(EffectKind::Time { scale_s: 3600.0 }, 0));
+    for tau_s in taus {
+        add(Term::new(EffectKind::Warmup { tau_s }, 0));
+    }
+    let pos = spec.position.filter(|s| s.span().is_some());
+    if let Some(p) = pos {
+        let (i, span) = (p.index, p.span().unwrap_or(1.0));
+        add(Term::new(EffectKind::Linear, i));
+        add(Term::new(EffectKind::SignedSquare, i));
+        add(Term::new(EffectKind::Cube, i));
+        for f in [0.005, 0.02, 0.08] {
+            add(Term::new(
+                EffectKind::Stop {
+                    half_width: f * span,
+                },
+                i,
+            ));
+        }
+        for f in [0.005, 0.02, 0.08] {
+            add(Term::new(EffectKind::Dahl { length: f * span }, i));
+        }
+        let center = if p.min < 0.0 && p.max > 0.0 {
+            0.0
+        } else {
+            0.5 * (p.min + p.max)
+        };
+        for f in [0.01, 0.05] {
+            let half_width = f * span;
+            add(Term::new(EffectKind::DeadZone { center, half_width }, i));
+        }
+        for tau_s in taus {
+            add(Term::new(EffectKind::Creep { tau_s }, i));
+        }
+    }
+    let vel = spec.velocity.filter(|s| s.span().is_some());
+    if let Some(s) = vel {
+        let (i, m) = (s.index, s.magnitude());
+        add(Term::new(EffectKind::Linear, i));
+        for f in [0.005, 0.02] {
+            add(Term::new(EffectKind::SmoothSign { v_eps: f * m }, i));
+        }
+        for f in [0.05, 0.2] {
+            let kind = EffectKind::Stribeck {
+                v_s: f * m,
+                v_eps: 0.005 * m,
+            };
+            add(Term::new(kind, i));
+        }
+    }
+    if let Some(s) = spec.current.filter(|s| s.span().is_some()) {
+        add(Term::new(EffectKind::Linear, s.index));
+        for tau_s in taus {
+            add(Term::new(EffectKind::Thermal { tau_s }, s.index));
+        }
+    }
+    if let Some(s) = spec.load.filter(|s| s.span().is_some()) {
+        add(Term::new(EffectKind::Linear, s.index));
+        if let Some(p) = pos {
+            add(Term::product(s.index, p.index));
+        }
+        add(Term::product(s.index, s.index));
+        for tau_s in taus {
+            add(Term::new(EffectKind::Creep { tau_s }, s.index));
+        }
+        for tau_s in taus {
+            add(Term::new(EffectKind::LoadMemory { tau_s }, s.index));
+        }
+        if let Some(w) = vel {
+            for f in [0.005, 0.02] {
+                let kind = EffectKind::LoadCoulomb {
+                    v_eps: f * w.magnitude(),
+                };
+                add(Term::with_aux(kind, w.index, s.index));
+            }
+        }
+        if let Some(p) = pos {
+            let span = p.span().unwrap_or(1.0);
+            for f in [0.005, 0.02, 0.08] {
+                let kind = EffectKind::LoadDahl { length: f * span };
+                add(Term::with_aux(kind, p.index, s.index));
+            }
+        }
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cable_joint::effects::EffectBank;
+
+    #[test]
+    fn library_is_valid_and_scaled() {
+        let spec = LibrarySpec {
+            position: Some(SignalRange {
+                index: 0,
+                min: -2e-3,
+                max: 6e-3,
+            }),
+            velocity: Some(SignalRange {
+                index: 1,
+                min: -0.02,
+                max: 0.01,
+            }),
+            current: Some(SignalRange {
+                index: 2,
+                min: -1.0,
+                max: 1.5,
+            }),
+            load: Some(SignalRange {
+                index: 3,
+                min: 10.0,
+                max: 30.0,
+            }),
+            sample_period_s: 5e-4,
+            duration_s: 60.0,
+        };
+        let lib = candidate_library(&spec);
+        assert_eq!(lib.len(), 42);
+        let bank = EffectBank::<64>::new(&lib, 4);
+        assert!(bank.is_ok(), "{:?}", bank.err());
+        for t in &lib {
+            match t.kind {
+                EffectKind::Stop { half_width } => {
+                    assert!((0.005 * 8e-3 * 0.99..=0.08 * 8e-3 * 1.01).contains(&half_width))
+                }
+                EffectKind::SmoothSign { v_eps } | EffectKind::LoadCoulomb { v_eps } => {
+                    assert!(v_eps <= 0.02 * 0.02 * 1.001)
+                }
+                EffectKind::LoadDahl { length } => {
+                    assert!((0.005 * 8e-3 * 0.99..=0.08 * 8e-3 * 1.01).contains(&length));
+                    assert_eq!((t.input, t.aux), (0, 3), "position x load");
+                }
+                EffectKind::Creep { tau_s } | EffectKind::Thermal { tau_s } => {
+                    assert!((0.6 * 0.99..=20.0 * 1.01).contains(&tau_s), "tau {tau_s}")
+                }
+                EffectKind::DeadZone { center, .. } => assert_eq!(center, 0.0),
+                _ => {}
+            }
+            assert!(!t.name().is_empty() && t.meaning().len() > 10);
+        }
+        // A signal without range is skipped; no signal at all leaves the
+        // time terms.
+        let empty = LibrarySpec {
+            position: None,
+            velocity: None,
+            current: None,
+            load: Some(SignalRange {
+                index: 0,
+                min: 1.0,
+                max: 1.0,
+            }),
+            ..spec
+        };
+        assert_eq!(candidate_library(&empty).len(), 5);
+    }
+}

@@ -38,6 +38,7 @@
 
 pub mod experiments;
 pub mod figures;
+pub mod keys;
 pub mod programme;
 pub mod regressors;
 pub mod render;

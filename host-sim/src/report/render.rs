@@ -7,180 +7,26 @@ use std::fmt::Write as _;
 use serde_json::{json, Value};
 
 use super::experiments::{LoadCase, Summary, TrackRun};
-use super::programme::{AccuracyStats, Evaluation, Identification, LoadingSummary};
+use super::keys::{self, Figure};
+use super::programme::{Evaluation, Identification, LoadingSummary};
 use super::{EffectsPart, Report};
 use crate::ident::Regressor;
 use crate::residual::Analysis;
 
 // --- The flat figure map ---------------------------------------------------
 
-struct Keys<'a> {
-    map: &'a mut BTreeMap<String, f64>,
-    prefix: String,
-}
-
-impl Keys<'_> {
-    fn put(&mut self, key: &str, v: f64) {
-        self.map.insert(format!("{}.{key}", self.prefix), v);
-    }
-
-    fn summary(&mut self, key: &str, s: &Summary, unit: &str) {
-        self.put(&format!("{key}.mean_{unit}"), s.mean);
-        self.put(&format!("{key}.mean_abs_{unit}"), s.mean_abs);
-        self.put(&format!("{key}.rms_{unit}"), s.rms);
-        self.put(&format!("{key}.max_{unit}"), s.max);
-        self.put(&format!("{key}.min_{unit}"), s.min);
-        self.put(&format!("{key}.max_abs_{unit}"), s.max_abs());
-    }
-
-    fn accuracy(&mut self, key: &str, a: &AccuracyStats) {
-        self.put(&format!("{key}.min_pct"), a.min_pct);
-        self.put(&format!("{key}.mean_pct"), a.mean_pct);
-        self.put(&format!("{key}.cases"), a.cases as f64);
-        self.put(&format!("{key}.faulted"), a.faulted as f64);
-    }
-
-    fn tracking(&mut self, key: &str, t: &TrackRun) {
-        self.summary(
-            &format!("{key}.desired_minus_actual"),
-            &t.desired_minus_actual,
-            "deg",
-        );
-        self.summary(
-            &format!("{key}.actual_minus_estimated"),
-            &t.actual_minus_estimated,
-            "deg",
-        );
-        self.put(
-            &format!("{key}.faulted"),
-            f64::from(u8::from(t.fault.is_some())),
-        );
-    }
-
-    fn evaluation(&mut self, ev: &Evaluation, jae_error_deg: &Summary) {
-        self.summary("jae.error", jae_error_deg, "deg");
-        self.tracking("track_motor", &ev.track_motor);
-        self.tracking("track_jae", &ev.track_jae);
-        self.tracking("robust_2n5", &ev.robust);
-        self.loading("loading", &ev.loading_summary);
-        self.loading("loading_stretch", &ev.loading_stretch_summary);
-    }
-
-    /// One loading summary under `prefix` (`loading`: the DOB;
-    /// `loading_stretch`: the cable-stretch estimate).
-    fn loading(&mut self, prefix: &str, l: &LoadingSummary) {
-        let k = |name: &str| format!("{prefix}.{name}");
-        self.put(&k("cases"), l.cases as f64);
-        self.put(&k("faulted_cases"), l.faulted as f64);
-        self.summary(&k("static_noload"), &l.static_noload_n, "n");
-        self.summary(&k("static_noload_0"), &l.static_noload_0_n, "n");
-        self.summary(&k("static_noload_30_m40"), &l.static_noload_30_m40_n, "n");
-        self.summary(&k("dynamic_noload_pos"), &l.dynamic_noload_pos_n, "n");
-        self.summary(&k("dynamic_noload_neg"), &l.dynamic_noload_neg_n, "n");
-        self.accuracy(&k("accuracy.above_1n"), &l.above_1n);
-        self.accuracy(&k("accuracy.at_0n3"), &l.at_0n3);
-        self.accuracy(&k("accuracy.above_1n_0"), &l.above_1n_0);
-        self.accuracy(&k("accuracy.at_0n3_0"), &l.at_0n3_0);
-        self.accuracy(&k("accuracy.above_1n_30_m40"), &l.above_1n_30_m40);
-        self.accuracy(&k("accuracy.at_0n3_30_m40"), &l.at_0n3_30_m40);
-        self.put(&k("max_angle_error_0_deg"), l.max_angle_error_0_deg);
-        self.put(
-            &k("max_angle_error_30_m40_deg"),
-            l.max_angle_error_30_m40_deg,
-        );
-    }
-
-    fn identification(&mut self, id: &Identification) {
-        let bm = &id.bm;
-        self.put("bm.b_m_nm_s_rad", bm.b_m_nm_s_rad);
-        self.put("bm.coulomb_nm", bm.coulomb_nm.unwrap_or(0.0));
-        self.put(
-            "bm.b_m_pct_sigma",
-            bm.fit
-                .param(Regressor::PhiVel)
-                .map_or(f64::NAN, |p| p.pct_sigma),
-        );
-        self.put("bm.verification_rmse_nm", id.bm_validation.rmse);
-        self.put("bm.verification_mean_nm", id.bm_validation.mean);
-        let j = &id.jae;
-        for (k, c) in j.chi_s.iter().enumerate() {
-            self.put(&format!("jae.c{}", k + 1), *c);
-        }
-        self.put("jae.offset_rad", j.offset_rad);
-        let e = &j.error_deg;
-        self.put("jae.ident.mean_deg", e.mean);
-        self.put("jae.ident.mean_abs_deg", e.mean_abs);
-        self.put("jae.ident.max_deg", e.max);
-        self.put("jae.ident.min_deg", e.min);
-        self.put("jae.ident.rmse_deg", e.rmse);
-        let t = &id.tension;
-        for (name, m) in [
-            ("model_a", t.model_a.as_ref().ok()),
-            ("model_b", t.model_b.as_ref().ok()),
-            ("model_c", Some(&t.model_c)),
-            ("simplified", Some(&t.simplified)),
-        ] {
-            self.put(
-                &format!("tension.{name}.mean_error_n"),
-                m.map_or(f64::NAN, |m| m.errors.mean),
-            );
-            self.put(
-                &format!("tension.{name}.rmse_n"),
-                m.map_or(f64::NAN, |m| m.errors.rmse),
-            );
-        }
-        for (name, v) in ["f_sc1_n", "f_cp2_n", "k_s_n_m", "f_0_n"]
-            .iter()
-            .zip(t.chi_p)
-        {
-            self.put(&format!("tension.chi_p.{name}"), v);
-        }
-        self.put("tension.dropped_terms", t.dropped.len() as f64);
-        if let Some((_, e)) = id.tension_validation.last() {
-            self.put("tension.verification.mean_error_n", e.mean);
-            self.put("tension.verification.rmse_n", e.rmse);
-            self.put("tension.verification.max_abs_n", e.max_abs());
-        }
-        self.put("identification_faults", id.faults.len() as f64);
-    }
-
-    fn residual(&mut self, name: &str, a: &Analysis) {
-        let o = &a.outcome;
-        self.put(&format!("residual.{name}.before_rmse"), o.baseline.val_rmse);
-        self.put(&format!("residual.{name}.after_rmse"), o.final_fit.val_rmse);
-        self.put(
-            &format!("residual.{name}.terms_added"),
-            o.accepted.len() as f64,
-        );
-    }
-}
-
-/// Every figure of the report under a stable key (`clean.`,
-/// `effects_seed_model.`, `effects_residual.` prefixes).
+/// Every figure of the report under a stable key: each [`Figure`] a
+/// variant has under that variant's prefix (`clean.`,
+/// `effects_seed_model.`, `effects_residual.`), and `runtime_s`.
 pub fn figure_map(r: &Report) -> BTreeMap<String, f64> {
+    let figures = Figure::all();
     let mut map = BTreeMap::new();
-    {
-        let mut k = Keys {
-            map: &mut map,
-            prefix: "clean".into(),
-        };
-        k.identification(&r.clean.0);
-        k.evaluation(&r.clean.1, &r.clean_jae_error_deg);
-    }
-    if let Some(fx) = &r.effects {
-        let mut k = Keys {
-            map: &mut map,
-            prefix: "effects_seed_model".into(),
-        };
-        k.identification(&fx.id);
-        k.evaluation(&fx.before, &fx.jae_error_before_deg);
-        let mut k = Keys {
-            map: &mut map,
-            prefix: "effects_residual".into(),
-        };
-        k.evaluation(&fx.after, &fx.jae_error_after_deg);
-        k.residual("jae", &fx.residual.jae);
-        k.residual("tension", &fx.residual.tension);
+    for v in keys::variants(r) {
+        for f in &figures {
+            if let Some(x) = f.value(&v) {
+                map.insert(format!("{}.{}", v.prefix, f.key()), x);
+            }
+        }
     }
     map.insert("runtime_s".into(), r.runtime_s);
     map

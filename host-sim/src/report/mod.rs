@@ -42,6 +42,7 @@ pub mod keys;
 pub mod programme;
 pub mod regressors;
 pub mod render;
+pub mod seed;
 pub mod variants;
 
 use std::path::{Path, PathBuf};
@@ -350,7 +351,7 @@ pub fn write(r: &mut Report) -> Result<String> {
     let mut out = std::mem::take(&mut r.staged);
     let r = &*r;
     let map = render::figure_map(r);
-    let rows = render::comparison(&map);
+    let rows = seed::comparison(r);
     let dir = &r.options.out;
     stage_config(&mut out, dir.join("config_clean.toml"), &r.clean.0.config)?;
     if let Some(fx) = &r.effects {
@@ -385,7 +386,7 @@ pub fn write(r: &mut Report) -> Result<String> {
         }
     }
     text.push('\n');
-    text.push_str(&render::terminal_table(&rows));
+    text.push_str(&seed::terminal_table(&rows));
     text.push_str("\nWhere we stand\n");
     text.push_str(&render::goals_table(r, &map));
     if r.effects.is_some() {

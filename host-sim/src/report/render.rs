@@ -9,6 +9,7 @@ use serde_json::{json, Value};
 use super::experiments::{LoadCase, Summary, TrackRun};
 use super::keys::{self, Figure};
 use super::programme::{Evaluation, Identification, LoadingSummary};
+use super::seed::Row;
 use super::{EffectsPart, Report};
 use crate::ident::Regressor;
 use crate::residual::Analysis;
@@ -32,399 +33,12 @@ pub fn figure_map(r: &Report) -> BTreeMap<String, f64> {
     map
 }
 
-// --- Comparison with the seed ---------------------------------------------
+// --- Numbers in tables ------------------------------------------------------
 
-/// How a row compares.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Better {
-    /// An error: smaller magnitude is better (ratio = |ours| / |seed|).
-    Lower,
-    /// An accuracy: higher is better (ratio = ours / seed).
-    Higher,
-    /// An identified parameter (ratio = ours / seed, no verdict).
-    Info,
-}
-
-/// One row of the comparison table.
-#[derive(Clone, Debug)]
-pub struct Row {
-    /// Key in the figure map (without the `clean.` prefix).
-    pub key: String,
-    /// What it is.
-    pub quantity: String,
-    /// Unit.
-    pub unit: &'static str,
-    /// The seed's figure.
-    pub seed: f64,
-    /// This project's figure.
-    pub ours: f64,
-    /// Comparison kind.
-    pub better: Better,
-    /// Where the seed states it.
-    pub source: &'static str,
-    /// A caveat on this project's figure (a fault, an artefact), or empty.
-    pub note: String,
-}
-
-impl Row {
-    /// The ratio (see [`Better`]).
-    pub fn ratio(&self) -> f64 {
-        match self.better {
-            Better::Lower => self.ours.abs() / self.seed.abs(),
-            Better::Higher | Better::Info => self.ours / self.seed,
-        }
-    }
-
-    /// `better`, `worse`, `-` (no verdict), `fault` (the run faulted) or `n/a`.
-    pub fn verdict(&self) -> &'static str {
-        let r = self.ratio();
-        match self.better {
-            _ if !r.is_finite() => "n/a",
-            _ if self.note.starts_with("run faulted") => "fault",
-            Better::Lower if r <= 1.0 => "better",
-            Better::Higher if r >= 1.0 => "better",
-            Better::Info => "-",
-            _ => "worse",
-        }
-    }
-}
-
-/// The rows: every number of DESIGN.md's "results to beat" table, and the
-/// other figures the seed's text gives for the same experiments.
-pub fn comparison(map: &BTreeMap<String, f64>) -> Vec<Row> {
-    let get = |k: &str| map.get(&format!("clean.{k}")).copied().unwrap_or(f64::NAN);
-    let spec: [(&str, &str, &str, f64, Better, &str); 37] = [
-        (
-            "jae.error.mean_abs_deg",
-            "JAE identification error, mean |e|",
-            "°",
-            0.2750,
-            Better::Lower,
-            "Sect. 4.1, Fig. 9",
-        ),
-        (
-            "jae.error.max_deg",
-            "JAE identification error, max",
-            "°",
-            0.8355,
-            Better::Lower,
-            "Sect. 4.1, Fig. 9",
-        ),
-        (
-            "jae.error.min_deg",
-            "JAE identification error, min",
-            "°",
-            -0.8321,
-            Better::Lower,
-            "Sect. 4.1, Fig. 9",
-        ),
-        (
-            "track_motor.desired_minus_actual.mean_abs_deg",
-            "tracking without JAE, mean |desired − actual|",
-            "°",
-            1.912,
-            Better::Lower,
-            "Fig. 10",
-        ),
-        (
-            "track_motor.desired_minus_actual.max_abs_deg",
-            "tracking without JAE, max |desired − actual|",
-            "°",
-            4.134,
-            Better::Lower,
-            "Fig. 10",
-        ),
-        (
-            "track_jae.desired_minus_actual.mean_deg",
-            "tracking with JAE, desired − actual, mean",
-            "°",
-            -0.150,
-            Better::Lower,
-            "Fig. 12",
-        ),
-        (
-            "track_jae.desired_minus_actual.max_deg",
-            "tracking with JAE, desired − actual, max",
-            "°",
-            0.905,
-            Better::Lower,
-            "Fig. 12",
-        ),
-        (
-            "track_jae.desired_minus_actual.min_deg",
-            "tracking with JAE, desired − actual, min",
-            "°",
-            -0.974,
-            Better::Lower,
-            "Fig. 12",
-        ),
-        (
-            "track_jae.actual_minus_estimated.mean_deg",
-            "tracking with JAE, actual − estimated, mean",
-            "°",
-            0.170,
-            Better::Lower,
-            "Fig. 12 (text)",
-        ),
-        (
-            "track_jae.actual_minus_estimated.max_deg",
-            "tracking with JAE, actual − estimated, max",
-            "°",
-            0.715,
-            Better::Lower,
-            "Fig. 12 (text)",
-        ),
-        (
-            "track_jae.actual_minus_estimated.min_deg",
-            "tracking with JAE, actual − estimated, min",
-            "°",
-            -0.498,
-            Better::Lower,
-            "Fig. 12 (text)",
-        ),
-        (
-            "robust_2n5.desired_minus_actual.mean_deg",
-            "2.5 N on the tip, desired − actual, mean",
-            "°",
-            -0.105,
-            Better::Lower,
-            "Fig. 13",
-        ),
-        (
-            "robust_2n5.desired_minus_actual.max_deg",
-            "2.5 N on the tip, desired − actual, max",
-            "°",
-            1.202,
-            Better::Lower,
-            "Fig. 13",
-        ),
-        (
-            "robust_2n5.desired_minus_actual.min_deg",
-            "2.5 N on the tip, desired − actual, min",
-            "°",
-            -1.271,
-            Better::Lower,
-            "Fig. 13 (text)",
-        ),
-        (
-            "robust_2n5.actual_minus_estimated.mean_deg",
-            "2.5 N on the tip, actual − estimated, mean",
-            "°",
-            0.076,
-            Better::Lower,
-            "Fig. 13 (text)",
-        ),
-        (
-            "robust_2n5.actual_minus_estimated.max_deg",
-            "2.5 N on the tip, actual − estimated, max",
-            "°",
-            0.508,
-            Better::Lower,
-            "Fig. 13 (text)",
-        ),
-        (
-            "robust_2n5.actual_minus_estimated.min_deg",
-            "2.5 N on the tip, actual − estimated, min",
-            "°",
-            -0.454,
-            Better::Lower,
-            "Fig. 13 (text)",
-        ),
-        (
-            "tension.verification.mean_error_n",
-            "simplified model C, verification mean error",
-            "N",
-            0.011,
-            Better::Lower,
-            "Fig. 18",
-        ),
-        (
-            "loading.static_noload_0.max_abs_n",
-            "static no-load error at 0° (±)",
-            "N",
-            0.1,
-            Better::Lower,
-            "Sect. 4.3, Figs. 20-21",
-        ),
-        (
-            "loading.static_noload_30_m40.max_abs_n",
-            "static no-load error at 30°/-40° (±)",
-            "N",
-            0.15,
-            Better::Lower,
-            "Sect. 4.3, Figs. 23-26",
-        ),
-        (
-            "loading.dynamic_noload_pos.max_abs_n",
-            "dynamic no-load error, positive runs (±)",
-            "N",
-            0.15,
-            Better::Lower,
-            "Sect. 4.3",
-        ),
-        (
-            "loading.dynamic_noload_neg.max_abs_n",
-            "dynamic no-load error, negative runs (±)",
-            "N",
-            0.2,
-            Better::Lower,
-            "Sect. 4.3",
-        ),
-        (
-            "loading.accuracy.above_1n_0.min_pct",
-            "force accuracy ≥ 1 N at 0° (worst case)",
-            "%",
-            94.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "loading.accuracy.at_0n3_0.min_pct",
-            "force accuracy at 0.3 N at 0° (worst case)",
-            "%",
-            82.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "loading.accuracy.above_1n_30_m40.min_pct",
-            "force accuracy ≥ 1 N at 30°/-40° (worst case)",
-            "%",
-            95.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "loading.accuracy.at_0n3_30_m40.min_pct",
-            "force accuracy at 0.3 N at 30°/-40° (worst case)",
-            "%",
-            84.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "loading.max_angle_error_0_deg",
-            "largest angle error with a load on, 0°",
-            "°",
-            1.25,
-            Better::Lower,
-            "Sect. 4.3",
-        ),
-        (
-            "loading.max_angle_error_30_m40_deg",
-            "largest angle error with a load on, 30°/-40°",
-            "°",
-            1.4,
-            Better::Lower,
-            "Sect. 4.3",
-        ),
-        (
-            "loading_stretch.static_noload_0.max_abs_n",
-            "static no-load error at 0° (±), stretch estimate",
-            "N",
-            0.1,
-            Better::Lower,
-            "Sect. 4.3, Figs. 20-21",
-        ),
-        (
-            "loading_stretch.static_noload_30_m40.max_abs_n",
-            "static no-load error at 30°/-40° (±), stretch estimate",
-            "N",
-            0.15,
-            Better::Lower,
-            "Sect. 4.3, Figs. 23-26",
-        ),
-        (
-            "loading_stretch.dynamic_noload_pos.max_abs_n",
-            "dynamic no-load error, positive runs (±), stretch estimate",
-            "N",
-            0.15,
-            Better::Lower,
-            "Sect. 4.3",
-        ),
-        (
-            "loading_stretch.dynamic_noload_neg.max_abs_n",
-            "dynamic no-load error, negative runs (±), stretch estimate",
-            "N",
-            0.2,
-            Better::Lower,
-            "Sect. 4.3",
-        ),
-        (
-            "loading_stretch.accuracy.above_1n_0.min_pct",
-            "force accuracy ≥ 1 N at 0° (worst case), stretch estimate",
-            "%",
-            94.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "loading_stretch.accuracy.at_0n3_0.min_pct",
-            "force accuracy at 0.3 N at 0° (worst case), stretch estimate",
-            "%",
-            82.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "loading_stretch.accuracy.above_1n_30_m40.min_pct",
-            "force accuracy ≥ 1 N at 30°/-40° (worst case), stretch estimate",
-            "%",
-            95.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "loading_stretch.accuracy.at_0n3_30_m40.min_pct",
-            "force accuracy at 0.3 N at 30°/-40° (worst case), stretch estimate",
-            "%",
-            84.0,
-            Better::Higher,
-            "Sect. 4.3",
-        ),
-        (
-            "bm.b_m_nm_s_rad",
-            "identified B_m (plausibility)",
-            "N·m·s/rad",
-            1.6934e-5,
-            Better::Info,
-            "Sect. 4.2",
-        ),
-    ];
-    spec.iter()
-        .map(|(key, q, unit, seed, better, source)| Row {
-            key: (*key).to_owned(),
-            quantity: (*q).to_owned(),
-            unit,
-            seed: *seed,
-            ours: get(key),
-            better: *better,
-            source,
-            note: note(map, key),
-        })
-        .collect()
-}
-
-/// The caveat of a comparison row, from the figure map.
-fn note(map: &BTreeMap<String, f64>, key: &str) -> String {
-    let get = |k: &str| map.get(&format!("clean.{k}")).copied();
-    for run in ["track_motor", "track_jae", "robust_2n5"] {
-        if key.starts_with(&format!("{run}.")) && get(&format!("{run}.faulted")) == Some(1.0) {
-            return "run faulted: statistics up to the fault".into();
-        }
-    }
-    if let Some(base) = key.strip_suffix(".min_pct") {
-        if let Some(n) = get(&format!("{base}.faulted")).filter(|n| *n > 0.0) {
-            return format!("{n} faulted case(s) not counted");
-        }
-    }
-    if key == "loading.static_noload_0.max_abs_n" && get(key).is_some_and(|v| v < 1e-4) {
-        return "estimate = model in the hold dead band".into();
-    }
-    String::new()
-}
-
-fn fmt_num(v: f64) -> String {
+/// A number for a table: `n/a` when not finite; an integer below 1e5
+/// without decimals; otherwise in scientific notation with four decimals
+/// outside [1e-3, 1e5), with two decimals from 10, with four below 10.
+pub fn fmt_num(v: f64) -> String {
     if !v.is_finite() {
         return "n/a".into();
     }
@@ -438,39 +52,6 @@ fn fmt_num(v: f64) -> String {
     } else {
         format!("{v:.4}")
     }
-}
-
-/// The terminal table: seed | this project | ratio.
-pub fn terminal_table(rows: &[Row]) -> String {
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "{:<52} {:>11} {:>11} {:>7}  verdict (note)",
-        "quantity (clean simulated prototype)", "seed", "this", "ratio"
-    );
-    let _ = writeln!(s, "{}", "-".repeat(92));
-    for r in rows {
-        let q = format!("{} [{}]", r.quantity, r.unit);
-        let _ = writeln!(
-            s,
-            "{:<52} {:>11} {:>11} {:>7.3}  {}{}",
-            q,
-            fmt_num(r.seed),
-            fmt_num(r.ours),
-            r.ratio(),
-            r.verdict(),
-            if r.note.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", r.note)
-            }
-        );
-    }
-    let _ = writeln!(
-        s,
-        "ratio: |this| / |seed| for errors (< 1 is better), this / seed for accuracies (> 1 is better)"
-    );
-    s
 }
 
 // --- Goals -------------------------------------------------------------------
@@ -1041,14 +622,14 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
         let _ = writeln!(
             o,
             "| {} [{}] | {} | {} | {:.3} | {} | {} | {} |",
-            cell(&row.quantity),
-            row.unit,
-            fmt_num(row.seed),
+            cell(row.seed.quantity),
+            row.seed.unit,
+            fmt_num(row.seed.value),
             fmt_num(row.ours),
             row.ratio(),
             row.verdict(),
             row.note,
-            row.source
+            row.seed.source
         );
     }
     let _ = writeln!(
@@ -1363,14 +944,14 @@ pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
         "runtime_s": r.runtime_s,
         "figures": map,
         "seed_comparison": rows.iter().map(|row| json!({
-            "key": format!("clean.{}", row.key),
-            "quantity": row.quantity,
-            "unit": row.unit,
-            "seed": row.seed,
+            "key": format!("clean.{}", row.seed.figure.key()),
+            "quantity": row.seed.quantity,
+            "unit": row.seed.unit,
+            "seed": row.seed.value,
             "ours": row.ours,
             "ratio": row.ratio(),
             "verdict": row.verdict(),
-            "source": row.source,
+            "source": row.seed.source,
             "note": row.note,
         })).collect::<Vec<_>>(),
         "goals": goals,

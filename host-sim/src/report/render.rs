@@ -7,6 +7,7 @@ use std::fmt::Write as _;
 use serde_json::{json, Value};
 
 use super::experiments::{LoadCase, Summary, TrackRun};
+use super::goals::{fault_lines, goal_status, status_text, GOALS, STEP7_ROWS};
 use super::keys::{self, Figure};
 use super::programme::{Evaluation, Identification, LoadingSummary};
 use super::seed::Row;
@@ -52,282 +53,6 @@ pub fn fmt_num(v: f64) -> String {
     } else {
         format!("{v:.4}")
     }
-}
-
-// --- Goals -------------------------------------------------------------------
-
-/// One goal of the project.
-#[derive(Clone, Debug)]
-pub struct Goal {
-    /// Text.
-    pub goal: &'static str,
-    /// Figure key (without variant prefix).
-    pub key: &'static str,
-    /// Limit.
-    pub limit: f64,
-    /// `true`: the value must be at least the limit; `false`: at most.
-    pub at_least: bool,
-    /// A count of faults (figure key) that must be zero for the goal to be met
-    /// (the figure is computed only up to a fault).
-    pub faults_key: Option<&'static str>,
-}
-
-/// The goals stated for the project.
-pub const GOALS: [Goal; 7] = [
-    Goal {
-        goal: "force accuracy ≥ 98 % above 1 N (worst case, all angles and directions)",
-        key: "loading.accuracy.above_1n.min_pct",
-        limit: 98.0,
-        at_least: true,
-        faults_key: Some("loading.faulted_cases"),
-    },
-    Goal {
-        goal: "force accuracy ≥ 95 % at 0.3 N (worst case)",
-        key: "loading.accuracy.at_0n3.min_pct",
-        limit: 95.0,
-        at_least: true,
-        faults_key: Some("loading.faulted_cases"),
-    },
-    Goal {
-        goal: "static no-load error within ±0.03 N",
-        key: "loading.static_noload.max_abs_n",
-        limit: 0.03,
-        at_least: false,
-        faults_key: None,
-    },
-    Goal {
-        goal: "JAE max error ≤ 0.3° (identification run, through the core)",
-        key: "jae.error.max_abs_deg",
-        limit: 0.3,
-        at_least: false,
-        faults_key: None,
-    },
-    Goal {
-        goal: "JAE max error ≤ 0.3° in closed loop (track-jae, actual − estimated)",
-        key: "track_jae.actual_minus_estimated.max_abs_deg",
-        limit: 0.3,
-        at_least: false,
-        faults_key: Some("track_jae.faulted"),
-    },
-    Goal {
-        goal: "tracking max error ≤ 0.5° (track-jae, desired − actual)",
-        key: "track_jae.desired_minus_actual.max_abs_deg",
-        limit: 0.5,
-        at_least: false,
-        faults_key: Some("track_jae.faulted"),
-    },
-    Goal {
-        goal: "tracking max error ≤ 0.5° under 2.5 N (robust-2n5)",
-        key: "robust_2n5.desired_minus_actual.max_abs_deg",
-        limit: 0.5,
-        at_least: false,
-        faults_key: Some("robust_2n5.faulted"),
-    },
-];
-
-/// Whether a goal is met by a variant, and its value.
-pub fn goal_status(map: &BTreeMap<String, f64>, g: &Goal, variant: &str) -> Option<(f64, bool)> {
-    let v = *map.get(&format!("{variant}.{}", g.key))?;
-    let faults = g
-        .faults_key
-        .and_then(|k| map.get(&format!("{variant}.{k}")).copied())
-        .unwrap_or(0.0);
-    let ok = v.is_finite()
-        && faults == 0.0
-        && if g.at_least {
-            v >= g.limit
-        } else {
-            v <= g.limit
-        };
-    Some((v, ok))
-}
-
-/// The variants present, as `(key, title)`.
-pub fn variants(r: &Report) -> Vec<(&'static str, &'static str)> {
-    let mut v = vec![("clean", "clean plant")];
-    if r.effects.is_some() {
-        v.push(("effects_seed_model", "effects on, seed's model"));
-        v.push(("effects_residual", "effects on, after the residual loop"));
-    }
-    v
-}
-
-fn status_text(s: Option<(f64, bool)>) -> String {
-    match s {
-        Some((v, ok)) => format!("{} {}", fmt_num(v), if ok { "met" } else { "NOT met" }),
-        None => "n/a".into(),
-    }
-}
-
-/// Goals as a text table.
-pub fn goals_table(r: &Report, map: &BTreeMap<String, f64>) -> String {
-    let vs = variants(r);
-    let mut s = String::new();
-    let _ = write!(s, "{:<72}", "goal");
-    for (_, t) in &vs {
-        let _ = write!(s, " {:>22}", short(t));
-    }
-    let _ = writeln!(s);
-    for g in &GOALS {
-        let _ = write!(s, "{:<72}", g.goal);
-        for (k, _) in &vs {
-            let _ = write!(s, " {:>22}", status_text(goal_status(map, g, k)));
-        }
-        let _ = writeln!(s);
-    }
-    s
-}
-
-fn short(t: &str) -> &str {
-    match t {
-        "clean plant" => "clean",
-        "effects on, seed's model" => "effects, seed model",
-        "effects on, after the residual loop" => "effects + residual",
-        other => other,
-    }
-}
-
-/// Step 7 rows: `(key, quantity, unit)`.
-const STEP7_ROWS: [(&str, &str, &str); 17] = [
-    (
-        "jae.error.mean_abs_deg",
-        "JAE error on jae-ident, mean |e|",
-        "°",
-    ),
-    (
-        "jae.error.max_abs_deg",
-        "JAE error on jae-ident, max |e|",
-        "°",
-    ),
-    (
-        "track_motor.desired_minus_actual.max_abs_deg",
-        "track-motor, max |desired − actual|",
-        "°",
-    ),
-    (
-        "track_jae.desired_minus_actual.mean_abs_deg",
-        "track-jae, mean |desired − actual|",
-        "°",
-    ),
-    (
-        "track_jae.desired_minus_actual.max_abs_deg",
-        "track-jae, max |desired − actual|",
-        "°",
-    ),
-    (
-        "track_jae.actual_minus_estimated.max_abs_deg",
-        "track-jae, max |actual − estimated|",
-        "°",
-    ),
-    (
-        "robust_2n5.desired_minus_actual.max_abs_deg",
-        "2.5 N, max |desired − actual|",
-        "°",
-    ),
-    (
-        "robust_2n5.actual_minus_estimated.max_abs_deg",
-        "2.5 N, max |actual − estimated|",
-        "°",
-    ),
-    (
-        "loading.static_noload.max_abs_n",
-        "static no-load error (±)",
-        "N",
-    ),
-    (
-        "loading.static_noload.rms_n",
-        "static no-load error, RMS",
-        "N",
-    ),
-    (
-        "loading.dynamic_noload_pos.max_abs_n",
-        "dynamic no-load error, positive runs (±)",
-        "N",
-    ),
-    (
-        "loading.dynamic_noload_neg.max_abs_n",
-        "dynamic no-load error, negative runs (±)",
-        "N",
-    ),
-    (
-        "loading.accuracy.above_1n.min_pct",
-        "accuracy ≥ 1 N, worst case",
-        "%",
-    ),
-    (
-        "loading.accuracy.above_1n.mean_pct",
-        "accuracy ≥ 1 N, mean",
-        "%",
-    ),
-    (
-        "loading.accuracy.at_0n3.min_pct",
-        "accuracy at 0.3 N, worst case",
-        "%",
-    ),
-    (
-        "loading.accuracy.at_0n3.mean_pct",
-        "accuracy at 0.3 N, mean",
-        "%",
-    ),
-    (
-        "loading.faulted_cases",
-        "loading cases with a latched fault",
-        "",
-    ),
-];
-
-/// Step 7 as a text table.
-pub fn step7_table(r: &Report, map: &BTreeMap<String, f64>) -> String {
-    let vs = variants(r);
-    let mut s = String::new();
-    let _ = write!(s, "{:<50}", "quantity");
-    for (_, t) in &vs {
-        let _ = write!(s, " {:>20}", short(t));
-    }
-    let _ = writeln!(s);
-    for (key, q, unit) in STEP7_ROWS {
-        let _ = write!(
-            s,
-            "{:<50}",
-            if unit.is_empty() {
-                q.to_owned()
-            } else {
-                format!("{q} [{unit}]")
-            }
-        );
-        for (k, _) in &vs {
-            let v = map.get(&format!("{k}.{key}")).copied().unwrap_or(f64::NAN);
-            let _ = write!(s, " {:>20}", fmt_num(v));
-        }
-        let _ = writeln!(s);
-    }
-    s
-}
-
-/// Every fault latched in any run, as `variant: run: fault`.
-pub fn fault_lines(r: &Report) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut add = |variant: &str, id: Option<&Identification>, ev: &Evaluation| {
-        if let Some(id) = id {
-            for f in &id.faults {
-                out.push(format!("{variant}: {f}"));
-            }
-        }
-        for t in [&ev.track_motor, &ev.track_jae, &ev.robust] {
-            if let Some(f) = &t.fault {
-                out.push(format!("{variant}: {}: {f}", t.scenario));
-            }
-        }
-        for f in &ev.loading_summary.faults {
-            out.push(format!("{variant}: loading {f}"));
-        }
-    };
-    add("clean", Some(&r.clean.0), &r.clean.1);
-    if let Some(fx) = &r.effects {
-        add("effects, seed's model", Some(&fx.id), &fx.before);
-        add("effects + residual", None, &fx.after);
-    }
-    out
 }
 
 /// Text for a Markdown table cell (`|` escaped).
@@ -586,7 +311,7 @@ fn md_identification(out: &mut String, id: &Identification) {
 }
 
 /// report.md.
-pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String {
+pub fn markdown(r: &Report, rows: &[Row]) -> String {
     let mut o = String::new();
     let (id, ev) = (&r.clean.0, &r.clean.1);
     let _ = writeln!(
@@ -641,17 +366,17 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
     );
 
     let _ = writeln!(o, "## Where we stand\n");
-    let vs = variants(r);
+    let vs = keys::variants(r);
     let _ = write!(o, "| goal |");
-    for (_, t) in &vs {
-        let _ = write!(o, " {t} |");
+    for v in &vs {
+        let _ = write!(o, " {} |", v.title);
     }
     let _ = writeln!(o);
     let _ = writeln!(o, "|---|{}", "---|".repeat(vs.len()));
     for g in &GOALS {
         let _ = write!(o, "| {} |", cell(g.goal));
-        for (k, _) in &vs {
-            let _ = write!(o, " {} |", status_text(goal_status(map, g, k)));
+        for v in &vs {
+            let _ = write!(o, " {} |", status_text(goal_status(v, g)));
         }
         let _ = writeln!(o);
     }
@@ -800,7 +525,7 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
     }
 
     if let Some(fx) = &r.effects {
-        md_effects(&mut o, r, fx, map);
+        md_effects(&mut o, r, fx);
     }
 
     let _ = writeln!(o, "## Definitions\n");
@@ -819,7 +544,7 @@ pub fn markdown(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> String
     o
 }
 
-fn md_effects(o: &mut String, r: &Report, fx: &EffectsPart, map: &BTreeMap<String, f64>) {
+fn md_effects(o: &mut String, r: &Report, fx: &EffectsPart) {
     let _ = writeln!(o, "## 7. Unmodelled effects and the residual loop\n");
     let _ = writeln!(
         o,
@@ -837,21 +562,17 @@ fn md_effects(o: &mut String, r: &Report, fx: &EffectsPart, map: &BTreeMap<Strin
         "| quantity | clean | effects, seed's model | effects, after the residual loop |"
     );
     let _ = writeln!(o, "|---|---|---|---|");
-    for (key, q, unit) in STEP7_ROWS {
-        let get = |v: &str| fmt_num(map.get(&format!("{v}.{key}")).copied().unwrap_or(f64::NAN));
-        let _ = writeln!(
-            o,
-            "| {}{} | {} | {} | {} |",
-            cell(q),
-            if unit.is_empty() {
-                String::new()
-            } else {
-                format!(" [{unit}]")
-            },
-            get("clean"),
-            get("effects_seed_model"),
-            get("effects_residual"),
-        );
+    let vs = keys::variants(r);
+    for row in &STEP7_ROWS {
+        let _ = write!(o, "| {}", cell(row.quantity));
+        if !row.unit.is_empty() {
+            let _ = write!(o, " [{}]", row.unit);
+        }
+        let _ = write!(o, " |");
+        for v in &vs {
+            let _ = write!(o, " {} |", fmt_num(row.value(v)));
+        }
+        let _ = writeln!(o);
     }
     let _ = writeln!(o);
     md_residual(
@@ -923,19 +644,31 @@ fn eval_json(ev: &Evaluation) -> Value {
     })
 }
 
+/// The goals with their status for every variant.
+fn goals_json(r: &Report) -> Vec<Value> {
+    let vs = keys::variants(r);
+    GOALS
+        .iter()
+        .map(|g| {
+            let mut j = json!({
+                "goal": g.goal,
+                "key": g.figure.key(),
+                "limit": g.limit,
+                "at_least": g.at_least,
+            });
+            for v in &vs {
+                j[v.prefix] = match goal_status(v, g) {
+                    Some((x, ok)) => json!({"value": x, "met": ok}),
+                    None => Value::Null,
+                };
+            }
+            j
+        })
+        .collect()
+}
+
 /// report.json.
 pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
-    let mut goals = Vec::new();
-    for g in &GOALS {
-        let mut v = json!({"goal": g.goal, "key": g.key, "limit": g.limit, "at_least": g.at_least});
-        for (k, _) in variants(r) {
-            v[k] = match goal_status(map, g, k) {
-                Some((x, ok)) => json!({"value": x, "met": ok}),
-                None => Value::Null,
-            };
-        }
-        goals.push(v);
-    }
     let mut out = json!({
         "force_variants": serde_json::to_value(&r.variants).unwrap_or(Value::Null),
         "schema": 1,
@@ -954,7 +687,7 @@ pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
             "source": row.seed.source,
             "note": row.note,
         })).collect::<Vec<_>>(),
-        "goals": goals,
+        "goals": goals_json(r),
         "identification": {"clean": ident_json(&r.clean.0)},
         "evaluation": {"clean": eval_json(&r.clean.1)},
         "plots": r.figures.iter().map(|w| json!({"stem": w.stem, "caption": w.caption})).collect::<Vec<_>>(),

@@ -40,6 +40,7 @@ pub mod experiments;
 pub mod figures;
 pub mod goals;
 pub mod keys;
+pub mod markdown;
 pub mod programme;
 pub mod regressors;
 pub mod render;
@@ -367,7 +368,7 @@ pub fn write(r: &mut Report) -> Result<String> {
             &fx.residual.config,
         )?;
     }
-    let md = render::markdown(r, &rows);
+    let md = markdown::markdown(r, &rows);
     out.bytes(&dir.join("report.md"), md.as_bytes())?;
     let json = serde_json::to_string_pretty(&render::json(r, &map, &rows))?;
     out.bytes(&dir.join("report.json"), json.as_bytes())?;

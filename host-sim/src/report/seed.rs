@@ -342,6 +342,27 @@ pub const SEED: &[SeedRow] = &[
     },
 ];
 
+/// The seed's figures report.md quotes beside ours in its text (the
+/// identified parameters are not compared row by row: another prototype,
+/// other units of the fit).
+pub mod quoted {
+    /// Tracking with motor-encoder feedback, desired − actual (Fig. 10).
+    pub const TRACK_MOTOR: &str = "mean 1.912°, max 4.134°, min 0.964°";
+    /// Tracking with JAE feedback, desired − actual; actual − estimated
+    /// (Fig. 12), each mean / max / min.
+    pub const TRACK_JAE: &str = "−0.150 / 0.905 / −0.974°; 0.170 / 0.715 / −0.498°";
+    /// The same under 2.5 N on the tip (Fig. 13).
+    pub const ROBUST_2N5: &str = "−0.105 / 1.202 / −1.271°; 0.076 / 0.508 / −0.454°";
+    /// `B_m`, N·m·s/rad (Sect. 4.2).
+    pub const B_M: &str = "1.6934e-5";
+    /// The JAE's `chi_s` (Sect. 4.1).
+    pub const CHI_S: &str = "[0.0805, 0.5225, 0.0025, 264.356]";
+    /// The mean errors of tension models A, B, C (Fig. 16).
+    pub const TENSION_MEANS: &str = "mean −0.0228, 0.0189, −0.0063 N";
+    /// The simplified model C's `chi_p` (Eq. 29).
+    pub const CHI_P: &str = "[3.879, 5.027, 707.7, 19.52]";
+}
+
 /// One row of the comparison: a seed figure, ours, and a caveat.
 #[derive(Clone, Debug)]
 pub struct Row {

@@ -38,9 +38,13 @@
 
 pub mod experiments;
 pub mod figures;
+pub mod goals;
+pub mod keys;
+pub mod markdown;
 pub mod programme;
 pub mod regressors;
 pub mod render;
+pub mod seed;
 pub mod variants;
 
 use std::path::{Path, PathBuf};
@@ -357,7 +361,7 @@ pub fn write(r: &mut Report) -> Result<String> {
     let mut out = std::mem::take(&mut r.staged);
     let r = &*r;
     let map = render::figure_map(r);
-    let rows = render::comparison(&map);
+    let rows = seed::comparison(r);
     let dir = &r.options.out;
     stage_config(&mut out, dir.join("config_clean.toml"), &r.clean.0.config)?;
     if let Some(fx) = &r.effects {
@@ -372,7 +376,7 @@ pub fn write(r: &mut Report) -> Result<String> {
             &fx.residual.config,
         )?;
     }
-    let md = render::markdown(r, &map, &rows);
+    let md = markdown::markdown(r, &rows);
     out.bytes(&dir.join("report.md"), md.as_bytes())?;
     let json = serde_json::to_string_pretty(&render::json(r, &map, &rows))?;
     out.bytes(&dir.join("report.json"), json.as_bytes())?;
@@ -392,14 +396,14 @@ pub fn write(r: &mut Report) -> Result<String> {
         }
     }
     text.push('\n');
-    text.push_str(&render::terminal_table(&rows));
+    text.push_str(&seed::terminal_table(&rows));
     text.push_str("\nWhere we stand\n");
-    text.push_str(&render::goals_table(r, &map));
+    text.push_str(&goals::goals_table(r));
     if r.effects.is_some() {
         text.push_str("\nStep 7: unmodelled effects on, before and after the residual loop\n");
-        text.push_str(&render::step7_table(r, &map));
+        text.push_str(&goals::step7_table(r));
     }
-    let faults = render::fault_lines(r);
+    let faults = goals::fault_lines(r);
     if !faults.is_empty() {
         text.push_str("\nFaults latched (statistics of those runs stop there)\n");
         for f in faults {

@@ -9,8 +9,7 @@ use crate::plant::PlantParams;
 use crate::scenario::{self, Direction, Phase, ScenarioOptions};
 use crate::sim::{LogRecorder, Recorder, TickRecord};
 use crate::stats::Acc;
-// Re-exported for `render.rs` until its own imports name `stats`.
-pub use crate::stats::{Summary, DEG_PER_RAD};
+use crate::stats::{Summary, DEG_PER_RAD};
 
 /// Keep every `TRACE_EVERY`-th tick in the figure traces (500 Hz at 2 kHz).
 pub const TRACE_EVERY: u64 = 4;

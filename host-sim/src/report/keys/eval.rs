@@ -4,8 +4,9 @@
 //! `loading_stretch.…`.
 
 use super::Variant;
-use crate::report::experiments::{Summary, TrackRun};
+use crate::report::experiments::TrackRun;
 use crate::report::programme::{AccuracyStats, Evaluation, LoadingSummary};
+use crate::stats::Summary;
 
 /// A statistic of a [`Summary`]; its key is `{name}_{unit}`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -11,10 +11,10 @@ pub mod ident;
 pub use eval::{Accuracy, Diff, Estimate, Eval, Load, Loading, NoLoad, Stat, Track};
 pub use ident::{ChiP, ChiS, ErrorDeg, ForceError, Ident, TensionModel};
 
-use super::experiments::Summary;
 use super::programme::{Evaluation, Identification, ResidualStep};
 use super::Report;
 use crate::residual::Analysis;
+use crate::stats::Summary;
 
 // --- Variants ------------------------------------------------------------------
 

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 mod step7;
 
-use super::experiments::{LoadCase, Summary, TrackRun};
+use super::experiments::{LoadCase, TrackRun};
 use super::goals::{fault_lines, goal_status, status_text, GOALS};
 use super::keys::variants;
 use super::programme::{Evaluation, Identification, LoadingSummary};
@@ -14,6 +14,7 @@ use super::render::{cell, fmt_num};
 use super::seed::{quoted, Row};
 use super::Report;
 use crate::ident::{FitReport, Regressor, TensionResult};
+use crate::stats::Summary;
 
 /// report.md: every section in the report's order.
 pub fn markdown(r: &Report, rows: &[Row]) -> String {

@@ -27,13 +27,7 @@ pub(super) fn md_step_7(o: &mut String, r: &Report, fx: &EffectsPart) {
         fx.names.join(", ")
     );
     md_step7_table(o, r);
-    md_residual(
-        o,
-        "JAE",
-        &fx.residual.jae,
-        crate::report::experiments::DEG_PER_RAD,
-        "°",
-    );
+    md_residual(o, "JAE", &fx.residual.jae, crate::stats::DEG_PER_RAD, "°");
     md_residual(o, "Tension model", &fx.residual.tension, 1.0, "N");
     let _ = writeln!(o, "Identification on the plant with effects:\n");
     md_identification(o, &fx.id);

@@ -47,13 +47,13 @@ enum Command {
     /// Residual analysis: rank and add effect terms, judged on validation data.
     Residual(host_sim::cli::residual::ResidualArgs),
     /// The seed's experimental programme on the simulated prototype, with a report (default).
-    Report(host_sim::report::ReportArgs),
+    Report(host_sim::cli::report::ReportArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: anyhow::Result<()> = match cli.command {
-        None => host_sim::report::run(host_sim::report::ReportArgs::default()),
+        None => host_sim::cli::report::run(host_sim::cli::report::ReportArgs::default()),
         Some(Command::Import(args)) => host_sim::cli::import::run(args),
         Some(Command::Ingest(args)) => host_sim::cli::ingest::run(args),
         Some(Command::Trace(args)) => host_sim::cli::trace::run(args),
@@ -62,7 +62,7 @@ fn main() -> ExitCode {
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
         Some(Command::Residual(a)) => host_sim::cli::residual::run(a),
         Some(Command::Estimate(a)) => host_sim::cli::estimate::run(a),
-        Some(Command::Report(a)) => host_sim::report::run(a),
+        Some(Command::Report(a)) => host_sim::cli::report::run(a),
         #[allow(unreachable_patterns)]
         Some(_) => Ok(()),
     };

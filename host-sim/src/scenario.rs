@@ -80,7 +80,7 @@ impl Phase {
 }
 
 /// Direction of a tip load.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Direction {
     /// `F_ext > 0`: opposes positive rotation (raises cable 1's tension).
     Pos,

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::OnceLock;
 
-use host_sim::report::{generate, write, ReportArgs};
+use host_sim::report::{generate, write, ReportOptions};
 use serde_json::Value;
 
 /// Short enough for the test profile, long enough for every identification.
@@ -30,12 +30,12 @@ fn run() -> &'static Run {
     RUN.get_or_init(|| {
         let dir = tempfile::tempdir().expect("temp dir");
         let out = dir.path().join("report");
-        let args = ReportArgs {
+        let args = ReportOptions {
             out: out.clone(),
             seed: SEED,
             duration_scale: SCALE,
             quiet: true,
-            ..ReportArgs::default()
+            ..ReportOptions::default()
         };
         let mut r = generate(&args).expect("report runs");
         let terminal = write(&mut r).expect("report written");
@@ -369,14 +369,14 @@ fn the_clean_programme_depends_only_on_the_seed() {
     let f = &r.map;
     let dir = tempfile::tempdir().expect("temp dir");
     let again = |seed: u64, sub: &str| -> BTreeMap<String, f64> {
-        let args = ReportArgs {
+        let args = ReportOptions {
             out: dir.path().join(sub),
             seed,
             duration_scale: SCALE,
             no_effects: true,
             serial: true,
             quiet: true,
-            ..ReportArgs::default()
+            ..ReportOptions::default()
         };
         let rep = generate(&args).expect("report runs");
         host_sim::report::render::figure_map(&rep)
@@ -401,13 +401,13 @@ fn a_report_that_cannot_be_written_leaves_nothing_behind() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("report");
     std::fs::create_dir_all(out.join("report.json")).expect("a directory in the way");
-    let args = ReportArgs {
+    let args = ReportOptions {
         out: out.clone(),
         seed: SEED,
         duration_scale: 0.05,
         no_effects: true,
         quiet: true,
-        ..ReportArgs::default()
+        ..ReportOptions::default()
     };
     let mut r = generate(&args).expect("report runs");
     assert!(!r.figures.is_empty(), "figures were staged");

@@ -20,6 +20,7 @@ pub mod identify;
 pub mod import;
 pub mod ingest;
 pub mod payload;
+pub mod report;
 pub mod residual;
 pub mod simulate;
 pub mod trace;

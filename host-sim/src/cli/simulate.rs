@@ -23,6 +23,24 @@ use cable_joint::Config;
 use crate::cli;
 use crate::output::Outputs;
 use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
+
+/// `--direction` of `host-sim simulate` ([`Direction`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DirectionArg {
+    /// `F_ext > 0`: opposes positive rotation (raises cable 1's tension).
+    Pos,
+    /// `F_ext < 0`.
+    Neg,
+}
+
+impl From<DirectionArg> for Direction {
+    fn from(d: DirectionArg) -> Self {
+        match d {
+            DirectionArg::Pos => Direction::Pos,
+            DirectionArg::Neg => Direction::Neg,
+        }
+    }
+}
 use crate::sim::{check_ticks, LogRecorder, RawTrace};
 use crate::stats::Summary;
 
@@ -51,8 +69,8 @@ pub struct SimulateArgs {
     /// spring, drift.
     #[arg(long, value_delimiter = ',')]
     pub effect: Vec<String>,
-    /// Total simulated duration, s (scales every segment; at most
-    /// [`MAX_TICKS`](crate::sim::MAX_TICKS) control ticks).
+    /// Total simulated duration, s (scales every segment; at most 1e6
+    /// control ticks, all kept in memory).
     #[arg(long, conflicts_with = "duration_scale", value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration: Option<f64>,
     /// Scale of every segment's duration.
@@ -66,7 +84,7 @@ pub struct SimulateArgs {
     pub mass_g: Option<f64>,
     /// `loading`: run only this direction.
     #[arg(long, value_enum)]
-    pub direction: Option<Direction>,
+    pub direction: Option<DirectionArg>,
     /// Weights add their inertia rigidly to the joint (stress case; default:
     /// pure force, as through a compliant thread).
     #[arg(long)]
@@ -132,7 +150,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     let mut opts = ScenarioOptions {
         angle_deg: args.angle_deg,
         mass_g: args.mass_g,
-        direction: args.direction,
+        direction: args.direction.map(Direction::from),
         tip_inertia: args.tip_inertia,
         ..ScenarioOptions::default()
     };

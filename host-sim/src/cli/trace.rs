@@ -24,8 +24,7 @@ pub struct TraceArgs {
     /// Plant parameters (TOML, merged over the prototype's defaults).
     #[arg(long)]
     pub plant: Option<PathBuf>,
-    /// Seconds recorded after boot (at most [`crate::sim::MAX_TICKS`]
-    /// control ticks).
+    /// Seconds recorded after boot (at most 1e6 control ticks).
     #[arg(long, default_value_t = TraceOptions::default().duration_s,
           value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration_s: f64,

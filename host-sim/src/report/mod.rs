@@ -60,36 +60,30 @@ use crate::stats::{Acc, Summary, DEG_PER_RAD};
 use figures::Written;
 use programme::{Evaluation, Identification, Progress, ResidualStep, Settings};
 
-/// Arguments of `host-sim report`.
-#[derive(clap::Args, Debug, Clone, PartialEq)]
-pub struct ReportArgs {
+/// What `host-sim report` runs (the command line is
+/// [`crate::cli::report`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReportOptions {
     /// Output directory (created if missing).
-    #[arg(long, default_value = "report")]
     pub out: PathBuf,
     /// Base seed of every run's noise.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Scale of every scenario's duration (1 = the full programme; refused
     /// up front when one run would exceed `simulate`'s 1e6-tick limit,
     /// above about 11.9).
-    #[arg(long, default_value_t = 1.0, value_parser = crate::cli::f64_above(0.0, 100.0))]
     pub duration_scale: f64,
     /// Skip step 7 (unmodelled effects and the residual loop).
-    #[arg(long)]
     pub no_effects: bool,
-    /// Effects switched on in step 7, comma separated (default: all of
-    /// presliding, creep, thermal, spring, drift).
-    #[arg(long, value_delimiter = ',')]
+    /// Effects switched on in step 7 (default, empty: all of presliding,
+    /// creep, thermal, spring, drift).
     pub effect: Vec<String>,
     /// Run on one thread.
-    #[arg(long)]
     pub serial: bool,
     /// No progress lines on stderr.
-    #[arg(long)]
     pub quiet: bool,
 }
 
-impl Default for ReportArgs {
+impl Default for ReportOptions {
     fn default() -> Self {
         Self {
             out: PathBuf::from("report"),
@@ -123,8 +117,8 @@ pub struct EffectsPart {
 
 /// Everything the report shows.
 pub struct Report {
-    /// The arguments.
-    pub options: ReportArgs,
+    /// The options it ran with.
+    pub options: ReportOptions,
     /// Wall-clock time of the whole run, s.
     pub runtime_s: f64,
     /// Steps 1-6 on the clean plant.
@@ -238,7 +232,7 @@ fn clean_part(s: &Settings, dir: &Path) -> Result<CleanPart> {
 
 /// Run the programme and write the figures into `args.out`; returns the
 /// report (report.md and report.json are written by [`write()`]).
-pub fn generate(args: &ReportArgs) -> Result<Report> {
+pub fn generate(args: &ReportOptions) -> Result<Report> {
     ensure!(
         args.duration_scale.is_finite() && args.duration_scale > 0.0,
         "--duration-scale must be > 0, got {}",
@@ -418,12 +412,4 @@ pub fn write(r: &mut Report) -> Result<String> {
         r.runtime_s
     ));
     Ok(text)
-}
-
-/// Run the subcommand.
-pub fn run(args: ReportArgs) -> Result<()> {
-    let mut r = generate(&args)?;
-    let text = write(&mut r)?;
-    print!("{text}");
-    Ok(())
 }

@@ -171,9 +171,17 @@ pub fn programme_figures(
         out,
         written: Vec::new(),
     };
-    let k = TRACE_EVERY as usize;
+    jae_figure(&mut w, id)?;
+    tracking_figures(&mut w, ev)?;
+    bm_figure(&mut w, id)?;
+    tension_figures(&mut w, id)?;
+    loading_figures(&mut w, ev)?;
+    Ok(w.written)
+}
 
-    // Fig. 9: the identified JAE on its identification run.
+/// Fig. 9: the identified JAE on its identification run.
+fn jae_figure(w: &mut Writer, id: &Identification) -> Result<()> {
+    let k = TRACE_EVERY as usize;
     let r = Replay::new(&id.logs.jae, &id.config_jae)?;
     let t = every(r.t_s()?, k);
     let meas = scaled(&every(r.theta_rad(), k), DEG_PER_RAD);
@@ -193,6 +201,11 @@ pub fn programme_figures(
         ),
     )?;
 
+    Ok(())
+}
+
+/// Figs. 10, 12, 13: tracking without and with the JAE, and under load.
+fn tracking_figures(w: &mut Writer, ev: &Evaluation) -> Result<()> {
     w.write(
         "fig10_track_motor",
         "Fig. 10 counterpart: ±30° 0.5 Hz sine with motor-encoder feedback only.",
@@ -209,7 +222,12 @@ pub fn programme_figures(
         &tracking_figure(&ev.robust, "robustness under 2.5 N (robust-2n5)", true),
     )?;
 
-    // Figs. 14-15: B_m.
+    Ok(())
+}
+
+/// Figs. 14-15: `B_m` on its identification and a verification run.
+fn bm_figure(w: &mut Writer, id: &Identification) -> Result<()> {
+    let k = TRACE_EVERY as usize;
     let r = Replay::new(&id.logs.bm, &id.config)?;
     let y = r.motor_torque_nm()?;
     let w_filt = r.dob_filter(&r.col("phi_vel_rad_s")?);
@@ -234,7 +252,13 @@ pub fn programme_figures(
         ),
     )?;
 
-    // Figs. 16-17: the tension models on their identification run.
+    Ok(())
+}
+
+/// Figs. 16-18: the tension models on their identification run, and the
+/// core's model on a verification run.
+fn tension_figures(w: &mut Writer, id: &Identification) -> Result<()> {
+    let k = TRACE_EVERY as usize;
     let r = Replay::new(&id.logs.tension, &id.config_jae)?;
     let y = r.col("tension1_hat_n")?;
     let mut panels = Vec::new();
@@ -281,7 +305,11 @@ pub fn programme_figures(
         ),
     )?;
 
-    // Figs. 20-26: the loading protocol.
+    Ok(())
+}
+
+/// Figs. 20-26: the loading protocol, and Fig. 22's regions of one case.
+fn loading_figures(w: &mut Writer, ev: &Evaluation) -> Result<()> {
     let group = |angle: f64, dir: &str| -> Vec<&LoadCase> {
         ev.loading
             .iter()
@@ -335,7 +363,7 @@ pub fn programme_figures(
             ),
         )?;
     }
-    Ok(w.written)
+    Ok(())
 }
 
 /// Step 7's figure: accuracy of every loading case, per variant (staged).

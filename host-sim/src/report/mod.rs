@@ -377,7 +377,7 @@ pub fn write(r: &mut Report) -> Result<String> {
     out.commit()?;
     let mut text = String::from("Force estimate on plant variants (passive)\n");
     for v in &r.variants {
-        let goals = variants::goal_lines(v);
+        let goals = markdown::goal_lines(v);
         let met = goals.iter().filter(|(_, ok)| *ok).count();
         text.push_str(&format!(
             "  {:<18} {:>6} Hz  {met}/{} goals met\n",

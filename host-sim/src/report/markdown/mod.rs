@@ -4,7 +4,10 @@
 
 use std::fmt::Write as _;
 
+mod force_variants;
 mod step7;
+
+pub use force_variants::goal_lines;
 
 use super::experiments::{LoadCase, TrackRun};
 use super::goals::{fault_lines, goal_status, status_text, GOALS};
@@ -50,7 +53,7 @@ fn md_introduction(o: &mut String, r: &Report) {
          disturbance observer* (seed 000), Sect. 4.\n",
         r.options.seed, r.options.duration_scale, r.runtime_s
     );
-    o.push_str(&super::variants::markdown(&r.variants));
+    o.push_str(&force_variants::markdown(&r.variants));
     if r.options.duration_scale != 1.0 {
         let _ = writeln!(
             o,

@@ -42,6 +42,7 @@ pub mod goals;
 pub mod keys;
 pub mod markdown;
 pub mod programme;
+pub mod progress;
 pub mod regressors;
 pub mod render;
 pub mod seed;
@@ -58,7 +59,8 @@ use crate::output::Outputs;
 use crate::plant::{Effects, PlantParams};
 use crate::stats::{Acc, Summary, DEG_PER_RAD};
 use figures::Written;
-use programme::{Evaluation, Identification, Progress, ResidualStep, Settings};
+use programme::{Evaluation, Identification, ResidualStep, Settings};
+use progress::Progress;
 
 /// What `host-sim report` runs (the command line is
 /// [`crate::cli::report`]).

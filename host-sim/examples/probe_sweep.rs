@@ -14,7 +14,8 @@
 
 use anyhow::{bail, Context, Result};
 use cable_joint::Config;
-use host_sim::report::programme::{identify_config, Progress, Settings};
+use host_sim::report::programme::{identify_config, Settings};
+use host_sim::report::progress::Progress;
 use host_sim::report::variants::{run_protocol, variants};
 
 fn settings(arg: &str) -> Result<Vec<(f32, f32)>> {

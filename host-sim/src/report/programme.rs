@@ -245,6 +245,28 @@ pub struct Evaluation {
     pub loading_stretch_summary: LoadingSummary,
 }
 
+/// One identification run of the programme: `scenario` on `plant` with
+/// `config`, its noise seeded by `label` (a verification run's label ends
+/// in `/verify`), `scale` times the report's duration; a fault it latched is
+/// noted in `faults`.
+fn ident_run(
+    plant: &PlantParams,
+    s: &Settings,
+    faults: &mut Vec<String>,
+    (scenario, label, scale): (&str, &str, f64),
+    config: &Config,
+) -> Result<Log> {
+    let (log, f) = experiments::logged(
+        scenario,
+        plant,
+        config,
+        run_seed(s.seed, label),
+        scale * s.scale,
+    )?;
+    note_fault(faults, &label.replace("/verify", " (verification)"), f);
+    Ok(log)
+}
+
 fn note_fault(faults: &mut Vec<String>, what: &str, f: Option<String>) {
     if let Some(f) = f {
         faults.push(format!("{what}: {f}"));
@@ -272,39 +294,19 @@ fn identify_bm_jae(
     // 1. B_m: motor decoupled from the cable (no slack check: ident::decoupled).
     p.line(tag, "1/6 bm-noload: identify B_m (seed Fig. 14-15)");
     let dec = ident::decoupled(base);
-    let (bm_log, f) = experiments::logged(
-        "bm-noload",
-        plant,
-        &dec,
-        run_seed(s.seed, "bm-noload"),
-        s.scale,
-    )?;
-    note_fault(faults, "bm-noload", f);
+    let bm_log = ident_run(plant, s, faults, ("bm-noload", "bm-noload", 1.0), &dec)?;
     let bm = ident::identify_bm_with(&[("bm-noload", &bm_log)], base, &opts)
         .context("identifying B_m")?;
     let mut config = *base;
     bm.apply(&mut config);
-    let (bm_val_log, f) = experiments::logged(
-        "bm-noload",
-        plant,
-        &ident::decoupled(&config),
-        run_seed(s.seed, "bm-noload/verify"),
-        0.5 * s.scale,
-    )?;
-    note_fault(faults, "bm-noload (verification)", f);
+    let verify = ("bm-noload", "bm-noload/verify", 0.5);
+    let bm_val_log = ident_run(plant, s, faults, verify, &ident::decoupled(&config))?;
     let bm_validation =
         ident::validate_bm(&bm, &bm_val_log, &config, &opts).context("verifying B_m")?;
 
     // 2. JAE: motor closed loop, joint open loop, magnetic encoder fitted.
     p.line(tag, "2/6 jae-ident: identify the JAE (seed Fig. 8-9)");
-    let (jae_log, f) = experiments::logged(
-        "jae-ident",
-        plant,
-        &config,
-        run_seed(s.seed, "jae-ident"),
-        s.scale,
-    )?;
-    note_fault(faults, "jae-ident", f);
+    let jae_log = ident_run(plant, s, faults, ("jae-ident", "jae-ident", 1.0), &config)?;
     let jae = ident::identify_jae_with(&[("jae-ident", &jae_log)], &config, &opts)
         .context("identifying the JAE")?;
     jae.apply(&mut config);
@@ -324,26 +326,14 @@ fn identify_tension(
         tag,
         "5/6 tension-ident: models A, B, C and the simplified model C (seed Fig. 16-18)",
     );
-    let (log, f) = experiments::logged(
-        "tension-ident",
-        plant,
-        config_jae,
-        run_seed(s.seed, "tension-ident"),
-        s.scale,
-    )?;
-    note_fault(faults, "tension-ident", f);
+    let run = ("tension-ident", "tension-ident", 1.0);
+    let log = ident_run(plant, s, faults, run, config_jae)?;
     let tension = ident::identify_tension_with(&[("tension-ident", &log)], config_jae, &opts)
         .context("identifying the tension models")?;
     let mut config = *config_jae;
     tension.apply(&mut config);
-    let (val_log, f) = experiments::logged(
-        "tension-ident",
-        plant,
-        &config,
-        run_seed(s.seed, "tension-ident/verify"),
-        0.5 * s.scale,
-    )?;
-    note_fault(faults, "tension-ident (verification)", f);
+    let verify = ("tension-ident", "tension-ident/verify", 0.5);
+    let val_log = ident_run(plant, s, faults, verify, &config)?;
     let validation = ident::validate_tension(&tension, &val_log, &config, &opts)
         .context("verifying the tension models")?;
     Ok((tension, validation, config, log, val_log))

@@ -247,16 +247,28 @@ mod file_form {
                     f.write_str("a run-time signal's column name")
                 }
                 fn visit_str<E: de::Error>(self, v: &str) -> Result<Signal, E> {
-                    signal_index(v).map(Signal).ok_or_else(|| {
-                        E::invalid_value(
-                            de::Unexpected::Str(v),
-                            &"one of x1_m, x1_vel_m_s, x2_m, x2_vel_m_s, x2_acc_m_s2, \
-                              phi_rad, phi_vel_rad_s, i_ref_a, i_meas_a, theta_motor_rad",
-                        )
-                    })
+                    signal_index(v)
+                        .map(Signal)
+                        .ok_or_else(|| E::invalid_value(de::Unexpected::Str(v), &OneOfTheSignals))
                 }
             }
             d.deserialize_str(Name)
+        }
+    }
+
+    /// "one of x1_m, x1_vel_m_s, ...": the names of [`SIGNAL_NAMES`].
+    struct OneOfTheSignals;
+
+    impl de::Expected for OneOfTheSignals {
+        fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            f.write_str("one of ")?;
+            for (k, n) in SIGNAL_NAMES.iter().enumerate() {
+                if k > 0 {
+                    f.write_str(", ")?;
+                }
+                f.write_str(n)?;
+            }
+            Ok(())
         }
     }
 

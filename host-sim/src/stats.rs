@@ -218,7 +218,7 @@ pub fn rms(v: &[f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }
-    (v.iter().zip(v).map(|(x, y)| x * y).sum::<f64>() / v.len() as f64).sqrt()
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
 }
 
 /// Integrated autocorrelation time of a series, in samples, by batch

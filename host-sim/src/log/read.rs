@@ -49,8 +49,8 @@ impl Log {
                 .map_err(|e| csv_error(name, e, next_line))?;
             let line = rec.position().map_or(next_line, |p| p.line() as usize);
             // A cell spanning lines would shift every later line number.
-            if more && rec.iter().any(|f| f.contains(['\n', '\r'])) {
-                let cell = rec.iter().find(|f| f.contains(['\n', '\r'])).unwrap_or("");
+            let spanning = rec.iter().find(|f| f.contains(['\n', '\r']));
+            if let Some(cell) = spanning.filter(|_| more) {
                 return Err(
                     LogError::new(name, LogErrorKind::NotANumber(cell.to_owned())).at_line(line),
                 );

@@ -11,6 +11,7 @@ use crate::cli;
 use crate::output::Outputs;
 use crate::payload::{
     analyse, plot_runs, write_csv, GravitySource, ParamReport, PayloadOptions, Report,
+    MAX_ACCEL_LAG_MS, MAX_LOWPASS_HZ, MAX_WINDOW_S,
 };
 
 /// Arguments of `host-sim payload`.
@@ -36,13 +37,13 @@ pub struct PayloadArgs {
     pub gravity: GravityArg,
     /// Lag of the IMU stream behind the wrench stream, ms (default: estimated
     /// on the fit run).
-    #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-1000.0, 1000.0))]
+    #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-MAX_ACCEL_LAG_MS, MAX_ACCEL_LAG_MS))]
     pub accel_lag_ms: Option<f64>,
     /// Low-pass cut-off applied identically to the wrench and to the
     /// kinematics (two cascaded first-order sections of the core's
     /// `LowPass1`, causal), Hz; 0 = unfiltered.
     #[arg(long, default_value_t = PayloadOptions::default().lowpass_hz,
-          value_parser = cli::f64_in(0.0, 1000.0))]
+          value_parser = cli::f64_in(0.0, MAX_LOWPASS_HZ))]
     pub lowpass_hz: f64,
     /// Include the rotational terms (angular velocity and acceleration from
     /// differentiated orientations).
@@ -53,11 +54,11 @@ pub struct PayloadArgs {
     pub inertia: bool,
     /// Candidate creep time constants, s, for the compensation selection.
     #[arg(long, value_delimiter = ',', default_value = default_creep_taus(),
-          value_parser = cli::f32_above(0.0, 1e4))]
+          value_parser = cli::f32_above(0.0, MAX_WINDOW_S as f32))]
     pub creep_taus: Vec<f32>,
     /// Known no-contact window at the start of each run, s (offset tracker).
     #[arg(long, default_value_t = PayloadOptions::default().tare_s,
-          value_parser = cli::f64_in(0.0, 1e4))]
+          value_parser = cli::f64_in(0.0, MAX_WINDOW_S))]
     pub tare_s: f64,
     /// Write the report as JSON.
     #[arg(long)]

@@ -79,6 +79,13 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use serde::Serialize;
 
+/// Largest `--tare-s` and `--creep-taus`, s.
+pub const MAX_WINDOW_S: f64 = 1e4;
+/// Largest `--lowpass-hz`, Hz.
+pub const MAX_LOWPASS_HZ: f64 = 1000.0;
+/// Largest `|--accel-lag-ms|`, ms.
+pub const MAX_ACCEL_LAG_MS: f64 = 1000.0;
+
 /// What [`analyse`] reads and how (the defaults are those of
 /// `host-sim payload`, whose arguments are [`crate::cli::payload::PayloadArgs`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -141,25 +148,28 @@ impl PayloadOptions {
         // The same ranges the command line's parsers enforce, so that a
         // library caller cannot pass what the command refuses.
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
-        if !within(self.tare_s, 0.0, 1e4) {
-            bail!("--tare-s must be in [0, 1e4] s, got {}", self.tare_s);
-        }
-        if !within(self.lowpass_hz, 0.0, 1000.0) {
+        if !within(self.tare_s, 0.0, MAX_WINDOW_S) {
             bail!(
-                "--lowpass-hz must be in [0, 1000] Hz, got {}",
+                "--tare-s must be in [0, {MAX_WINDOW_S:e}] s, got {}",
+                self.tare_s
+            );
+        }
+        if !within(self.lowpass_hz, 0.0, MAX_LOWPASS_HZ) {
+            bail!(
+                "--lowpass-hz must be in [0, {MAX_LOWPASS_HZ}] Hz, got {}",
                 self.lowpass_hz
             );
         }
         if self
             .creep_taus
             .iter()
-            .any(|t| !(*t > 0.0 && within(f64::from(*t), 0.0, 1e4)))
+            .any(|t| !(*t > 0.0 && within(f64::from(*t), 0.0, MAX_WINDOW_S)))
         {
-            bail!("--creep-taus must be positive and at most 1e4 s");
+            bail!("--creep-taus must be positive and at most {MAX_WINDOW_S:e} s");
         }
         if let Some(lag) = self.accel_lag_ms {
-            if !within(lag, -1000.0, 1000.0) {
-                bail!("--accel-lag-ms must be in [-1000, 1000] ms, got {lag}");
+            if !within(lag, -MAX_ACCEL_LAG_MS, MAX_ACCEL_LAG_MS) {
+                bail!("--accel-lag-ms must be in [-{MAX_ACCEL_LAG_MS}, {MAX_ACCEL_LAG_MS}] ms, got {lag}");
             }
         }
         if self.inertia && !self.rotational {

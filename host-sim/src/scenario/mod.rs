@@ -27,9 +27,11 @@
 //! Here: the phases, the options, [`run`] and its [`RunSummary`], and the
 //! configurations the scenarios are run with ([`oracle_config`],
 //! [`tuned_gains`]). The catalogue and each scenario's segments are in
-//! `plan.rs` ([`plan`]).
+//! `plan.rs` ([`plan`]); `host-sim simulate`'s work, one scenario to a log,
+//! in `simulate.rs` ([`simulate()`]).
 
 mod plan;
+mod simulate;
 
 use cable_joint::{Config, Fault};
 
@@ -40,6 +42,7 @@ use crate::stats::Summary;
 pub use plan::{
     plan, Plan, ScenarioInfo, Segment, LOADING_ANGLES_DEG, LOADING_MASSES_G, SCENARIOS,
 };
+pub use simulate::{simulate, SimulateOptions, Simulation};
 
 /// Standard gravity, m/s² (weights on the tip: `F = m g`).
 pub const G_M_S2: f64 = 9.81;

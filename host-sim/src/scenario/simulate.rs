@@ -18,8 +18,10 @@ pub struct SimulateOptions {
     pub scenario: String,
     /// Seed of the noise generator (`None`: the scenario's).
     pub seed: Option<u64>,
-    /// Total simulated duration, s (scales every segment; wins over
-    /// `duration_scale`).
+    /// Total simulated duration, s (scales every segment). Set at most one
+    /// of `duration` and `duration_scale`, as the command line does: with
+    /// both, the scale becomes `duration` over the length already scaled by
+    /// `duration_scale`.
     pub duration: Option<f64>,
     /// Scale of every segment's duration (`None`: 1).
     pub duration_scale: Option<f64>,
@@ -117,4 +119,54 @@ pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> R
         log,
         raw: opts.raw_trace.then_some(raw),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_duration_is_a_scale_of_the_full_plan() {
+        let opts = SimulateOptions {
+            scenario: "track-motor".into(),
+            duration: Some(2.6),
+            ..SimulateOptions::default()
+        };
+        let full = plan("track-motor", &ScenarioOptions::default())
+            .unwrap()
+            .duration_s();
+        let s = opts.scenario_options().unwrap();
+        assert!((s.duration_scale - 2.6 / full).abs() < 1e-12);
+        let p = plan("track-motor", &s).unwrap();
+        assert!((p.duration_s() - 2.6).abs() < 1e-9, "{}", p.duration_s());
+    }
+
+    #[test]
+    fn the_raw_trace_is_recorded_only_when_asked() {
+        let mut opts = SimulateOptions {
+            scenario: "track-motor".into(),
+            duration: Some(0.05),
+            ..SimulateOptions::default()
+        };
+        let sim = simulate(PlantParams::default(), Config::default(), &opts).unwrap();
+        assert!(sim.raw.is_none());
+        assert_eq!(sim.log.len() as u64, sim.summary.ticks);
+        opts.raw_trace = true;
+        let sim = simulate(PlantParams::default(), Config::default(), &opts).unwrap();
+        let raw = sim.raw.expect("raw trace asked for");
+        assert_eq!(raw.records.len(), sim.log.len());
+    }
+
+    #[test]
+    fn a_run_above_the_tick_limit_is_refused_before_it_starts() {
+        let opts = SimulateOptions {
+            scenario: "loading".into(),
+            duration_scale: Some(50.0),
+            ..SimulateOptions::default()
+        };
+        let err = simulate(PlantParams::default(), Config::default(), &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("--duration-scale 50:"), "{err}");
+    }
 }

@@ -212,8 +212,8 @@ fn complex(amplitude_deg: f64, base_freq_hz: f32) -> Trajectory {
     }
 }
 
-/// Build a scenario's plan. Long by design: one `match` arm per scenario,
-/// each a short list of segments, read best side by side.
+/// Build a scenario's plan: one `match` arm per scenario, each a short list
+/// of segments, read best side by side (`loading`'s is [`loading`]).
 pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
     anyhow::ensure!(
         opts.duration_scale.is_finite() && opts.duration_scale > 0.0,
@@ -274,63 +274,7 @@ pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
             b.move_to(jc, 0.0, 1.0);
             b.track(jc, complex(30.0, 0.2), 20.0);
         }
-        "loading" => {
-            let angles: Vec<f64> = match opts.angle_deg {
-                Some(a) => vec![a],
-                None => LOADING_ANGLES_DEG.to_vec(),
-            };
-            let masses: Vec<f64> = match opts.mass_g {
-                Some(m) => vec![m],
-                None => LOADING_MASSES_G.to_vec(),
-            };
-            let dirs: Vec<Direction> = match opts.direction {
-                Some(d) => vec![d],
-                None => vec![Direction::Pos, Direction::Neg],
-            };
-            for a in &angles {
-                anyhow::ensure!(a.abs() <= 80.0, "loading angle {a}° out of range");
-            }
-            for m in &masses {
-                anyhow::ensure!(*m > 0.0 && *m <= 1000.0, "loading mass {m} g out of range");
-            }
-            b.hold(Phase::Hold, jc, 1.0);
-            let ramp = 0.5 * opts.duration_scale;
-            for &a in &angles {
-                for &m in &masses {
-                    for &d in &dirs {
-                        let target = deg(a);
-                        if target != b.angle_rad {
-                            b.move_to(jc, target, 1.5);
-                        }
-                        b.hold(Phase::Adjust, jc, 1.0);
-                        b.hold(Phase::NoLoad, jc, 2.0);
-                        let f = d.sign() * m * 1e-3 * G_M_S2;
-                        let load = b.seg(Phase::Loading, 0.5, None);
-                        load.force = Some(ForceProfile::Ramp {
-                            from_n: 0.0,
-                            to_n: f,
-                            duration_s: ramp,
-                        });
-                        if opts.tip_inertia {
-                            load.tip_mass_kg = Some(m * 1e-3);
-                        }
-                        b.seg(Phase::Stable, 3.0, None);
-                        b.seg(Phase::Unloading, 0.5, None).force = Some(ForceProfile::Ramp {
-                            from_n: f,
-                            to_n: 0.0,
-                            duration_s: ramp,
-                        });
-                        let rest = b.seg(Phase::NoLoad, 0.5, None);
-                        rest.tip_mass_kg = Some(0.0);
-                        rest.force = Some(ForceProfile::Constant(0.0));
-                    }
-                }
-            }
-            if b.angle_rad != 0.0 {
-                b.move_to(jc, 0.0, 1.5);
-                b.hold(Phase::Adjust, jc, 0.5);
-            }
-        }
+        "loading" => loading(&mut b, opts)?,
         _ => unreachable!("catalogue and match agree"),
     }
     Ok(Plan {
@@ -340,4 +284,68 @@ pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
         magnetic_fitted: true,
         segments: b.segments,
     })
+}
+
+/// The `loading` protocol: a hold, then each held angle × weight ×
+/// direction (narrowed by `opts`) as move, settle, no-load, load, stable,
+/// unload and rest segments, then back to 0°. Refuses an angle beyond 80° or
+/// a weight outside (0, 1000] g.
+fn loading(b: &mut Builder, opts: &ScenarioOptions) -> anyhow::Result<()> {
+    let jc = Mode::JointClosedLoop;
+    let angles: Vec<f64> = match opts.angle_deg {
+        Some(a) => vec![a],
+        None => LOADING_ANGLES_DEG.to_vec(),
+    };
+    let masses: Vec<f64> = match opts.mass_g {
+        Some(m) => vec![m],
+        None => LOADING_MASSES_G.to_vec(),
+    };
+    let dirs: Vec<Direction> = match opts.direction {
+        Some(d) => vec![d],
+        None => vec![Direction::Pos, Direction::Neg],
+    };
+    for a in &angles {
+        anyhow::ensure!(a.abs() <= 80.0, "loading angle {a}° out of range");
+    }
+    for m in &masses {
+        anyhow::ensure!(*m > 0.0 && *m <= 1000.0, "loading mass {m} g out of range");
+    }
+    b.hold(Phase::Hold, jc, 1.0);
+    let ramp = 0.5 * opts.duration_scale;
+    for &a in &angles {
+        for &m in &masses {
+            for &d in &dirs {
+                let target = deg(a);
+                if target != b.angle_rad {
+                    b.move_to(jc, target, 1.5);
+                }
+                b.hold(Phase::Adjust, jc, 1.0);
+                b.hold(Phase::NoLoad, jc, 2.0);
+                let f = d.sign() * m * 1e-3 * G_M_S2;
+                let load = b.seg(Phase::Loading, 0.5, None);
+                load.force = Some(ForceProfile::Ramp {
+                    from_n: 0.0,
+                    to_n: f,
+                    duration_s: ramp,
+                });
+                if opts.tip_inertia {
+                    load.tip_mass_kg = Some(m * 1e-3);
+                }
+                b.seg(Phase::Stable, 3.0, None);
+                b.seg(Phase::Unloading, 0.5, None).force = Some(ForceProfile::Ramp {
+                    from_n: f,
+                    to_n: 0.0,
+                    duration_s: ramp,
+                });
+                let rest = b.seg(Phase::NoLoad, 0.5, None);
+                rest.tip_mass_kg = Some(0.0);
+                rest.force = Some(ForceProfile::Constant(0.0));
+            }
+        }
+    }
+    if b.angle_rad != 0.0 {
+        b.move_to(jc, 0.0, 1.5);
+        b.hold(Phase::Adjust, jc, 0.5);
+    }
+    Ok(())
 }

@@ -213,7 +213,7 @@ fn complex(amplitude_deg: f64, base_freq_hz: f32) -> Trajectory {
 }
 
 /// Build a scenario's plan: one `match` arm per scenario, each a short list
-/// of segments, read best side by side (`loading`'s is [`loading`]).
+/// of segments, read best side by side (`loading`'s is the function `loading`).
 pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
     anyhow::ensure!(
         opts.duration_scale.is_finite() && opts.duration_scale > 0.0,

@@ -13,7 +13,9 @@
 //! `--plant` the plant's TOML (merged onto the default plant). `--oracle`
 //! replaces the identified parts of the configuration with the plant's true
 //! values; `--tuned-gains` uses cascade gains that work on the default plant
-//! ([`crate::scenario::tuned_gains`]).
+//! ([`crate::scenario::tuned_gains`]). The run itself is
+//! [`crate::scenario::simulate()`]; here: the arguments, the plant and
+//! configuration files, the output files and what is printed.
 
 use std::path::PathBuf;
 
@@ -22,7 +24,8 @@ use cable_joint::Config;
 
 use crate::cli;
 use crate::output::Outputs;
-use crate::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
+use crate::scenario::{simulate, Direction, SimulateOptions, SCENARIOS};
+use crate::stats::Summary;
 
 /// `--direction` of `host-sim simulate` ([`Direction`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -41,9 +44,6 @@ impl From<DirectionArg> for Direction {
         }
     }
 }
-use crate::sim::{check_ticks, LogRecorder, RawTrace};
-use crate::stats::Summary;
-
 /// Arguments of `host-sim simulate`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct SimulateArgs {
@@ -103,6 +103,26 @@ pub struct SimulateArgs {
     pub print_plant: bool,
 }
 
+impl SimulateArgs {
+    /// The run these arguments ask for, of scenario `name` (the library
+    /// takes plain options).
+    pub fn options(&self, name: &str) -> SimulateOptions {
+        SimulateOptions {
+            scenario: name.to_owned(),
+            seed: self.seed,
+            duration: self.duration,
+            duration_scale: self.duration_scale,
+            angle_deg: self.angle_deg,
+            mass_g: self.mass_g,
+            direction: self.direction.map(Direction::from),
+            tip_inertia: self.tip_inertia,
+            oracle: self.oracle,
+            tuned_gains: self.tuned_gains,
+            raw_trace: self.raw_out.is_some(),
+        }
+    }
+}
+
 fn fmt_stats(s: &Option<Summary>) -> String {
     match s {
         Some(s) => format!(
@@ -137,59 +157,16 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         .as_deref()
         .context("--scenario NAME is required (see --list)")?;
     let out = args.out.as_ref().context("--out PATH is required")?;
-    let mut config = match &args.config {
+    let config = match &args.config {
         Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
-    if args.oracle {
-        config = scenario::oracle_config(&plant, &config);
-    }
-    if args.tuned_gains {
-        config = scenario::tuned_gains(&config);
-    }
-    let mut opts = ScenarioOptions {
-        angle_deg: args.angle_deg,
-        mass_g: args.mass_g,
-        direction: args.direction.map(Direction::from),
-        tip_inertia: args.tip_inertia,
-        ..ScenarioOptions::default()
-    };
-    if let Some(s) = args.duration_scale {
-        opts.duration_scale = s;
-    }
-    if let Some(d) = args.duration {
-        anyhow::ensure!(d > 0.0, "--duration must be > 0");
-        let full = scenario::plan(name, &opts)?.duration_s();
-        opts.duration_scale = d / full;
-    }
-    let what = match (args.duration, args.duration_scale) {
-        (Some(d), _) => format!("--duration {d}"),
-        (None, Some(s)) => format!("--duration-scale {s}"),
-        (None, None) => format!("scenario {name}"),
-    };
-    check_ticks(
-        &what,
-        scenario::plan(name, &opts)?.duration_s(),
-        f64::from(config.control_rate_hz),
-    )?;
-    let mut log = LogRecorder::new(plant.sensors.magnetic_fitted);
-    let mut raw = RawTrace::new();
-    let summary = if args.raw_out.is_some() {
-        scenario::run(
-            name,
-            plant,
-            config,
-            args.seed,
-            &opts,
-            &mut (&mut log, &mut raw),
-        )?
-    } else {
-        scenario::run(name, plant, config, args.seed, &opts, &mut log)?
-    };
+    let sim = simulate(plant, config, &args.options(name))?;
+    let summary = sim.summary;
     // The log and the raw trace are written together, or neither is.
     let mut outputs = Outputs::new();
-    log.to_log()?.stage(&mut outputs, out)?;
-    if let Some(p) = &args.raw_out {
+    sim.log.to_log()?.stage(&mut outputs, out)?;
+    if let (Some(p), Some(raw)) = (&args.raw_out, &sim.raw) {
         raw.to_table().to_log()?.stage(&mut outputs, p)?;
     }
     outputs.commit()?;

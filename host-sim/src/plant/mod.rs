@@ -56,12 +56,23 @@
 //! magnetic joint encoder (4096 counts/rev) on wrapping 16-bit timers, the
 //! current monitor with noise and offset through the 12-bit ADC. Noise comes
 //! from a ChaCha generator seeded with the plant's `seed`.
+//!
+//! # Files
+//!
+//! Here: the state, [`Plant`] and its step. The parameters are in
+//! `params.rs`, the unmodelled effects in `effects.rs`, the friction elements
+//! and end stops in `friction.rs`, the constants derived from the parameters
+//! (and the step's bound) in `derived.rs`, the sensors ([`Plant::sample`]) in
+//! `sensors.rs`.
 
+mod derived;
 mod effects;
 mod friction;
 mod params;
+mod sensors;
 
-use friction::{coulomb_step, end_stop, lugre_step, Bristle, Element};
+use derived::Derived;
+use friction::{coulomb_step, end_stop, lugre_step};
 
 pub use effects::{
     Creep, DriftLocation, Effects, OffsetDrift, Presliding, SpringHardening, Thermal,
@@ -72,8 +83,6 @@ pub use params::{
     STATIC_OVER_KINETIC,
 };
 
-use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount, CODE_MAX_12BIT};
-use cable_joint::RawSample;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -129,24 +138,6 @@ pub struct Tensions {
     pub spring_n: f64,
 }
 
-/// Constants derived once from the parameters and the step.
-#[derive(Clone, Copy, Debug)]
-struct Derived {
-    dt: f64,
-    /// Cable metres per motor radian, `r_m / z_i`.
-    rw: f64,
-    drive_alpha: f64,
-    motor: Element,
-    slider1: Element,
-    joint: Element,
-    slider2: Element,
-    bristles: Option<[Bristle; 3]>,
-    creep_alpha: f64,
-    cubic: f64,
-    omega_max: f64,
-    damping_max: f64,
-}
-
 /// The simulated prototype (configuration, derived constants, state, noise).
 #[derive(Clone, Debug)]
 pub struct Plant {
@@ -165,7 +156,7 @@ impl Plant {
     /// parameter or a step too coarse for the stiffest mode.
     pub fn new(params: PlantParams, seed: u64) -> anyhow::Result<Self> {
         params.validate()?;
-        let d = Self::derive(&params)?;
+        let d = Derived::new(&params)?;
         let mut plant = Self {
             p: params,
             d,
@@ -186,122 +177,6 @@ impl Plant {
         plant.s.current_a = hold;
         plant.current_cmd_a = hold;
         Ok(plant)
-    }
-
-    fn derive(p: &PlantParams) -> anyhow::Result<Derived> {
-        let dt = 1.0 / p.integration.step_hz;
-        let rw = p.motor.rope_wheel_radius_m / p.motor.gear_ratio;
-        let r = p.joint.pulley_radius_m;
-        let elem = |s: &SliderParams| Element {
-            b: s.viscous_n_s_m,
-            fc: s.coulomb_n,
-            fs: s.static_n,
-        };
-        let bristles = p.effects.presliding.map(|pre| {
-            let slider = |s: &SliderParams| {
-                let sigma0 = s.coulomb_n.max(1e-9) / pre.slider_presliding_m;
-                Bristle {
-                    sigma0,
-                    sigma1: 2.0 * pre.damping_ratio * (sigma0 * s.mass_kg).sqrt(),
-                    stribeck: pre.slider_stribeck_m_s,
-                }
-            };
-            let j0 = p.joint.coulomb_nm.max(1e-12) / pre.joint_presliding_rad;
-            [
-                slider(&p.slider1),
-                Bristle {
-                    sigma0: j0,
-                    sigma1: 2.0 * pre.damping_ratio * (j0 * p.joint.inertia_kg_m2).sqrt(),
-                    stribeck: pre.joint_stribeck_rad_s,
-                },
-                slider(&p.slider2),
-            ]
-        });
-
-        // Mass-normalised stiffness and damping matrices in cable coordinates
-        // u = [rw phi, x1, r theta, x2]; Gershgorin bounds their largest
-        // eigenvalues.
-        let m = [
-            p.motor.rotor_inertia_kg_m2 / (rw * rw),
-            p.slider1.mass_kg,
-            p.joint.inertia_kg_m2 / (r * r),
-            p.slider2.mass_kg,
-        ];
-        let (k0, c0) = if p.motor_decoupled {
-            (0.0, 0.0)
-        } else {
-            (p.cable0.stiffness_n_m, p.cable0.damping_n_s_m)
-        };
-        let cubic = p.effects.spring_hardening.map_or(0.0, |h| h.cubic_n_m3);
-        // Tangent stiffness of the spring up to 10 mm of travel.
-        let ks = p.spring.stiffness_n_m + 3.0 * cubic.abs() * 1e-4;
-        let links = [
-            (0, 1, k0, c0),
-            (1, 2, p.cable1.stiffness_n_m, p.cable1.damping_n_s_m),
-            (2, 3, p.cable2.stiffness_n_m, p.cable2.damping_n_s_m),
-        ];
-        let mut kk = [[0.0f64; 4]; 4];
-        let mut cc = [[0.0f64; 4]; 4];
-        for (i, j, k, c) in links {
-            kk[i][i] += k;
-            kk[j][j] += k;
-            kk[i][j] -= k;
-            kk[j][i] -= k;
-            cc[i][i] += c;
-            cc[j][j] += c;
-            cc[i][j] -= c;
-            cc[j][i] -= c;
-        }
-        kk[3][3] += ks;
-        if let Some(b) = &bristles {
-            kk[1][1] += b[0].sigma0;
-            kk[2][2] += b[1].sigma0 / (r * r);
-            kk[3][3] += b[2].sigma0;
-            cc[1][1] += b[0].sigma1;
-            cc[2][2] += b[1].sigma1 / (r * r);
-            cc[3][3] += b[2].sigma1;
-        }
-        let bound = |a: &[[f64; 4]; 4]| {
-            (0..4)
-                .map(|i| {
-                    (0..4)
-                        .map(|j| a[i][j].abs() / (m[i] * m[j]).sqrt())
-                        .sum::<f64>()
-                })
-                .fold(0.0, f64::max)
-        };
-        let omega_max = bound(&kk).sqrt();
-        let damping_max = bound(&cc);
-        let lim = p.integration.max_omega_dt;
-        anyhow::ensure!(
-            omega_max * dt <= lim && damping_max * dt <= lim,
-            "plant step {dt:e} s too coarse: w_max = {omega_max:.0} rad/s gives w dt = {:.3}, \
-             damping rate {damping_max:.0} 1/s gives {:.3} (limit {lim}); raise integration.step_hz",
-            omega_max * dt,
-            damping_max * dt
-        );
-        Ok(Derived {
-            dt,
-            rw,
-            drive_alpha: 1.0 - (-2.0 * std::f64::consts::PI * p.drive.bandwidth_hz * dt).exp(),
-            motor: Element {
-                b: p.motor.viscous_nm_s_rad,
-                fc: p.motor.coulomb_nm,
-                fs: p.motor.coulomb_nm,
-            },
-            slider1: elem(&p.slider1),
-            joint: Element {
-                b: p.joint.viscous_nm_s_rad,
-                fc: p.joint.coulomb_nm,
-                fs: p.joint.static_nm,
-            },
-            slider2: elem(&p.slider2),
-            bristles,
-            creep_alpha: p.effects.creep.map_or(0.0, |c| 1.0 - (-dt / c.tau_s).exp()),
-            cubic,
-            omega_max,
-            damping_max,
-        })
     }
 
     /// The parameters.
@@ -535,63 +410,6 @@ impl Plant {
     pub fn advance(&mut self, duration_s: f64) {
         let n = (duration_s / self.d.dt).round().max(0.0) as usize;
         self.advance_steps(n);
-    }
-
-    /// What the current monitor reports now (before the ADC), A: the sensed
-    /// current plus the monitor's offset, drift (if in the monitor path) and
-    /// noise. With the drift in the drive's sensor, the sensed current is the
-    /// winding current plus that offset.
-    fn monitor_a(&mut self) -> f64 {
-        let dr = &self.p.drive;
-        let drift = if self.p.effects.offset_drift.is_some() {
-            self.s.drift_a
-        } else {
-            0.0
-        };
-        let noise: f64 = StandardNormal.sample(&mut self.rng);
-        self.s.current_a + dr.monitor_offset_a + drift + dr.monitor_noise_a * noise
-    }
-
-    /// Read every sensor as the board does (quantized counters, noisy ADC).
-    pub fn sample(&mut self) -> RawSample {
-        let sc = self.p.sensors;
-        let scales = &sc.scales;
-        let s = self.s;
-        let grating = |x_m: f64, init: i32| {
-            let counts = (x_m / scales.grating_m_per_count as f64).round() as i64;
-            GratingCount((init as i64).wrapping_add(counts) as i32)
-        };
-        let wrap16 = |angle_rad: f64, per_rev: u32, init: u16| {
-            let counts = (angle_rad * per_rev as f64 / std::f64::consts::TAU).round() as i64;
-            (init as i64 + counts).rem_euclid(1 << 16) as u16
-        };
-        let magnetic = if sc.magnetic_fitted {
-            wrap16(
-                s.theta_rad,
-                scales.magnetic_counts_per_rev,
-                sc.magnetic_initial_count,
-            )
-        } else {
-            sc.magnetic_initial_count
-        };
-        let i_mon = self.monitor_a();
-        let code = (i_mon / scales.adc_a_per_code as f64 + scales.adc_zero_code as f64).round();
-        let code = if code.is_finite() {
-            code.clamp(0.0, CODE_MAX_12BIT as f64) as u16
-        } else {
-            0
-        };
-        RawSample {
-            grating1: grating(s.x1_m, sc.grating_initial_counts[0]),
-            grating2: grating(s.x2_m, sc.grating_initial_counts[1]),
-            motor: MotorCount(wrap16(
-                s.phi_rad,
-                scales.motor_counts_per_rev,
-                sc.motor_initial_count,
-            )),
-            magnetic: MagneticCount(magnetic),
-            current: AdcCode(code),
-        }
     }
 }
 

@@ -33,6 +33,7 @@ pub mod library;
 pub mod outcome;
 pub mod problem;
 pub mod report;
+mod search;
 pub mod select;
 mod split;
 

@@ -1,20 +1,28 @@
 //! The seed's experimental programme on one simulated plant: the
 //! identifications in the seed's order, each feeding the next step's
 //! configuration, and the evaluation runs.
+//!
+//! Here: the settings and run seeds, the steps and what they return. The
+//! loading protocol's summary is in `loading_summary.rs`
+//! ([`LoadingSummary`]), step 7's residual loop in `residual_loop.rs`
+//! ([`residual_loop`]).
+
+mod loading_summary;
+mod residual_loop;
 
 use anyhow::{Context, Result};
 use cable_joint::Config;
-use serde::Serialize;
 
 use super::experiments::{self, LoadCase, TrackRun};
 use super::progress::Progress;
 use crate::ident::{self, BmResult, IdentOptions, JaeResult, TensionResult};
 use crate::log::Log;
 use crate::plant::PlantParams;
-use crate::residual::{self, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions};
 use crate::scenario::{Direction, LOADING_ANGLES_DEG, LOADING_MASSES_G};
 use crate::stats::ErrorStats;
-use crate::stats::{band, Summary};
+
+pub use loading_summary::{above_1n, at_0n3, AccuracyStats, LoadingSummary};
+pub use residual_loop::{residual_loop, ResidualStep, JAE_REGIMES};
 
 /// The seed of one run: a mix of the report's seed and the run's label, so
 /// every run has its own noise and the same label gets the same noise on
@@ -79,152 +87,6 @@ pub struct Identification {
     pub logs: IdentLogs,
     /// Faults latched in identification runs.
     pub faults: Vec<String>,
-}
-
-/// Accuracy over a class of loading cases.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct AccuracyStats {
-    /// Cases counted (not faulted).
-    pub cases: usize,
-    /// Faulted cases in the class (not counted).
-    pub faulted: usize,
-    /// Worst case, %.
-    pub min_pct: f64,
-    /// Mean over the cases, %.
-    pub mean_pct: f64,
-}
-
-impl AccuracyStats {
-    fn of<'a>(cases: impl IntoIterator<Item = &'a LoadCase>) -> Self {
-        let (mut n, mut faulted, mut sum, mut min) = (0usize, 0usize, 0.0, f64::INFINITY);
-        for c in cases {
-            if c.fault.is_some() || !c.accuracy_pct.is_finite() {
-                faulted += 1;
-                continue;
-            }
-            n += 1;
-            sum += c.accuracy_pct;
-            min = min.min(c.accuracy_pct);
-        }
-        Self {
-            cases: n,
-            faulted,
-            min_pct: if n > 0 { min } else { f64::NAN },
-            mean_pct: if n > 0 { sum / n as f64 } else { f64::NAN },
-        }
-    }
-}
-
-/// Weights counted as "above 1 N": 100 g (0.98 N) and heavier.
-pub fn above_1n(c: &LoadCase) -> bool {
-    c.mass_g >= 100.0
-}
-
-/// The weight counted as "0.3 N": 30 g (0.29 N).
-pub fn at_0n3(c: &LoadCase) -> bool {
-    c.mass_g == 30.0
-}
-
-/// The loading protocol summarised like the seed's Sect. 4.3.
-#[derive(Clone, Debug, Serialize)]
-pub struct LoadingSummary {
-    /// Cases run.
-    pub cases: usize,
-    /// Cases that latched a fault (left out of every figure below).
-    pub faulted: usize,
-    /// Faulted cases, described.
-    pub faults: Vec<String>,
-    /// Static no-load estimate, all angles, N.
-    pub static_noload_n: Summary,
-    /// Static no-load estimate at 0°, N.
-    pub static_noload_0_n: Summary,
-    /// Static no-load estimate at 30° and -40°, N.
-    pub static_noload_30_m40_n: Summary,
-    /// Dynamic no-load estimate (moving to 30°/-40° and settling) in the
-    /// runs loaded in the positive direction, N.
-    pub dynamic_noload_pos_n: Summary,
-    /// The same in the runs loaded in the negative direction, N.
-    pub dynamic_noload_neg_n: Summary,
-    /// Accuracy, weights >= 100 g, all angles.
-    pub above_1n: AccuracyStats,
-    /// Accuracy, 30 g, all angles.
-    pub at_0n3: AccuracyStats,
-    /// Accuracy, weights >= 100 g, at 0°.
-    pub above_1n_0: AccuracyStats,
-    /// Accuracy, 30 g, at 0°.
-    pub at_0n3_0: AccuracyStats,
-    /// Accuracy, weights >= 100 g, at 30° and -40°.
-    pub above_1n_30_m40: AccuracyStats,
-    /// Accuracy, 30 g, at 30° and -40°.
-    pub at_0n3_30_m40: AccuracyStats,
-    /// Largest |desired − actual| with a load on, at 0°, °.
-    pub max_angle_error_0_deg: f64,
-    /// The same at 30° and -40°, °.
-    pub max_angle_error_30_m40_deg: f64,
-}
-
-impl LoadingSummary {
-    /// Summarise the cases.
-    pub fn of(cases: &[LoadCase]) -> Self {
-        let ok = |c: &&LoadCase| c.fault.is_none();
-        let zero = |c: &&LoadCase| c.angle_deg == 0.0;
-        let off = |c: &&LoadCase| c.angle_deg != 0.0;
-        let max_angle = |f: &dyn Fn(&&LoadCase) -> bool| {
-            cases
-                .iter()
-                .filter(ok)
-                .filter(f)
-                .map(|c| c.angle_error_loaded_deg.max_abs())
-                .fold(f64::NAN, f64::max)
-        };
-        let dynamic = |dir: &str| {
-            band(
-                cases
-                    .iter()
-                    .filter(ok)
-                    .filter(|c| c.direction == dir)
-                    .filter_map(|c| c.dynamic_noload_n.as_ref()),
-            )
-        };
-        let faults: Vec<String> = cases
-            .iter()
-            .filter_map(|c| {
-                c.fault
-                    .as_ref()
-                    .map(|f| format!("{}° {} g {}: {f}", c.angle_deg, c.mass_g, c.direction))
-            })
-            .collect();
-        Self {
-            cases: cases.len(),
-            faulted: faults.len(),
-            faults,
-            static_noload_n: band(cases.iter().filter(ok).map(|c| &c.static_noload_n)),
-            static_noload_0_n: band(
-                cases
-                    .iter()
-                    .filter(ok)
-                    .filter(zero)
-                    .map(|c| &c.static_noload_n),
-            ),
-            static_noload_30_m40_n: band(
-                cases
-                    .iter()
-                    .filter(ok)
-                    .filter(off)
-                    .map(|c| &c.static_noload_n),
-            ),
-            dynamic_noload_pos_n: dynamic("pos"),
-            dynamic_noload_neg_n: dynamic("neg"),
-            above_1n: AccuracyStats::of(cases.iter().filter(|c| above_1n(c))),
-            at_0n3: AccuracyStats::of(cases.iter().filter(|c| at_0n3(c))),
-            above_1n_0: AccuracyStats::of(cases.iter().filter(zero).filter(|c| above_1n(c))),
-            at_0n3_0: AccuracyStats::of(cases.iter().filter(zero).filter(|c| at_0n3(c))),
-            above_1n_30_m40: AccuracyStats::of(cases.iter().filter(off).filter(|c| above_1n(c))),
-            at_0n3_30_m40: AccuracyStats::of(cases.iter().filter(off).filter(|c| at_0n3(c))),
-            max_angle_error_0_deg: max_angle(&zero),
-            max_angle_error_30_m40_deg: max_angle(&off),
-        }
-    }
 }
 
 /// Steps 3, 4 and 6: tracking, robustness and the loading protocol.
@@ -492,100 +354,6 @@ pub fn evaluate(
         loading_summary,
         loading_stretch,
         loading_stretch_summary,
-    })
-}
-
-/// Step 7's residual loop: the JAE on the `jae-ident` log, then the
-/// tension model on the `tension-ident` log, each judged on the last 30 %
-/// of its run (never fitted), the selected terms written into
-/// `config.jae.added` and `config.tension.added`.
-pub struct ResidualStep {
-    /// The JAE analysis.
-    pub jae: Analysis,
-    /// The tension-model analysis.
-    pub tension: Analysis,
-    /// The configuration with both.
-    pub config: Config,
-}
-
-/// The runs the JAE's residual loop must not make worse, besides the
-/// held-out part of its identification run: another regime each.
-pub const JAE_REGIMES: [&str; 2] = ["robust-2n5", "track-jae"];
-
-/// Run the residual loop on an identification's logs. The JAE's terms are
-/// also judged on [`JAE_REGIMES`] (fresh runs on `plant` with the
-/// identified configuration and their own seeds): a term that makes one of
-/// them worse is set aside (do no harm).
-pub fn residual_loop(
-    plant: &PlantParams,
-    id: &Identification,
-    s: &Settings,
-    tag: &str,
-) -> Result<ResidualStep> {
-    let build = BuildOptions {
-        holdout: 0.3,
-        keep_added: false,
-        holdout_with_validate: true,
-        ..BuildOptions::default()
-    };
-    let select = SelectOptions {
-        decimate: 0,
-        ..SelectOptions::default()
-    };
-    s.progress.line(
-        tag,
-        "7/7 residual loop: JAE on jae-ident, tension on tension-ident",
-    );
-    let jae_log = NamedLog {
-        name: "jae-ident".into(),
-        log: id.logs.jae.clone(),
-    };
-    let mut regimes = Vec::new();
-    for name in JAE_REGIMES {
-        let (log, _) = experiments::logged(
-            name,
-            plant,
-            &id.config,
-            run_seed(s.seed, &format!("{name}/regime")),
-            s.scale,
-        )?;
-        regimes.push(NamedLog {
-            name: name.into(),
-            log,
-        });
-    }
-    let jae = residual::analyse(
-        ModelKind::Jae,
-        std::slice::from_ref(&jae_log),
-        &regimes,
-        &id.config,
-        build,
-        select,
-    )
-    .context("residual loop on the JAE")?;
-    let config = residual::config_with(&jae, &id.config)?;
-    let build = BuildOptions {
-        holdout_with_validate: false,
-        ..build
-    };
-    let ten_log = NamedLog {
-        name: "tension-ident".into(),
-        log: id.logs.tension.clone(),
-    };
-    let tension = residual::analyse(
-        ModelKind::Tension,
-        std::slice::from_ref(&ten_log),
-        &[],
-        &config,
-        build,
-        select,
-    )
-    .context("residual loop on the tension model")?;
-    let config = residual::config_with(&tension, &config)?;
-    Ok(ResidualStep {
-        jae,
-        tension,
-        config,
     })
 }
 

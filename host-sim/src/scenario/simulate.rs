@@ -1,0 +1,172 @@
+//! `host-sim simulate`'s work (the command line and its printing are
+//! [`crate::cli::simulate`]): one scenario on a plant with a configuration,
+//! recorded tick by tick into the CSV log and, when asked, the raw trace for
+//! firmware replay.
+
+use anyhow::Result;
+use cable_joint::Config;
+
+use super::{oracle_config, plan, run, tuned_gains, Direction, RunSummary, ScenarioOptions};
+use crate::plant::PlantParams;
+use crate::sim::{check_ticks, LogRecorder, RawTrace};
+
+/// What [`simulate`] runs. The durations' names are the command line's
+/// (`--duration`, `--duration-scale`): the messages that refuse them say so.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SimulateOptions {
+    /// Scenario name ([`super::SCENARIOS`]).
+    pub scenario: String,
+    /// Seed of the noise generator (`None`: the scenario's).
+    pub seed: Option<u64>,
+    /// Total simulated duration, s (scales every segment). Set at most one
+    /// of `duration` and `duration_scale`, as the command line does: with
+    /// both, the scale becomes `duration` over the length already scaled by
+    /// `duration_scale`.
+    pub duration: Option<f64>,
+    /// Scale of every segment's duration (`None`: 1).
+    pub duration_scale: Option<f64>,
+    /// `loading`: run only this held angle, degrees.
+    pub angle_deg: Option<f64>,
+    /// `loading`: run only this weight, grams.
+    pub mass_g: Option<f64>,
+    /// `loading`: run only this direction.
+    pub direction: Option<Direction>,
+    /// Weights add their inertia rigidly to the joint
+    /// ([`ScenarioOptions::tip_inertia`]).
+    pub tip_inertia: bool,
+    /// Use the plant's true values for the identified parameters
+    /// ([`oracle_config`]).
+    pub oracle: bool,
+    /// Use cascade gains that work on the default plant ([`tuned_gains`]).
+    pub tuned_gains: bool,
+    /// Also record the raw trace ([`RawTrace`]).
+    pub raw_trace: bool,
+}
+
+impl SimulateOptions {
+    /// The scenario's options, with `duration` turned into a scale of the
+    /// scenario's full length.
+    pub fn scenario_options(&self) -> Result<ScenarioOptions> {
+        let mut opts = ScenarioOptions {
+            angle_deg: self.angle_deg,
+            mass_g: self.mass_g,
+            direction: self.direction,
+            tip_inertia: self.tip_inertia,
+            ..ScenarioOptions::default()
+        };
+        if let Some(s) = self.duration_scale {
+            opts.duration_scale = s;
+        }
+        if let Some(d) = self.duration {
+            anyhow::ensure!(d > 0.0, "--duration must be > 0");
+            let full = plan(&self.scenario, &opts)?.duration_s();
+            opts.duration_scale = d / full;
+        }
+        Ok(opts)
+    }
+}
+
+/// A finished simulation: its summary and what was recorded.
+#[derive(Clone, Debug)]
+pub struct Simulation {
+    /// The run's summary (errors, force errors, fault).
+    pub summary: RunSummary,
+    /// Every tick as a row of the CSV log.
+    pub log: LogRecorder,
+    /// Every tick's raw counts and codes (with [`SimulateOptions::raw_trace`]).
+    pub raw: Option<RawTrace>,
+}
+
+/// Run `opts.scenario` on `plant` with `config` (replaced in part by
+/// `opts.oracle` and `opts.tuned_gains`). Refused up front when the run
+/// would record more than [`crate::sim::MAX_TICKS`] ticks.
+pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> Result<Simulation> {
+    let name = opts.scenario.as_str();
+    let mut config = config;
+    if opts.oracle {
+        config = oracle_config(&plant, &config);
+    }
+    if opts.tuned_gains {
+        config = tuned_gains(&config);
+    }
+    let scenario_opts = opts.scenario_options()?;
+    let what = match (opts.duration, opts.duration_scale) {
+        (Some(d), _) => format!("--duration {d}"),
+        (None, Some(s)) => format!("--duration-scale {s}"),
+        (None, None) => format!("scenario {name}"),
+    };
+    check_ticks(
+        &what,
+        plan(name, &scenario_opts)?.duration_s(),
+        f64::from(config.control_rate_hz),
+    )?;
+    let mut log = LogRecorder::new(plant.sensors.magnetic_fitted);
+    let mut raw = RawTrace::new();
+    let summary = if opts.raw_trace {
+        run(
+            name,
+            plant,
+            config,
+            opts.seed,
+            &scenario_opts,
+            &mut (&mut log, &mut raw),
+        )?
+    } else {
+        run(name, plant, config, opts.seed, &scenario_opts, &mut log)?
+    };
+    Ok(Simulation {
+        summary,
+        log,
+        raw: opts.raw_trace.then_some(raw),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_duration_is_a_scale_of_the_full_plan() {
+        let opts = SimulateOptions {
+            scenario: "track-motor".into(),
+            duration: Some(2.6),
+            ..SimulateOptions::default()
+        };
+        let full = plan("track-motor", &ScenarioOptions::default())
+            .unwrap()
+            .duration_s();
+        let s = opts.scenario_options().unwrap();
+        assert!((s.duration_scale - 2.6 / full).abs() < 1e-12);
+        let p = plan("track-motor", &s).unwrap();
+        assert!((p.duration_s() - 2.6).abs() < 1e-9, "{}", p.duration_s());
+    }
+
+    #[test]
+    fn the_raw_trace_is_recorded_only_when_asked() {
+        let mut opts = SimulateOptions {
+            scenario: "track-motor".into(),
+            duration: Some(0.05),
+            ..SimulateOptions::default()
+        };
+        let sim = simulate(PlantParams::default(), Config::default(), &opts).unwrap();
+        assert!(sim.raw.is_none());
+        assert_eq!(sim.log.len() as u64, sim.summary.ticks);
+        opts.raw_trace = true;
+        let sim = simulate(PlantParams::default(), Config::default(), &opts).unwrap();
+        let raw = sim.raw.expect("raw trace asked for");
+        assert_eq!(raw.records.len(), sim.log.len());
+    }
+
+    #[test]
+    fn a_run_above_the_tick_limit_is_refused_before_it_starts() {
+        let opts = SimulateOptions {
+            scenario: "loading".into(),
+            duration_scale: Some(50.0),
+            ..SimulateOptions::default()
+        };
+        let err = simulate(PlantParams::default(), Config::default(), &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("--duration-scale 50:"), "{err}");
+    }
+}

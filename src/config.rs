@@ -416,11 +416,7 @@ pub struct FaultLimits {
     /// with cable 1 near slack the joint loses its stiffness on that side
     /// and the JAE's cable model no longer holds. Both chains must agree
     /// because each has its own scale (spring rate, torque constant).
-    /// Cable 0 (motor to slider 1) counts as slack when, with the drive
-    /// on and the DOB settled, the motor's `F_1_hat` plus the motor's
-    /// friction band (`f_cp2` raised to stiction, which bounds it) is below
-    /// the same fraction. 0 switches both checks off (a decoupled motor,
-    /// homing).
+    /// 0 switches the check off (a decoupled motor, homing).
     pub min_tension_fraction: f32,
     /// With the drive enabled, a measured current beyond this is
     /// [`crate::Fault::OverCurrent`], A: the drive limits at

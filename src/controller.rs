@@ -234,9 +234,6 @@ struct Derived {
     i2t_weight: f32,
     /// Per-tick weight of the current-error low-pass, `T / tau_error`.
     current_error_weight: f32,
-    /// Steps the drive must have been on before the motor's torque balance
-    /// reads cable 0 (four time constants of the DOB's `Q`, 98 % settled).
-    dob_settle_ticks: u32,
 }
 
 impl Derived {
@@ -260,7 +257,6 @@ impl Derived {
             max_magnetic_step: 0,
             i2t_weight: 0.0,
             current_error_weight: 0.0,
-            dob_settle_ticks: 0,
         };
         derived.set_steps(c);
         derived
@@ -287,9 +283,6 @@ impl Derived {
         let l = &c.limits;
         self.i2t_weight = (period_s / l.thermal_time_constant_s).min(1.0);
         self.current_error_weight = (period_s / l.current_error_time_s).min(1.0);
-        // `validate` keeps the cutoff positive and finite; the float-to-int
-        // cast saturates anyway.
-        self.dob_settle_ticks = (4.0 / (c.dob.cutoff_rad_s * period_s)) as u32 + 1;
     }
 }
 
@@ -359,9 +352,6 @@ pub struct State {
     last_current_a: f32,
     /// The drive was enabled by the last step (the current checks apply).
     drive_was_enabled: bool,
-    /// Consecutive steps the drive has been enabled (saturating): the
-    /// motor's torque balance reads cable 0 once the DOB has settled.
-    drive_on_ticks: u32,
     /// I²t state: the measured current squared, low-passed with the
     /// winding's thermal time constant, A².
     i2t_a2: f32,
@@ -504,7 +494,6 @@ impl Controller {
             stretch_rad,
             last_current_a,
             drive_was_enabled,
-            drive_on_ticks,
             // The winding does not cool down because the counters were zeroed.
             i2t_a2: _,
             current_error_a,
@@ -543,7 +532,6 @@ impl Controller {
         *stretch_rad = 0.0;
         *last_current_a = 0.0;
         *drive_was_enabled = false;
-        *drive_on_ticks = 0;
         *current_error_a = 0.0;
         *command_tick = *tick;
         *primed = false;
@@ -724,22 +712,6 @@ impl Controller {
         {
             fault = fault.or(Some(Fault::TransmissionSlack));
         }
-        // Cable 0 (motor to slider 1) is slack when the motor's torque
-        // balance, less nothing but the motor's own friction, puts it below
-        // the same limit. A stuck slider 1 keeps cable 1 stretched and hides
-        // this from the check above. The motor's friction is bounded by the
-        // tension model's `f_cp2` (the motor's, slider 2's and the pin's
-        // kinetic friction together) raised to stiction; the DOB reads the
-        // cable only through a current this controller drives, once its `Q`
-        // has settled.
-        let cable0_band_n = cfg.tension.f_cp2_n.max(0.0) * cfg.fusion.static_over_kinetic;
-        if st.primed
-            && cfg.limits.min_tension_fraction > 0.0
-            && st.drive_on_ticks >= d.dob_settle_ticks
-            && dob_out.tension1_n + cable0_band_n < cfg.slack_limit_n()
-        {
-            fault = fault.or(Some(Fault::MotorCableSlack));
-        }
         timer.mark(Stage::Dob);
 
         // --- Reference and cascade -------------------------------------------
@@ -858,11 +830,6 @@ impl Controller {
         }
         st.last_current_a = current_ref_a;
         st.drive_was_enabled = enabled;
-        st.drive_on_ticks = if enabled {
-            st.drive_on_ticks.saturating_add(1)
-        } else {
-            0
-        };
         st.tick = st.tick.wrapping_add(1);
         timer.mark(Stage::Cascade);
         Output {
@@ -983,46 +950,6 @@ mod tests {
         let (_, slack) = slack_runs(cfg, raw);
         assert!(slack.est.tension1_stretch_n < cfg.slack_limit_n());
         assert_ne!(slack.fault, Some(Fault::TransmissionSlack));
-    }
-
-    /// Cable 0 lost while slider 1 sticks: the gratings stay put (cable 1
-    /// keeps its stretch, so the check on cable 1 passes) and the motor's
-    /// current holds less than the limit minus the motor's friction band.
-    /// That is a fault once the DOB has settled, only with the drive on,
-    /// and a reading just inside the band is none.
-    #[test]
-    fn a_motor_that_holds_no_cable_is_a_cable_0_slack_fault() {
-        let mut cfg = Config::default();
-        cfg.dob.use_measured_current = true;
-        let m = cfg.machine;
-        let band_n = cfg.tension.f_cp2_n * cfg.fusion.static_over_kinetic;
-        let limit_n = cfg.slack_limit_n();
-        let settle = (4.0 / (cfg.dob.cutoff_rad_s * cfg.period_s())) as usize;
-        // The ADC code of the current that holds `tension_n` on cable 0.
-        let raw_at = |tension_n: f32| {
-            let a = tension_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
-            RawSample {
-                current: AdcCode(
-                    (a / cfg.scales.adc_a_per_code + cfg.scales.adc_zero_code).round() as u16,
-                ),
-                ..Default::default()
-            }
-        };
-        // The first fault and its step, over two seconds.
-        let run = |mode: Mode, tension_n: f32| {
-            let mut c = Controller::new(cfg).unwrap();
-            c.set_command(Command {
-                mode,
-                trajectory: Trajectory::Hold { angle_rad: 0.0 },
-            });
-            (0..4000).find_map(|k| c.step(&raw_at(tension_n)).fault.map(|f| (k, f)))
-        };
-        assert_eq!(run(Mode::MotorPosition, cfg.tension.f_0_n), None, "taut");
-        let (k, fault) = run(Mode::MotorPosition, limit_n - band_n - 1.0).expect("slack");
-        assert_eq!(fault, Fault::MotorCableSlack);
-        assert!(k >= settle, "step {k}: before the DOB settled ({settle})");
-        assert_eq!(run(Mode::MotorPosition, limit_n - band_n + 1.0), None, "inside the band");
-        assert_eq!(run(Mode::Idle, limit_n - band_n - 1.0), None, "drive off");
     }
 
     /// Hold the motor at zero and turn the joint positive by slider 2 alone
@@ -1336,12 +1263,7 @@ mod tests {
     #[test]
     fn a_current_that_does_not_follow_the_reference_is_a_fault() {
         // A drive that follows: the monitor reads the last reference back.
-        // The sensors are frozen, so the current the loop pushes with moves
-        // nothing: the motor's balance would read cable 0 slack (fault 18),
-        // which is not what this test is about.
-        let mut cfg = Config::default();
-        cfg.limits.min_tension_fraction = 0.0;
-        let mut c = holding(cfg);
+        let mut c = holding(Config::default());
         let mut raw = reading(&c, 0.0);
         raw.motor = MotorCount(500); // away from the hold: the loop pushes
         for _ in 0..2000 {

@@ -47,16 +47,10 @@ pub enum Fault {
     /// `limits.current_error_time_s`): a broken motor lead, a drive that
     /// ignores its reference, or a supply that cannot deliver.
     CurrentTracking,
-    /// Cable 1's tension, read off its stretch and off the motor's torque
-    /// balance less slider 1's friction band, fell below
+    /// Cable 1's tension, read off its stretch, fell below
     /// `limits.min_tension_fraction` of the preload: the cable is going
     /// slack or broke.
     TransmissionSlack,
-    /// Cable 0's tension (motor to slider 1), read off the motor's torque
-    /// balance with the motor's friction band in its favour, fell below
-    /// `limits.min_tension_fraction` of the preload while the drive was on:
-    /// the motor has lost its cable.
-    MotorCableSlack,
     /// The control task missed its deadline.
     Overrun,
     /// The drive reported a fault on its fault line.
@@ -99,7 +93,6 @@ impl Fault {
             Fault::OverCurrent => 15,
             Fault::I2t => 16,
             Fault::CurrentTracking => 17,
-            Fault::MotorCableSlack => 18,
             Fault::Overrun => 20,
             Fault::DriveFault => 21,
             Fault::OriginDuringMotion => 22,
@@ -126,7 +119,6 @@ impl Fault {
             15 => Fault::OverCurrent,
             16 => Fault::I2t,
             17 => Fault::CurrentTracking,
-            18 => Fault::MotorCableSlack,
             20 => Fault::Overrun,
             21 => Fault::DriveFault,
             22 => Fault::OriginDuringMotion,
@@ -160,9 +152,6 @@ impl fmt::Display for Fault {
             Fault::I2t => f.write_str("winding I2t above its continuous rating"),
             Fault::CurrentTracking => f.write_str("measured current does not follow the reference"),
             Fault::TransmissionSlack => f.write_str("cable slack: cable-1 tension below its limit"),
-            Fault::MotorCableSlack => {
-                f.write_str("cable slack: cable-0 (motor) tension below its limit")
-            }
             Fault::Overrun => f.write_str("control tick overran its deadline"),
             Fault::DriveFault => f.write_str("drive reported a fault"),
             Fault::OriginDuringMotion => f.write_str("origin switch hit during motion"),
@@ -189,7 +178,7 @@ mod tests {
                 seen[code as usize] = true;
             }
         }
-        assert_eq!(seen.iter().filter(|s| **s).count(), 21);
+        assert_eq!(seen.iter().filter(|s| **s).count(), 20);
         assert_eq!(Fault::from_code(5), None, "code 5 is retired");
         assert_eq!(Fault::from_code(0), None);
         assert_eq!(Fault::code_of(None), 0);

@@ -254,13 +254,6 @@ impl CaseRec {
                     t.rope_n, t.cable1_n, self.slack_limit_n
                 ),
             ),
-            Fault::MotorCableSlack => (
-                t.rope_n < self.slack_limit_n,
-                format!(
-                    "true tensions: cable 0 {:.2} N, cable 1 {:.2} N, limit {:.2} N",
-                    t.rope_n, t.cable1_n, self.slack_limit_n
-                ),
-            ),
             // Out of range, or the transmission lost (a cable slack): the
             // joint is then free to run, and stopping it is right.
             Fault::AngleRange => (
@@ -584,10 +577,6 @@ mod tests {
         assert!(rec.fault_confirmed, "cable 1 slack");
         let msg = rec.judge(&tick(4.3, 4.5, 0.0), Fault::TransmissionSlack);
         assert!(!rec.fault_confirmed && msg.ends_with("FALSE)"), "{msg}");
-        rec.judge(&tick(0.2, 6.0, 0.0), Fault::MotorCableSlack);
-        assert!(rec.fault_confirmed, "cable 0 slack, cable 1 taut");
-        let msg = rec.judge(&tick(6.0, 3.0, 0.0), Fault::MotorCableSlack);
-        assert!(!rec.fault_confirmed, "cable 1 slack is not cable 0: {msg}");
         rec.judge(&tick(10.0, 10.0, -1.6), Fault::AngleRange);
         assert!(rec.fault_confirmed, "out of range");
         rec.judge(&tick(10.0, 10.0, -1.4), Fault::AngleRange);

@@ -17,7 +17,10 @@
 #    firmware's output of both boots to be identical tick by tick, bit for
 #    bit (tests/qemu_replay.rs);
 # 6. prints the instructions per control stage (TIM2 under -icount) and writes
-#    the run as a CSV log (host-sim ingest).
+#    the run as a CSV log (host-sim ingest);
+# 7. repeats 3-6 with probing on (`host-sim trace --probe`: the trace's header
+#    tells the QEMU board to boot with the dither on), in $QEMU_OUT/probing,
+#    so the dither's cost per tick is measured too.
 #
 # Host tools run in the dev profile, so the builds of .ci/run's `cargo test
 # --workspace` are reused. Outputs land in $QEMU_OUT (default: <target dir>/qemu): firmware-hw.elf,
@@ -64,75 +67,90 @@ cp "$ELF" "$OUT/firmware-hw.elf"
   size_of "$OUT/firmware-hw.elf"
 } | tee "$OUT/sizes.txt"
 
-say "closed-loop sensor trace (host-sim trace)"
-cargo run "${LOCKED[@]}" -p host-sim -- trace --out "$OUT/trace.bin"
+# One proof: record a trace (extra arguments go to `host-sim trace`), build
+# the QEMU firmware around it, run it, check both boots, compare them bit for
+# bit with the host replay, and count instructions per tick. Outputs in $dir.
+proof() {
+  local name="$1" dir="$2"
+  shift 2
+  mkdir -p "$dir"
+  say "$name: closed-loop sensor trace (host-sim trace $*)"
+  cargo run "${LOCKED[@]}" -p host-sim -- trace --out "$dir/trace.bin" "$@"
 
-say "QEMU firmware (cargo fw-qemu, trace $OUT/trace.bin)"
-CABLE_JOINT_TRACE="$OUT/trace.bin" cargo fw-qemu "${LOCKED[@]}"
-cp "$ELF" "$OUT/firmware-qemu.elf"
-{
-  echo "qemu build (includes the embedded trace):"
-  size_of "$OUT/firmware-qemu.elf"
-} | tee -a "$OUT/sizes.txt"
+  say "$name: QEMU firmware (cargo fw-qemu, trace $dir/trace.bin)"
+  CABLE_JOINT_TRACE="$dir/trace.bin" cargo fw-qemu "${LOCKED[@]}"
+  cp "$ELF" "$dir/firmware-qemu.elf"
+  {
+    echo "qemu build, $name (includes the embedded trace):"
+    size_of "$dir/firmware-qemu.elf"
+  } | tee -a "$OUT/sizes.txt"
 
-say "QEMU run (timeout ${TIMEOUT_S} s)"
-set +e
-timeout "$TIMEOUT_S" qemu-system-arm \
-  -machine netduinoplus2 -nographic -monitor none -serial none \
-  -semihosting-config enable=on,target=native \
-  -icount shift=0,sleep=off \
-  -kernel "$OUT/firmware-qemu.elf" >"$OUT/qemu.defmt" 2>"$OUT/qemu.stderr"
-status=$?
-set -e
-defmt-print -e "$OUT/firmware-qemu.elf" <"$OUT/qemu.defmt" >"$OUT/qemu-all.txt" 2>&1 || true
-# The run is two boots: the trace, then (after the injected watchdog reset)
-# the recovery boot. Split at the line that arms the watchdog test.
-awk -v first="$OUT/qemu.txt" -v reset="$OUT/qemu-reset.txt" '
-  BEGIN { printf "" > first; printf "" > reset }
-  { if (armed) print > reset; else print > first }
-  /watchdog test: the control task hangs/ { armed = 1 }' "$OUT/qemu-all.txt"
-grep -v '^INFO  tlm \[' "$OUT/qemu-all.txt" | tail -n 20 || true
-if [ "$status" -eq 124 ]; then
-  echo "FAIL: QEMU timed out after ${TIMEOUT_S} s" >&2
-  exit 1
-elif [ "$status" -ne 0 ]; then
-  echo "FAIL: the firmware exited with failure ($status: panic or HardFault)" >&2
-  cat "$OUT/qemu.stderr" >&2 || true
-  exit 1
-fi
-if grep -q -E '^(ERROR|WARN)' "$OUT/qemu.txt"; then
-  echo "FAIL: the firmware logged an error or a warning" >&2
-  exit 1
-fi
-if ! grep -q 'trace played' "$OUT/qemu.txt"; then
-  echo "FAIL: the firmware did not finish the trace" >&2
-  exit 1
-fi
-if ! grep -q 'watchdog test: the control task hangs' "$OUT/qemu.txt"; then
-  echo "FAIL: the firmware did not arm the watchdog test" >&2
-  exit 1
-fi
-# The recovery boot reports the reset as its one error, then ends cleanly.
-if ! grep -q -E '^ERROR +last reset: fault 32 ' "$OUT/qemu-reset.txt"; then
-  echo "FAIL: no watchdog reset reported at the next boot ($OUT/qemu-reset.txt)" >&2
-  exit 1
-fi
-if grep -E '^(ERROR|WARN)' "$OUT/qemu-reset.txt" | grep -q -v -E '^ERROR +last reset: fault 32 '; then
-  echo "FAIL: the recovery boot logged another error or a warning" >&2
-  exit 1
-fi
-if ! grep -q 'recovery boot done' "$OUT/qemu-reset.txt"; then
-  echo "FAIL: the recovery boot did not finish" >&2
-  exit 1
-fi
+  say "$name: QEMU run (timeout ${TIMEOUT_S} s)"
+  set +e
+  timeout "$TIMEOUT_S" qemu-system-arm \
+    -machine netduinoplus2 -nographic -monitor none -serial none \
+    -semihosting-config enable=on,target=native \
+    -icount shift=0,sleep=off \
+    -kernel "$dir/firmware-qemu.elf" >"$dir/qemu.defmt" 2>"$dir/qemu.stderr"
+  status=$?
+  set -e
+  defmt-print -e "$dir/firmware-qemu.elf" <"$dir/qemu.defmt" >"$dir/qemu-all.txt" 2>&1 || true
+  # The run is two boots: the trace, then (after the injected watchdog reset)
+  # the recovery boot. Split at the line that arms the watchdog test.
+  awk -v first="$dir/qemu.txt" -v reset="$dir/qemu-reset.txt" '
+    BEGIN { printf "" > first; printf "" > reset }
+    { if (armed) print > reset; else print > first }
+    /watchdog test: the control task hangs/ { armed = 1 }' "$dir/qemu-all.txt"
+  grep -v '^INFO  tlm \[' "$dir/qemu-all.txt" | tail -n 20 || true
+  if [ "$status" -eq 124 ]; then
+    echo "FAIL: QEMU timed out after ${TIMEOUT_S} s" >&2
+    exit 1
+  elif [ "$status" -ne 0 ]; then
+    echo "FAIL: the firmware exited with failure ($status: panic or HardFault)" >&2
+    cat "$dir/qemu.stderr" >&2 || true
+    exit 1
+  fi
+  if grep -q -E '^(ERROR|WARN)' "$dir/qemu.txt"; then
+    echo "FAIL: the firmware logged an error or a warning" >&2
+    exit 1
+  fi
+  if ! grep -q 'trace played' "$dir/qemu.txt"; then
+    echo "FAIL: the firmware did not finish the trace" >&2
+    exit 1
+  fi
+  if ! grep -q 'watchdog test: the control task hangs' "$dir/qemu.txt"; then
+    echo "FAIL: the firmware did not arm the watchdog test" >&2
+    exit 1
+  fi
+  # The recovery boot reports the reset as its one error, then ends cleanly.
+  if ! grep -q -E '^ERROR +last reset: fault 32 ' "$dir/qemu-reset.txt"; then
+    echo "FAIL: no watchdog reset reported at the next boot ($dir/qemu-reset.txt)" >&2
+    exit 1
+  fi
+  if grep -E '^(ERROR|WARN)' "$dir/qemu-reset.txt" | grep -q -v -E '^ERROR +last reset: fault 32 '; then
+    echo "FAIL: the recovery boot logged another error or a warning" >&2
+    exit 1
+  fi
+  if ! grep -q 'recovery boot done' "$dir/qemu-reset.txt"; then
+    echo "FAIL: the recovery boot did not finish" >&2
+    exit 1
+  fi
 
-say "bit-for-bit comparison with the host replay, both boots (tests/qemu_replay.rs)"
-CABLE_JOINT_QEMU_LOG="$OUT/qemu.txt" CABLE_JOINT_QEMU_RESET_LOG="$OUT/qemu-reset.txt" \
-  CABLE_JOINT_TRACE="$OUT/trace.bin" \
-  cargo test "${LOCKED[@]}" --test qemu_replay -- --include-ignored
+  say "$name: bit-for-bit comparison with the host replay, both boots (tests/qemu_replay.rs)"
+  CABLE_JOINT_QEMU_LOG="$dir/qemu.txt" CABLE_JOINT_QEMU_RESET_LOG="$dir/qemu-reset.txt" \
+    CABLE_JOINT_TRACE="$dir/trace.bin" \
+    cargo test "${LOCKED[@]}" --test qemu_replay -- --include-ignored
 
-say "instructions per control tick (TIM2 under -icount shift=0)"
-cargo run "${LOCKED[@]}" -p host-sim -- ingest "$OUT/qemu.txt" \
-  --out "$OUT/qemu.csv" --stats | tee "$OUT/icount.txt"
+  say "$name: instructions per control tick (TIM2 under -icount shift=0)"
+  cargo run "${LOCKED[@]}" -p host-sim -- ingest "$dir/qemu.txt" \
+    --out "$dir/qemu.csv" --stats | tee "$dir/icount.txt"
+}
+
+# The firmware as built (probing off), then the same with the dither on
+# during the hold: its cost per tick is measured, not only argued. The
+# probing trace runs long enough for the move to 30° to end (about 2.7 s)
+# and for seven dither periods of hold, with the weight hung during it.
+proof "default" "$OUT"
+proof "probing" "$OUT/probing" --probe --duration-s 4.5 --load-at-s 3.5 --drive-fault-at-s 4.4
 cat "$OUT/sizes.txt"
 say "QEMU proof passed"

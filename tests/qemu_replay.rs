@@ -31,7 +31,9 @@ use cable_joint::{Fault, Mode};
 /// the first `limit` samples, with `boot_fault` latched at start-up as a
 /// recovery boot does.
 fn replay(trace: &Trace, boot_fault: Option<Fault>, limit: usize) -> Vec<Record> {
-    let mut control = ControlLoop::new(firmware_config(), 1).expect("built-in configuration");
+    // The configuration the trace was recorded with (probing on if its
+    // header says so), as the QEMU board boots with.
+    let mut control = ControlLoop::new(trace.config(), 1).expect("built-in configuration");
     if let Some(fault) = boot_fault {
         control.report_boot_fault(fault);
     }

@@ -29,7 +29,7 @@
 //! Output: the binary trace (layout in [`cable_joint::board::trace`]) and,
 //! with `--csv`, the firmware logic's own telemetry as a project CSV log.
 
-use cable_joint::board::trace::trace_header;
+use cable_joint::board::trace::{trace_header, TRACE_FLAG_PROBING};
 use cable_joint::board::{
     firmware_config, ControlLoop, Harness, Program, Request, TickOutcome, TraceSample,
 };
@@ -58,6 +58,10 @@ pub struct TraceOptions {
     pub drive_fault_at_s: f64,
     /// Noise seed.
     pub seed: u64,
+    /// Probing on (`probe.enabled`, the core's default dither): the trace's
+    /// header says so, and the QEMU firmware replays it with the same
+    /// configuration.
+    pub probing: bool,
 }
 
 impl Default for TraceOptions {
@@ -69,7 +73,18 @@ impl Default for TraceOptions {
             load_at_s: 1.0,
             drive_fault_at_s: 2.5,
             seed: 1,
+            probing: false,
         }
+    }
+}
+
+impl TraceOptions {
+    /// The firmware's configuration ([`firmware_config`]), with probing on
+    /// if asked.
+    pub fn config(&self) -> cable_joint::Config {
+        let mut c = firmware_config();
+        c.probe.enabled = self.probing;
+        c
     }
 }
 
@@ -79,6 +94,8 @@ impl Default for TraceOptions {
 pub struct Recorded {
     /// Control rate, Hz.
     pub control_rate_hz: f32,
+    /// The run had probing on (the trace header's flag).
+    pub probing: bool,
     /// One sample per tick (boot-relative counters, input lines).
     pub samples: Vec<TraceSample>,
     /// The firmware logic's outcome per tick.
@@ -98,6 +115,7 @@ impl Recorded {
         v.extend_from_slice(&trace_header(
             self.control_rate_hz,
             self.samples.len() as u32,
+            if self.probing { TRACE_FLAG_PROBING } else { 0 },
         ));
         for s in &self.samples {
             v.extend_from_slice(&s.to_bytes());
@@ -162,7 +180,7 @@ impl Inject for NoInjection {}
 
 /// Run the closed loop and record it.
 pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorded> {
-    record_with(plant, opts, firmware_config(), &mut NoInjection)
+    record_with(plant, opts, opts.config(), &mut NoInjection)
 }
 
 /// Run the closed loop with `config` in the firmware logic and `inject`
@@ -199,6 +217,7 @@ pub fn record_with(
     let n = (opts.duration_s / period_s).round() as usize;
     let mut rec = Recorded {
         control_rate_hz: config.control_rate_hz,
+        probing: config.probe.enabled,
         ..Default::default()
     };
     let load = |t_s: f64| -> f64 {

@@ -19,7 +19,8 @@
 //! | `idle` | – | 0 | `wfi` |
 //!
 //! Settings: `board::firmware_config()` (the core's datasheet defaults at
-//! `board::CONTROL_RATE_HZ`, 2 kHz, up to 20 kHz; compiled in; new parameters
+//! `board::CONTROL_RATE_HZ`, 2 kHz, up to 20 kHz; compiled in; under QEMU
+//! with probing on when the replayed trace was recorded so; new parameters
 //! at the same rate arrive as `Request::SetConfig` through the `command`
 //! task), the program, and the telemetry decimation (`TELEMETRY_DECIMATION`:
 //! every 10th tick on hardware, i.e. 200 Hz; every tick under QEMU).
@@ -112,8 +113,7 @@ fn log_record(record: &cable_joint::telemetry::Record) {
 mod app {
     use cable_joint::board::boot::boot_fault;
     use cable_joint::board::{
-        firmware_config, on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine,
-        Program, Request,
+        on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine, Program, Request,
     };
     use cable_joint::telemetry::Record;
     use heapless::spsc::{Consumer, Producer, Queue};
@@ -144,7 +144,7 @@ mod app {
         telemetry: Queue<Record, 64> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        let config = firmware_config();
+        let config = board::config();
         // Why the last reset happened, before anything can overwrite it.
         let note = take_boot_note();
         let watchdog_reset = board::take_watchdog_reset_flag();

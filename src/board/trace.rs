@@ -10,7 +10,8 @@
 //! |---|---|
 //! | 0..4 | magic `CJTR` |
 //! | 4 | layout version (1) |
-//! | 5..8 | zero |
+//! | 5 | flags: bit 0 ([`TRACE_FLAG_PROBING`]) the run had probing on; other bits zero |
+//! | 6..8 | zero |
 //! | 8..12 | control rate, Hz (`f32`) |
 //! | 12..16 | number of samples `n` (`u32`) |
 //! | 16.. | `n` samples of 17 bytes: grating 1 `i32`, grating 2 `i32`, motor `u16`, magnetic `u16`, ADC `u16`, inputs `u8` ([`Inputs`]) |
@@ -38,6 +39,9 @@ pub const TRACE_VERSION: u8 = 1;
 pub const TRACE_HEADER_LEN: usize = 16;
 /// Bytes per sample.
 pub const TRACE_SAMPLE_LEN: usize = 17;
+/// Header flag: the trace was recorded with probing on (`probe.enabled`),
+/// and the firmware replaying it must run with the same configuration.
+pub const TRACE_FLAG_PROBING: u8 = 1;
 
 /// What the board reads at one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -78,11 +82,13 @@ impl TraceSample {
     }
 }
 
-/// Header of a trace with `count` samples at `control_rate_hz`.
-pub fn trace_header(control_rate_hz: f32, count: u32) -> [u8; TRACE_HEADER_LEN] {
+/// Header of a trace with `count` samples at `control_rate_hz`, recorded
+/// with `flags` ([`TRACE_FLAG_PROBING`] or 0).
+pub fn trace_header(control_rate_hz: f32, count: u32, flags: u8) -> [u8; TRACE_HEADER_LEN] {
     let mut h = [0u8; TRACE_HEADER_LEN];
     h[0..4].copy_from_slice(&TRACE_MAGIC);
     h[4] = TRACE_VERSION;
+    h[5] = flags;
     h[8..12].copy_from_slice(&control_rate_hz.to_bits().to_le_bytes());
     h[12..16].copy_from_slice(&count.to_le_bytes());
     h
@@ -95,6 +101,8 @@ pub enum TraceError {
     NotATrace,
     /// Another layout version.
     Version(u8),
+    /// Header flags this firmware does not know (a newer recorder).
+    Flags(u8),
     /// The length disagrees with the sample count in the header.
     Length {
         /// Bytes the header implies.
@@ -111,6 +119,10 @@ impl fmt::Display for TraceError {
             TraceError::Version(v) => {
                 write!(f, "trace layout version {v}, expected {TRACE_VERSION}")
             }
+            TraceError::Flags(b) => write!(
+                f,
+                "trace header flags {b:#04x}: only {TRACE_FLAG_PROBING:#04x} (probing) is known"
+            ),
             TraceError::Length { expected, found } => write!(
                 f,
                 "trace has {found} bytes, its header announces {expected}"
@@ -125,6 +137,7 @@ pub struct Trace<'a> {
     samples: &'a [u8],
     control_rate_hz: f32,
     count: usize,
+    flags: u8,
 }
 
 impl<'a> Trace<'a> {
@@ -136,6 +149,12 @@ impl<'a> Trace<'a> {
         }
         if header[4] != TRACE_VERSION {
             return Err(TraceError::Version(header[4]));
+        }
+        let flags = header[5];
+        if flags & !TRACE_FLAG_PROBING != 0 || header[6] != 0 || header[7] != 0 {
+            return Err(TraceError::Flags(
+                flags & !TRACE_FLAG_PROBING | header[6] | header[7],
+            ));
         }
         let rate = f32::from_bits(u32::from_le_bytes([
             header[8], header[9], header[10], header[11],
@@ -156,6 +175,7 @@ impl<'a> Trace<'a> {
             samples: &bytes[TRACE_HEADER_LEN..],
             control_rate_hz: rate,
             count,
+            flags,
         })
     }
 
@@ -172,6 +192,20 @@ impl<'a> Trace<'a> {
     /// Control rate the trace was recorded at, Hz.
     pub fn control_rate_hz(&self) -> f32 {
         self.control_rate_hz
+    }
+
+    /// The trace was recorded with probing on.
+    pub fn probing(&self) -> bool {
+        self.flags & TRACE_FLAG_PROBING != 0
+    }
+
+    /// The configuration the trace was recorded with, which its replay must
+    /// use: the firmware's ([`super::firmware_config`]), with probing on if
+    /// the header says so.
+    pub fn config(&self) -> crate::Config {
+        let mut c = super::firmware_config();
+        c.probe.enabled = self.probing();
+        c
     }
 
     /// Sample `k`.
@@ -414,7 +448,7 @@ mod tests {
     }
 
     fn trace_bytes(samples: &[TraceSample]) -> Vec<u8> {
-        let mut v = Vec::from(trace_header(2000.0, samples.len() as u32));
+        let mut v = Vec::from(trace_header(2000.0, samples.len() as u32, 0));
         for s in samples {
             v.extend_from_slice(&s.to_bytes());
         }
@@ -440,11 +474,24 @@ mod tests {
         let mut v2 = bytes.clone();
         v2[4] = 9;
         assert_eq!(Trace::parse(&v2).unwrap_err(), TraceError::Version(9));
+        let mut probed = bytes.clone();
+        probed[5] = TRACE_FLAG_PROBING;
+        let t = Trace::parse(&probed).unwrap();
+        assert!(t.probing() && t.config().probe.enabled);
+        assert!(!Trace::parse(&bytes).unwrap().config().probe.enabled);
+        for (at, byte) in [(5, 0x02), (6, 0x01), (7, 0x80)] {
+            let mut unknown = bytes.clone();
+            unknown[at] = byte;
+            assert!(
+                matches!(Trace::parse(&unknown), Err(TraceError::Flags(_))),
+                "byte {at} = {byte:#04x}"
+            );
+        }
     }
 
     #[test]
     fn a_forged_sample_count_is_a_length_error_not_a_wrapped_one() {
-        let mut v = Vec::from(trace_header(2000.0, u32::MAX));
+        let mut v = Vec::from(trace_header(2000.0, u32::MAX, 0));
         v.extend_from_slice(&sample(0, 0).to_bytes());
         let expected = (u32::MAX as usize)
             .saturating_mul(TRACE_SAMPLE_LEN)

@@ -8,7 +8,6 @@ use anyhow::Context;
 
 use crate::cli;
 use crate::output::Outputs;
-use cable_joint::board::firmware_config;
 
 use crate::trace::{record, TraceOptions};
 
@@ -48,6 +47,10 @@ pub struct TraceArgs {
     /// Noise seed.
     #[arg(long, default_value_t = TraceOptions::default().seed)]
     pub seed: u64,
+    /// Record with probing on (the default dither during the hold); the
+    /// trace's header tells the QEMU firmware to run the same way.
+    #[arg(long)]
+    pub probe: bool,
 }
 
 impl TraceArgs {
@@ -60,6 +63,7 @@ impl TraceArgs {
             load_at_s: self.load_at_s,
             drive_fault_at_s: self.drive_fault_at_s,
             seed: self.seed,
+            probing: self.probe,
         }
     }
 }
@@ -67,7 +71,8 @@ impl TraceArgs {
 /// `host-sim trace`.
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let plant = crate::io::config::load_plant(args.plant.as_deref())?;
-    let rec = record(plant, &args.options())?;
+    let opts = args.options();
+    let rec = record(plant, &opts)?;
     // The trace and the CSV log are written together, or neither is.
     let mut out = Outputs::new();
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -77,7 +82,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     if let Some(csv) = &args.csv {
         let log = crate::ingest::to_log(
             &rec.telemetry(),
-            &firmware_config(),
+            &opts.config(),
             &crate::ingest::LogOptions::default(),
         )?;
         log.stage(&mut out, csv)?;
@@ -90,10 +95,11 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         .find_map(|o| o.origin)
         .map(|o| o.tick);
     eprintln!(
-        "wrote {} ({} ticks at {} Hz; homed at tick {:?})",
+        "wrote {} ({} ticks at {} Hz, probing {}; homed at tick {:?})",
         args.out.display(),
         rec.samples.len(),
         rec.control_rate_hz,
+        if rec.probing { "on" } else { "off" },
         homed
     );
     if let Some(csv) = &args.csv {

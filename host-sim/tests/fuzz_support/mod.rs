@@ -24,8 +24,8 @@ use std::cell::RefCell;
 use std::fmt::Display;
 use std::path::{Path, PathBuf};
 
-use cable_joint::board::{firmware_config, ControlLoop, Harness, Request, Trace, TraceSample};
 use cable_joint::board::{trace::trace_header, Program};
+use cable_joint::board::{ControlLoop, Harness, Request, Trace, TraceSample};
 use cable_joint::telemetry::{Record, MAX_RECORD_LEN};
 use cable_joint::Config;
 use host_sim::cli::import::summary;
@@ -449,7 +449,7 @@ fn check_trace(t: &Trace, data: &[u8]) {
 
 /// The bytes of a trace with these samples.
 pub fn trace_bytes(rate_hz: f32, samples: &[TraceSample]) -> Vec<u8> {
-    let mut v = trace_header(rate_hz, samples.len() as u32).to_vec();
+    let mut v = trace_header(rate_hz, samples.len() as u32, 0).to_vec();
     for s in samples {
         v.extend_from_slice(&s.to_bytes());
     }
@@ -460,7 +460,7 @@ pub fn trace_bytes(rate_hz: f32, samples: &[TraceSample]) -> Vec<u8> {
 /// ([`Harness`]) running the default program: no panic, and the drive off
 /// whenever a fault is latched.
 pub fn replay(t: &Trace) {
-    let control = ControlLoop::new(firmware_config(), 1).expect("firmware configuration");
+    let control = ControlLoop::new(t.config(), 1).expect("firmware configuration");
     let mut h = Harness::new(control);
     for (k, s) in t.iter().take(MAX_REPLAY_TICKS).enumerate() {
         let req = (k == 0).then_some(Request::Program(Program::default()));

@@ -224,6 +224,11 @@ pub struct Board {
     pub watchdog: Watchdog,
 }
 
+/// The configuration the board boots with: the built-in one.
+pub fn config() -> cable_joint::Config {
+    cable_joint::board::firmware_config()
+}
+
 /// Bring the board up: drive disabled first, then clocks, sensors, inputs,
 /// and the control timer at `rate_hz` (the last thing started).
 pub fn init(dp: pac::Peripherals, mut cp: cortex_m::Peripherals, rate_hz: f32) -> Board {

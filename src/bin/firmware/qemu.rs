@@ -230,6 +230,13 @@ fn trace() -> Option<Trace<'static>> {
     Trace::parse(TRACE_BYTES).ok()
 }
 
+/// The configuration the board boots with: the one the trace was recorded
+/// with (the built-in one, with probing on if the trace's header says so),
+/// or the built-in one if the trace is unreadable (`init` then stops).
+pub fn config() -> cable_joint::Config {
+    trace().map_or_else(cable_joint::board::firmware_config, |t| t.config())
+}
+
 /// TIM2: virtual nanoseconds = guest instructions under `-icount shift=0`.
 pub struct Counter;
 

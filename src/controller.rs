@@ -79,6 +79,7 @@ impl Mode {
 /// What to do: a mode and the joint-angle trajectory it follows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Command {
     /// Mode.
     pub mode: Mode,

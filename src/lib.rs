@@ -16,6 +16,8 @@ pub mod fault;
 pub mod filter;
 pub mod fusion;
 pub mod jae;
+#[cfg(feature = "link")]
+pub mod link;
 pub mod lsq;
 pub mod math;
 pub mod model;

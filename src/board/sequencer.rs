@@ -38,6 +38,7 @@ use super::io::Events;
 
 /// Start-up and homing settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct HomingConfig {
     /// Sensor check with the drive disabled, s.
     pub check_s: f32,
@@ -102,6 +103,7 @@ impl HomingConfig {
 
 /// What the firmware does after start-up.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Program {
     /// Start-up and homing.
     pub homing: HomingConfig,

@@ -114,7 +114,6 @@ pub struct JaeConfig {
     pub sign_switch_m_s: f32,
     /// Effect terms added by the residual loop (rad per term unit); not written to a
     /// file when there are none.
-    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "AddedTerms::is_empty"))]
     pub added: AddedTerms,
 }
 
@@ -234,7 +233,6 @@ pub struct TensionConfig {
     pub sign_switch_x2_m_s: f32,
     /// Effect terms added by the residual loop (N per term unit); not written to a
     /// file when there are none.
-    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "AddedTerms::is_empty"))]
     pub added: AddedTerms,
 }
 

@@ -19,30 +19,29 @@
 //!
 //! What a frame carries is checked twice on the MCU: the frame itself (size,
 //! COBS, CRC, version, body) here, and the message's content by
-//! [`Down::into_request`], as [`crate::board::Request::validate`] checks
-//! every request.
+//! [`Down::into_request`], which validates a configuration and prepares its
+//! filters (outside the control tick) as [`crate::board::Request`] requires,
+//! and checks every other request as [`crate::board::Request::validate`]
+//! does. A configuration travels in its binary serde form (effect terms as
+//! their slots; see `model.rs`), the same fields as its TOML file.
 //!
-//! Not yet carried: a whole configuration ([`crate::board::Request::SetConfig`]).
-//! The configuration's serde form is written for TOML (effect terms by
-//! signal name, empty lists left out, an older form read through
-//! `deserialize_any`), which a non-self-describing format such as postcard
-//! cannot carry; it needs its own wire form, a later version of this
-//! format. The firmware is not wired to this link yet either (issue 13).
+//! The firmware is not wired to this link yet (issue 13).
 
 use core::fmt;
 
 use serde::{Deserialize, Serialize};
 
 use crate::board::{Program, Request};
-use crate::config::ConfigError;
-use crate::controller::Command;
+use crate::config::{Config, ConfigError};
+use crate::controller::{Command, PreparedConfig};
 
 /// Version of the wire format. Raise it on any change of the frame layout
 /// or of a message's encoding.
 pub const LINK_VERSION: u8 = 1;
 
-/// Largest decoded frame, bytes (version, seq, body and CRC); every
-/// message of this version is far below it.
+/// Largest decoded frame, bytes (version, seq, body and CRC): a whole
+/// [`Config`] takes 377 on the wire (measured in a test that keeps it
+/// below [`MAX_WIRE_LEN`]).
 pub const MAX_FRAME_LEN: usize = 1024;
 
 /// Largest encoded frame on the wire, bytes: COBS adds one byte per 254 and
@@ -56,6 +55,9 @@ pub enum Down {
     Program(Program),
     /// A new mode and trajectory (accepted only once homed).
     SetCommand(Command),
+    /// New parameters: validated, and their filters designed, on the MCU
+    /// (in its command task) before they reach the control task.
+    SetConfig(Config),
     /// Clear the latched fault (refused while its cause persists).
     ClearFault,
     /// One telemetry record every this many ticks (at least 1).
@@ -66,11 +68,13 @@ pub enum Down {
 
 impl Down {
     /// The firmware's request for this message, checked as the command task
-    /// checks every request.
+    /// checks every request: a configuration is validated and prepared here
+    /// (tens of thousands of instructions; never in the control tick).
     pub fn into_request(self) -> Result<Request, ConfigError> {
         let request = match self {
             Down::Program(p) => Request::Program(p),
             Down::SetCommand(c) => Request::SetCommand(c),
+            Down::SetConfig(c) => Request::SetConfig(PreparedConfig::new(c)?),
             Down::ClearFault => Request::ClearFault,
             Down::SetDecimation(n) => Request::SetDecimation(n),
             Down::Heartbeat => Request::Heartbeat,
@@ -413,6 +417,8 @@ mod tests {
                     freq_hz: 0.3,
                 },
             }),
+            Down::SetConfig(Config::default()),
+            Down::SetConfig(with_terms()),
             Down::ClearFault,
             Down::SetDecimation(10),
             Down::Heartbeat,
@@ -426,7 +432,8 @@ mod tests {
         for (seq, (g, m)) in got.into_iter().zip(&msgs).enumerate() {
             assert_eq!(g, Ok((seq as u8, m.clone())));
         }
-        assert!(wire(&Down::Program(Program::default()), 0).len() < 200);
+        let config_len = wire(&Down::SetConfig(with_terms()), 0).len();
+        assert!(config_len < MAX_WIRE_LEN, "{config_len} bytes");
     }
 
     #[test]
@@ -477,6 +484,42 @@ mod tests {
             read_all(&stream),
             [Err(LinkError::TooLong), Ok((3, Down::ClearFault))]
         );
+    }
+
+    /// The default configuration with two effect terms on each model.
+    fn with_terms() -> Config {
+        use crate::effects::{EffectKind, Term};
+        let mut c = Config::default();
+        for added in [&mut c.jae.added, &mut c.tension.added] {
+            let creep = EffectKind::Creep { tau_s: 0.5 };
+            assert!(added.push(
+                Term {
+                    kind: creep,
+                    input: 1,
+                    aux: 0
+                },
+                0.25
+            ));
+            assert!(added.push(
+                Term {
+                    kind: EffectKind::Constant,
+                    input: 0,
+                    aux: 0
+                },
+                -1.5
+            ));
+        }
+        c
+    }
+
+    #[test]
+    fn a_configuration_is_validated_and_prepared_on_the_way_in() {
+        let ok = Down::SetConfig(with_terms()).into_request();
+        assert!(matches!(ok, Ok(Request::SetConfig(_))));
+        let mut bad = Config::default();
+        bad.dob.cutoff_rad_s = -1.0;
+        let err = Down::SetConfig(bad).into_request().unwrap_err();
+        assert_eq!(err.field, "dob.cutoff_rad_s");
     }
 
     #[test]

@@ -187,7 +187,10 @@ mod tests {
 #[cfg(feature = "serde")]
 mod file_form {
     //! [`AddedTerms`] in a configuration file: the terms in use only, each
-    //! with its signals named.
+    //! with its signals named. In a binary format (the host link's
+    //! `postcard`, which is not self-describing and says so through
+    //! `is_human_readable`), the slot form: `len`, the terms and the
+    //! coefficients, as a tuple.
 
     use core::fmt;
 
@@ -278,6 +281,9 @@ mod file_form {
 
     impl Serialize for AddedTerms {
         fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            if !s.is_human_readable() {
+                return (self.len, &self.terms, &self.coef).serialize(s);
+            }
             let active = self.active();
             let mut seq = s.serialize_seq(Some(active.len()))?;
             for (t, coef) in active.iter().zip(self.coef) {
@@ -294,6 +300,11 @@ mod file_form {
 
     impl<'de> Deserialize<'de> for AddedTerms {
         fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            if !d.is_human_readable() {
+                let (len, terms, coef) =
+                    <(u8, [Term; MAX_TERMS], [f32; MAX_TERMS])>::deserialize(d)?;
+                return Ok(AddedTerms { len, terms, coef });
+            }
             struct Form;
             impl<'de> Visitor<'de> for Form {
                 type Value = AddedTerms;

@@ -51,10 +51,20 @@ pub fn load_plant(path: Option<&Path>) -> Result<PlantParams> {
 pub fn to_toml(config: &Config) -> Result<String> {
     let mut value = toml::Value::try_from(config).context("serializing the configuration")?;
     shortest_f32(&mut value);
+    drop_empty_lists(&mut value);
     let text = toml::to_string_pretty(&value).context("serializing the configuration")?;
     Ok(format!(
         "# cable-joint configuration (SI units, the unit in each key's name), written by host-sim.\n\n{text}"
     ))
+}
+
+/// Leave out every empty list (`jae.added`, `tension.added` with no effect
+/// term): a file lists only what is in use, and reads back the same.
+fn drop_empty_lists(v: &mut toml::Value) {
+    if let toml::Value::Table(t) = v {
+        t.retain(|_, v| !matches!(v, toml::Value::Array(a) if a.is_empty()));
+        t.iter_mut().for_each(|(_, v)| drop_empty_lists(v));
+    }
 }
 
 /// Replace every float that is an `f32` by the shortest decimal that reads

@@ -49,6 +49,9 @@ pub const MAX_FRAME_LEN: usize = 1024;
 pub const MAX_WIRE_LEN: usize = MAX_FRAME_LEN + MAX_FRAME_LEN / 254 + 2;
 
 /// A message from the host to the firmware.
+// A configuration is large and there is no allocator to box it; a message
+// lives once, in the command task, as `Request` does.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Down {
     /// Run a program: sensor check, homing, then its command.

@@ -213,31 +213,17 @@ fn tracking(
         tag,
         "3/6 track-motor, track-jae: tracking without and with the JAE (seed Fig. 10-12)",
     );
-    let tm = experiments::tracking(
-        "track-motor",
-        plant,
-        config,
-        run_seed(s.seed, "track-motor"),
-        s.scale,
-    )?;
-    let tj = experiments::tracking(
-        "track-jae",
-        plant,
-        config,
-        run_seed(s.seed, "track-jae"),
-        s.scale,
-    )?;
+    // Each run has its own noise seed, from its name.
+    let run = |name: &'static str| {
+        experiments::tracking(name, plant, config, run_seed(s.seed, name), s.scale)
+    };
+    let tm = run("track-motor")?;
+    let tj = run("track-jae")?;
     s.progress.line(
         tag,
         "4/6 robust-2n5: complex trajectory under 2.5 N (seed Fig. 13)",
     );
-    let rb = experiments::tracking(
-        "robust-2n5",
-        plant,
-        config,
-        run_seed(s.seed, "robust-2n5"),
-        s.scale,
-    )?;
+    let rb = run("robust-2n5")?;
     Ok((tm, tj, rb))
 }
 

@@ -7,25 +7,21 @@
 extern crate std;
 
 pub mod board;
-pub mod cascade;
 pub mod config;
-pub mod controller;
-pub mod dob;
-pub mod effects;
+pub mod control;
 pub mod fault;
-pub mod filter;
-pub mod fusion;
-pub mod jae;
 #[cfg(feature = "link")]
 pub mod link;
 pub mod lsq;
 pub mod math;
-pub mod model;
 pub mod payload;
-pub mod probe;
 pub mod telemetry;
-pub mod trajectory;
 pub mod units;
+
+// The paths from before the grouping, kept: `crate::dob` is `control::dob`.
+pub use control::{
+    cascade, controller, dob, effects, filter, fusion, jae, model, probe, trajectory,
+};
 
 pub use controller::{
     Command, Controller, Estimates, Mode, Output, PreparedConfig, RawSample, Stage, StageTimer,

@@ -1,4 +1,24 @@
 #![doc = include_str!("../README.md")]
+//!
+//! ## Module map
+//!
+//! * [`control`], the control path, runs every tick in [`Controller::step`]:
+//!   [`controller`] (the step, sensing and faults), [`filter`], [`jae`],
+//!   [`model`] and [`effects`] (the effect terms added to the JAE and the
+//!   tension model), [`dob`], [`fusion`], [`trajectory`], [`probe`],
+//!   [`cascade`].
+//! * [`ident`], the identification helpers (`no_std` too), called by the
+//!   host tools and never in the tick: [`lsq`] (least squares), [`payload`]
+//!   (seed 001's tool-end estimator).
+//! * Shared by both, the firmware and the host tools: [`config`] (the
+//!   configuration and its `validate()`), [`fault`] (stable fault codes),
+//!   [`units`] (raw codes to SI), [`math`] (every transcendental function),
+//!   [`telemetry`] (the defmt record and its parser).
+//! * [`board`]: the firmware's logic behind embedded-hal traits.
+//!
+//! The modules of [`control`] and [`ident`] are also re-exported at the root
+//! under their names from before the grouping (`cable_joint::dob`,
+//! `cable_joint::lsq`).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

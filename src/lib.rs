@@ -13,7 +13,8 @@
 //! * Shared by both, the firmware and the host tools: [`config`] (the
 //!   configuration and its `validate()`), [`fault`] (stable fault codes),
 //!   [`units`] (raw codes to SI), [`math`] (every transcendental function),
-//!   [`telemetry`] (the defmt record and its parser).
+//!   [`telemetry`] (the defmt record and its parser), `link` (the host
+//!   link's wire format, feature `link`).
 //! * [`board`]: the firmware's logic behind embedded-hal traits.
 //!
 //! The modules of [`control`] and [`ident`] are also re-exported at the root

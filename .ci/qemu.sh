@@ -3,7 +3,9 @@
 #
 # 1. installs what is missing: the thumbv7em target, qemu-system-arm (apt),
 #    flip-link and defmt-print (cargo install --locked);
-# 2. builds the hardware firmware and reports its flash / static RAM;
+# 2. builds the hardware firmware, reports its flash / static RAM, and fails
+#    if a panic location from the tick's code (src/control/, src/board/) is
+#    left in it;
 # 3. records a fresh closed-loop sensor trace with the simulator
 #    (`host-sim trace`: the firmware's own logic on the simulated prototype)
 #    and builds the QEMU variant around it;
@@ -66,6 +68,19 @@ cp "$ELF" "$OUT/firmware-hw.elf"
   echo "hardware build (text = flash code+rodata, data = initialised RAM also in flash, bss = zeroed RAM):"
   size_of "$OUT/firmware-hw.elf"
 } | tee "$OUT/sizes.txt"
+
+# The tick never panics: no panic location (the file name rustc keeps for a
+# bounds check, an unwrap, an overflow) from the control path (src/control/)
+# or the board layer (src/board/) may be left in the hardware firmware's
+# .rodata (where panic locations live; the debug info is not looked at).
+OBJCOPY=arm-none-eabi-objcopy
+command -v "$OBJCOPY" >/dev/null || OBJCOPY=objcopy
+"$OBJCOPY" -O binary --only-section=.rodata "$OUT/firmware-hw.elf" "$OUT/firmware-hw.rodata"
+if strings -n 6 "$OUT/firmware-hw.rodata" | grep -E '(^|/)src/(control|board)/[a-z_]+\.rs' >&2; then
+  echo "FAIL: a panic location in the tick's code (above) is left in the firmware" >&2
+  exit 1
+fi
+echo "no panic location from src/control/ or src/board/ in the hardware firmware"
 
 # One proof: record a trace (extra arguments go to `host-sim trace`), build
 # the QEMU firmware around it, run it, check both boots, compare them bit for

@@ -713,6 +713,12 @@ impl Config {
     }
 
     /// Check every field; the first impossible one is returned.
+    ///
+    /// Long (about 400 lines) on purpose: one check per field, in the order
+    /// of the structs, so a new field's check goes next to its neighbours'
+    /// and a reader can tick the fields off; splitting it would scatter the
+    /// cross-field checks (rail margin against the ADC range, current limits
+    /// against each other) across functions.
     pub fn validate(&self) -> Result<(), ConfigError> {
         if !(self.control_rate_hz.is_finite()
             && self.control_rate_hz >= 100.0

@@ -551,6 +551,13 @@ impl Controller {
     }
 
     /// One control tick with stage marks for timing.
+    ///
+    /// Long (about 290 lines) on purpose: the whole control path in the
+    /// order it runs (sensing, JAE, tension model and DOB, fusion and slack
+    /// check, reference and cascade, output), each stage closed by its
+    /// timer mark, so the stages read in order and their instruction counts
+    /// under QEMU map to one place each. The stages' arithmetic lives in
+    /// their modules (`jae`, `dob`, `fusion`, `probe`, `cascade`).
     pub fn step_timed(&mut self, raw: &RawSample, timer: &mut impl StageTimer) -> Output {
         timer.mark(Stage::Start);
         let cfg = &self.prepared.config;

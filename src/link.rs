@@ -107,16 +107,11 @@ pub enum Up<'a> {
 pub enum Refusal {
     /// The frame was damaged or not understood ([`LinkError::code`]).
     Frame(u8),
-    /// The content failed validation: the configuration field's name is
-    /// in the firmware's log, its code here is [`Refusal::INVALID`].
+    /// The content failed validation (the field's name is in the
+    /// firmware's log).
     Invalid,
     /// The request queue is full: send it again.
     Busy,
-}
-
-impl Refusal {
-    /// Stable code of [`Refusal::Invalid`].
-    pub const INVALID: u8 = 100;
 }
 
 /// Why bytes are not a frame.

@@ -7,7 +7,8 @@
 //! simulated prototype ([`crate::plant::Plant`]) in closed loop with
 //! [`cable_joint::board::Harness`], the same start-up sequencer, fault
 //! handlers and control tick the firmware runs, with the firmware's
-//! configuration ([`firmware_config`]) and program ([`Program::default`]).
+//! configuration ([`firmware_config`](cable_joint::board::firmware_config))
+//! and program ([`Program::default`]).
 //! Tick order is [`crate::sim::Sim::step`]'s: sample, control, drive
 //! command, then the plant integrates one period in whole sub-steps.
 //!
@@ -31,7 +32,7 @@
 
 use cable_joint::board::trace::{trace_header, TRACE_FLAG_PROBING};
 use cable_joint::board::{
-    firmware_config, ControlLoop, Harness, Program, Request, TickOutcome, TraceSample,
+    firmware_config_probing, ControlLoop, Harness, Program, Request, TickOutcome, TraceSample,
 };
 use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
 use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
@@ -79,12 +80,10 @@ impl Default for TraceOptions {
 }
 
 impl TraceOptions {
-    /// The firmware's configuration ([`firmware_config`]), with probing on
-    /// if asked.
+    /// The firmware's configuration, with probing on if asked
+    /// ([`firmware_config_probing`]).
     pub fn config(&self) -> cable_joint::Config {
-        let mut c = firmware_config();
-        c.probe.enabled = self.probing;
-        c
+        firmware_config_probing(self.probing)
     }
 }
 

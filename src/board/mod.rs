@@ -57,3 +57,12 @@ pub fn firmware_config() -> crate::Config {
         ..crate::Config::default()
     }
 }
+
+/// [`firmware_config`] with probing on or off: what a trace is recorded
+/// with (`host-sim trace --probe`) and replayed with (the trace header's
+/// probing flag, [`Trace::config`]).
+pub fn firmware_config_probing(probing: bool) -> crate::Config {
+    let mut c = firmware_config();
+    c.probe.enabled = probing;
+    c
+}

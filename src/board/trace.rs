@@ -10,8 +10,7 @@
 //! |---|---|
 //! | 0..4 | magic `CJTR` |
 //! | 4 | layout version (1) |
-//! | 5 | flags: bit 0 ([`TRACE_FLAG_PROBING`]) the run had probing on; other bits zero |
-//! | 6..8 | zero |
+//! | 5..8 | flags, 24 bits little-endian: bit 0 ([`TRACE_FLAG_PROBING`]) the run had probing on; every other bit zero |
 //! | 8..12 | control rate, Hz (`f32`) |
 //! | 12..16 | number of samples `n` (`u32`) |
 //! | 16.. | `n` samples of 17 bytes: grating 1 `i32`, grating 2 `i32`, motor `u16`, magnetic `u16`, ADC `u16`, inputs `u8` ([`Inputs`]) |
@@ -101,8 +100,8 @@ pub enum TraceError {
     NotATrace,
     /// Another layout version.
     Version(u8),
-    /// Header flags this firmware does not know (a newer recorder).
-    Flags(u8),
+    /// Header flag bits this firmware does not know (a newer recorder).
+    Flags(u32),
     /// The length disagrees with the sample count in the header.
     Length {
         /// Bytes the header implies.
@@ -121,7 +120,7 @@ impl fmt::Display for TraceError {
             }
             TraceError::Flags(b) => write!(
                 f,
-                "trace header flags {b:#04x}: only {TRACE_FLAG_PROBING:#04x} (probing) is known"
+                "trace header flag bits {b:#08x} unknown: only {TRACE_FLAG_PROBING:#04x} (probing) is known"
             ),
             TraceError::Length { expected, found } => write!(
                 f,
@@ -150,11 +149,10 @@ impl<'a> Trace<'a> {
         if header[4] != TRACE_VERSION {
             return Err(TraceError::Version(header[4]));
         }
-        let flags = header[5];
-        if flags & !TRACE_FLAG_PROBING != 0 || header[6] != 0 || header[7] != 0 {
-            return Err(TraceError::Flags(
-                flags & !TRACE_FLAG_PROBING | header[6] | header[7],
-            ));
+        let flags = u32::from_le_bytes([header[5], header[6], header[7], 0]);
+        let unknown = flags & !u32::from(TRACE_FLAG_PROBING);
+        if unknown != 0 {
+            return Err(TraceError::Flags(unknown));
         }
         let rate = f32::from_bits(u32::from_le_bytes([
             header[8], header[9], header[10], header[11],
@@ -175,7 +173,8 @@ impl<'a> Trace<'a> {
             samples: &bytes[TRACE_HEADER_LEN..],
             control_rate_hz: rate,
             count,
-            flags,
+            // Only bit 0 is left (checked above).
+            flags: header[5],
         })
     }
 
@@ -203,9 +202,7 @@ impl<'a> Trace<'a> {
     /// use: the firmware's ([`super::firmware_config`]), with probing on if
     /// the header says so.
     pub fn config(&self) -> crate::Config {
-        let mut c = super::firmware_config();
-        c.probe.enabled = self.probing();
-        c
+        super::firmware_config_probing(self.probing())
     }
 
     /// Sample `k`.
@@ -482,8 +479,10 @@ mod tests {
         for (at, byte) in [(5, 0x02), (6, 0x01), (7, 0x80)] {
             let mut unknown = bytes.clone();
             unknown[at] = byte;
-            assert!(
-                matches!(Trace::parse(&unknown), Err(TraceError::Flags(_))),
+            let bit = u32::from(byte) << (8 * (at - 5));
+            assert_eq!(
+                Trace::parse(&unknown).unwrap_err(),
+                TraceError::Flags(bit),
                 "byte {at} = {byte:#04x}"
             );
         }

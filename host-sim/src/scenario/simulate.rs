@@ -18,10 +18,9 @@ pub struct SimulateOptions {
     pub scenario: String,
     /// Seed of the noise generator (`None`: the scenario's).
     pub seed: Option<u64>,
-    /// Total simulated duration, s (scales every segment). Set at most one
-    /// of `duration` and `duration_scale`, as the command line does: with
-    /// both, the scale becomes `duration` over the length already scaled by
-    /// `duration_scale`.
+    /// Total simulated duration, s (scales every segment). At most one of
+    /// `duration` and `duration_scale` (both are refused, as the command
+    /// line refuses both flags).
     pub duration: Option<f64>,
     /// Scale of every segment's duration (`None`: 1).
     pub duration_scale: Option<f64>,
@@ -47,6 +46,10 @@ impl SimulateOptions {
     /// The scenario's options, with `duration` turned into a scale of the
     /// scenario's full length.
     pub fn scenario_options(&self) -> Result<ScenarioOptions> {
+        anyhow::ensure!(
+            self.duration.is_none() || self.duration_scale.is_none(),
+            "--duration and --duration-scale exclude each other"
+        );
         let mut opts = ScenarioOptions {
             angle_deg: self.angle_deg,
             mass_g: self.mass_g,
@@ -139,6 +142,12 @@ mod tests {
         assert!((s.duration_scale - 2.6 / full).abs() < 1e-12);
         let p = plan("track-motor", &s).unwrap();
         assert!((p.duration_s() - 2.6).abs() < 1e-9, "{}", p.duration_s());
+        let both = SimulateOptions {
+            duration_scale: Some(0.5),
+            ..opts
+        };
+        let err = both.scenario_options().unwrap_err().to_string();
+        assert!(err.contains("exclude each other"), "{err}");
     }
 
     #[test]

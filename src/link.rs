@@ -25,13 +25,12 @@
 //! does. A configuration travels in its binary serde form (effect terms as
 //! their slots; see `model.rs`), the same fields as its TOML file.
 //!
-//! The firmware is not wired to this link yet (issue 13).
 
 use core::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use crate::board::{Program, Request};
+use crate::board::{Program, Request, TraceSample};
 use crate::config::{Config, ConfigError};
 use crate::controller::{Command, PreparedConfig};
 
@@ -268,7 +267,13 @@ pub fn encode<'o, M: Serialize>(
 /// `buf` ([`Up::Telemetry`]).
 pub fn decode<'b, M: Deserialize<'b>>(buf: &'b mut [u8], len: usize) -> Result<(u8, M), LinkError> {
     let n = cobs_decode_in_place(buf, len)?;
-    let frame = &buf[..n];
+    decode_raw(&buf[..n])
+}
+
+/// [`decode`] after the COBS step: check the CRC and the version, then
+/// read the body.
+fn decode_raw<'b, M: Deserialize<'b>>(frame: &'b [u8]) -> Result<(u8, M), LinkError> {
+    let n = frame.len();
     if n < 4 {
         return Err(LinkError::TooShort);
     }
@@ -283,6 +288,72 @@ pub fn decode<'b, M: Deserialize<'b>>(buf: &'b mut [u8], len: usize) -> Result<(
     }
     let msg = postcard::from_bytes(&head[2..]).map_err(|_| LinkError::Body)?;
     Ok((head[1], msg))
+}
+
+/// Why an operator frame was refused, with what the firmware logs about it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refused {
+    /// The frame itself ([`LinkError`]).
+    Frame(LinkError),
+    /// The content ([`Down::into_request`]'s error: the field and what it
+    /// must be).
+    Invalid(ConfigError),
+}
+
+impl Refused {
+    /// What the acknowledgement carries.
+    pub const fn refusal(&self) -> Refusal {
+        match self {
+            Refused::Frame(e) => Refusal::Frame(e.code()),
+            Refused::Invalid(_) => Refusal::Invalid,
+        }
+    }
+}
+
+/// One operator frame, checked as the firmware's link task checks it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Received {
+    /// The frame's sequence number, for the acknowledgement (0 when the
+    /// frame was too damaged to carry one).
+    pub seq: u8,
+    /// The request to queue, or why not.
+    pub outcome: Result<Request, Refused>,
+}
+
+/// Check an operator frame's COBS bytes (in place) down to the request it
+/// asks for: frame, version, body, then the content
+/// ([`Down::into_request`]). Runs in the firmware's priority-1 link task
+/// (a configuration's filters are designed here, never in the tick).
+pub fn receive(buf: &mut [u8], len: usize) -> Received {
+    let n = match cobs_decode_in_place(buf, len) {
+        Ok(n) => n,
+        Err(e) => {
+            return Received {
+                seq: 0,
+                outcome: Err(Refused::Frame(e)),
+            }
+        }
+    };
+    let frame = &buf[..n];
+    let seq = frame.get(1).copied().unwrap_or(0);
+    let outcome = match decode_raw::<Down>(frame) {
+        Err(e) => Err(Refused::Frame(e)),
+        Ok((_, down)) => down.into_request().map_err(Refused::Invalid),
+    };
+    Received { seq, outcome }
+}
+
+/// Processor-in-the-loop only: what the board would have read at one tick,
+/// sent by the host's simulated plant over the PIL build's sensor bus
+/// (QEMU's third serial port). The firmware answers each with the tick's
+/// telemetry record ([`Up::Telemetry`]), which carries the DAC code and
+/// the drive enable line the plant needs for the next period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SensorFrame {
+    /// The host's tick number (the firmware's own count is in the answer).
+    pub tick: u32,
+    /// Counters, ADC code and input lines.
+    pub sample: TraceSample,
 }
 
 /// Collects a byte stream into frames: push bytes as they arrive; at each
@@ -381,6 +452,92 @@ mod tests {
             }
         }
         got
+    }
+
+    /// A frame's COBS bytes as a reader hands them over (no delimiter).
+    fn received(frame: &[u8]) -> Received {
+        let mut buf = frame.to_vec();
+        let n = buf.len() - 1;
+        receive(&mut buf, n)
+    }
+
+    #[test]
+    fn receive_queues_valid_requests_and_names_what_it_refuses() {
+        let ok = received(&wire(&Down::ClearFault, 7));
+        assert_eq!((ok.seq, ok.outcome), (7, Ok(Request::ClearFault)));
+        // The content: a decimation of zero, a configuration out of range.
+        let zero = received(&wire(&Down::SetDecimation(0), 8));
+        match zero.outcome {
+            Err(Refused::Invalid(e)) => assert_eq!(e.field, "telemetry.decimation"),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            (
+                zero.seq,
+                Refused::Invalid(ConfigError {
+                    field: "",
+                    expected: ""
+                })
+                .refusal()
+            ),
+            (8, Refusal::Invalid)
+        );
+        let bad_rate = Config {
+            control_rate_hz: 0.0,
+            ..Config::default()
+        };
+        match received(&wire(&Down::SetConfig(bad_rate), 9)).outcome {
+            Err(Refused::Invalid(e)) => assert_eq!(e.field, "control_rate_hz"),
+            other => panic!("{other:?}"),
+        }
+        // The frame: one body bit flipped on the way is a CRC error, acked
+        // with the frame's own sequence number.
+        let mut damaged = wire(&Down::SetDecimation(5), 10);
+        damaged[3] ^= 0x40;
+        let r = received(&damaged);
+        assert_eq!(r.seq, 10);
+        match r.outcome {
+            Err(Refused::Frame(e @ LinkError::Crc { .. })) => {
+                assert_eq!(Refused::Frame(e).refusal(), Refusal::Frame(4))
+            }
+            other => panic!("{other:?}"),
+        }
+        // Another version, and bytes that are not COBS at all.
+        let mut v2 = [0u8; MAX_WIRE_LEN];
+        let mut raw = std::vec![2u8, 11, 4, 0, 0];
+        let crc = crc16(&raw[..3]);
+        raw[3..].copy_from_slice(&crc.to_le_bytes());
+        let n = cobs_encode(&raw, &mut v2).unwrap();
+        let r = received(&v2[..n]);
+        assert_eq!(
+            (r.seq, r.outcome),
+            (11, Err(Refused::Frame(LinkError::Version(2))))
+        );
+        let r = received(&[5, 1, 0]);
+        assert_eq!(
+            (r.seq, r.outcome),
+            (0, Err(Refused::Frame(LinkError::Cobs)))
+        );
+    }
+
+    #[test]
+    fn sensor_frames_round_trip() {
+        let frame = SensorFrame {
+            tick: 123_456,
+            sample: TraceSample {
+                raw: crate::controller::RawSample {
+                    grating1: crate::units::GratingCount(-5),
+                    grating2: crate::units::GratingCount(70_000),
+                    motor: crate::units::MotorCount(65_535),
+                    magnetic: crate::units::MagneticCount(12),
+                    current: crate::units::AdcCode(2047),
+                },
+                inputs: crate::telemetry::Inputs(3),
+            },
+        };
+        let mut w = wire(&frame, 3);
+        let n = w.len() - 1;
+        assert_eq!(decode::<SensorFrame>(&mut w, n).unwrap(), (3, frame));
     }
 
     #[test]

@@ -38,6 +38,7 @@ pub const MAX_RECORD_LEN: usize = TickRecord::LEN;
 
 /// Digital inputs as read at the tick (bit set = line asserted).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Inputs(pub u8);
 
 impl Inputs {

@@ -11,26 +11,31 @@ use crate::math::PI;
 /// Grating count, 1 µm per count by default (Renishaw RGS-40, Table 1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct GratingCount(pub i32);
 
 /// Motor encoder timer count (16-bit, wraps), 4000 counts/rev (quadrature).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct MotorCount(pub u16);
 
 /// Magnetic joint encoder timer count (16-bit, wraps), 4096 counts/rev.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct MagneticCount(pub u16);
 
 /// 12-bit ADC code of the drive's current monitor.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct AdcCode(pub u16);
 
 /// 12-bit DAC code of the drive's current reference.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DacCode(pub u16);
 
 /// Scales of the sensors and converters (configuration, validated by

@@ -44,6 +44,7 @@ pub const TRACE_FLAG_PROBING: u8 = 1;
 
 /// What the board reads at one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TraceSample {
     /// Counters and ADC code.
     pub raw: RawSample,

@@ -27,6 +27,7 @@ use crate::units::{AdcCode, DacCode, Extender16, GratingCount, MagneticCount, Mo
 /// One raw sample, as the board reads it at the tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RawSample {
     /// Grating 1 (slider 1), 32-bit timer.
     pub grating1: GratingCount,

@@ -34,7 +34,7 @@ fn main() {
     // The trace only matters for the qemu variant, but an empty placeholder
     // keeps `include_bytes!` valid in every build.
     let trace_dst = out.join("trace.bin");
-    if env::var_os("CARGO_FEATURE_QEMU").is_some() {
+    if env::var_os("CARGO_FEATURE_QEMU").is_some() && env::var_os("CARGO_FEATURE_PIL").is_none() {
         let src = env::var_os("CABLE_JOINT_TRACE")
             .map(PathBuf::from)
             .unwrap_or_else(|| manifest.join("firmware").join("trace.bin"));

@@ -15,15 +15,22 @@
 //! |---|---|---|---|
 //! | `drive_fault`, `origin_switch` | EXTI1, EXTI2 | 4 | cut the drive at once (BSRR), leave the fault for the control task |
 //! | `control` | TIM6 update | 3 | one control period; a miss is `Fault::Overrun` (latched, drive cut) |
-//! | `telemetry`, `command` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; requests queue (4). The RTT logger never blocks and takes no critical section (defmt-rtt `disable-blocking-mode`, `drop-on-contention`), so logging can never mask the tasks above |
+//! | `link_rx` | USART2 (host link) | 2 | the next byte (22 µs at 460 800 baud): bytes into frames, a complete frame to `link_frame` |
+//! | `telemetry`, `link_frame` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; a host frame is checked down to a request (`cable_joint::link::receive`: CRC, version, body, `validate()`, filter design), queued (4) for the control task, which applies one per tick, and acknowledged. The RTT logger never blocks and takes no critical section (defmt-rtt `disable-blocking-mode`, `drop-on-contention`), so logging can never mask the tasks above |
 //! | `idle` | – | 0 | `wfi` |
 //!
 //! Settings: `board::firmware_config()` (the core's datasheet defaults at
 //! `board::CONTROL_RATE_HZ`, 2 kHz, up to 20 kHz; compiled in; under QEMU
 //! with probing on when the replayed trace was recorded so; new parameters
-//! at the same rate arrive as `Request::SetConfig` through the `command`
-//! task), the program, and the telemetry decimation (`TELEMETRY_DECIMATION`:
+//! at the same rate arrive over the host link as `Down::SetConfig`, checked
+//! by the `link_frame` task), the program, and the telemetry decimation (`TELEMETRY_DECIMATION`:
 //! every 10th tick on hardware, i.e. 200 Hz; every tick under QEMU).
+//!
+//! Host link (`cable_joint::link`): USART2 at 460 800 baud (QEMU's second
+//! serial port), COBS frames with CRC-16; down: programs, commands,
+//! configurations, fault clears, telemetry rate, heartbeats, each
+//! acknowledged; up: the acknowledgements and, once a host has sent a valid
+//! frame, every telemetry record as well.
 //!
 //! Telemetry: defmt over RTT (defmt-semihosting under QEMU). Each record is
 //! one `tlm [bytes]` line (`cable_joint::telemetry`: raw counts, ADC code,
@@ -53,6 +60,10 @@ fn main() {
 #[cfg(all(target_os = "none", not(feature = "qemu")))]
 #[path = "firmware/hw.rs"]
 mod board;
+
+#[cfg(target_os = "none")]
+#[path = "firmware/usart.rs"]
+mod usart;
 
 #[cfg(all(target_os = "none", feature = "qemu"))]
 #[path = "firmware/qemu.rs"]
@@ -101,27 +112,53 @@ fn take_boot_note() -> Option<cable_joint::Fault> {
     cable_joint::board::boot::recorded(words)
 }
 
-/// Log one telemetry record as a `tlm [bytes]` line.
+/// The host has sent a valid frame: telemetry goes up the link too.
 #[cfg(target_os = "none")]
-fn log_record(record: &cable_joint::telemetry::Record) {
+static LINK_UP: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
+/// Log one telemetry record as a `tlm [bytes]` line, and send it up the
+/// host link once a host has spoken.
+#[cfg(target_os = "none")]
+fn log_record(record: &cable_joint::telemetry::Record, link: Option<(&mut usart::Tx, &mut u8)>) {
     let mut buf = [0u8; cable_joint::telemetry::MAX_RECORD_LEN];
-    defmt::info!("tlm {=[u8]}", record.encode(&mut buf));
+    let bytes = record.encode(&mut buf);
+    defmt::info!("tlm {=[u8]}", bytes);
+    if let Some((tx, seq)) = link {
+        send_up(tx, &cable_joint::link::Up::Telemetry(bytes), seq);
+    }
+}
+
+/// One frame up the host link (a frame that does not fit is not sent).
+#[cfg(target_os = "none")]
+fn send_up(tx: &mut usart::Tx, msg: &cable_joint::link::Up, seq: &mut u8) {
+    let mut wire = [0u8; 2 * cable_joint::telemetry::MAX_RECORD_LEN];
+    if let Ok(frame) = cable_joint::link::encode(msg, *seq, &mut wire) {
+        tx.write_all(frame);
+    }
+    *seq = seq.wrapping_add(1);
 }
 
 #[cfg(target_os = "none")]
-#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [USART1, USART2])]
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [SPI1, SPI2])]
 mod app {
     use cable_joint::board::boot::boot_fault;
     use cable_joint::board::{
         on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine, Program, Request,
     };
+    use cable_joint::link::{receive, FrameReader, Pushed, Refusal, Refused, Up, MAX_WIRE_LEN};
     use cable_joint::telemetry::Record;
+    use core::sync::atomic::Ordering;
     use heapless::spsc::{Consumer, Producer, Queue};
+    use heapless::Vec;
 
-    use super::{board, log_record, take_boot_note, EVENTS};
+    use super::{board, log_record, send_up, take_boot_note, usart, EVENTS, LINK_UP};
 
     #[shared]
-    struct Shared {}
+    struct Shared {
+        /// The host link's transmit half and its frame counter (the link
+        /// and telemetry tasks, both priority 1: the lock costs nothing).
+        link_tx: (usart::Tx, u8),
+    }
 
     #[local]
     struct Local {
@@ -137,6 +174,7 @@ mod app {
         telemetry_rx: Consumer<'static, Record>,
         drive_fault: InputLine<board::FaultPin>,
         origin: InputLine<board::OriginPin>,
+        link_rx: usart::Rx,
     }
 
     #[init(local = [
@@ -167,20 +205,26 @@ mod app {
         let origin = b.origin.asserted();
         let fault = b.drive_fault.asserted();
         EVENTS.init_levels(origin, fault);
-        log_record(&Record::Start(control.start_record()));
+        log_record(&Record::Start(control.start_record()), None);
         defmt::info!(
             "cable-joint firmware up: {=f32} Hz control, telemetry every {=u32} ticks",
             config.control_rate_hz,
             board::TELEMETRY_DECIMATION
         );
-        let (requests_tx, requests_rx) = cx.local.requests.split();
+        let (mut requests_tx, requests_rx) = cx.local.requests.split();
         let (telemetry_tx, telemetry_rx) = cx.local.telemetry.split();
-        // The selected program: check, homing, then its command.
-        if command::spawn(Request::Program(Program::default())).is_err() {
+        // The built-in program: check, homing, then its command. The queue
+        // is empty, so this cannot fail; the host link can send another.
+        if requests_tx
+            .enqueue(Request::Program(Program::default()))
+            .is_err()
+        {
             defmt::error!("could not start the program");
         }
         (
-            Shared {},
+            Shared {
+                link_tx: (b.link_tx, 0),
+            },
             Local {
                 control,
                 front_end: b.front_end,
@@ -194,6 +238,7 @@ mod app {
                 telemetry_rx,
                 drive_fault: b.drive_fault,
                 origin: b.origin,
+                link_rx: b.link_rx,
             },
         )
     }
@@ -254,6 +299,8 @@ mod app {
             // enable line's pull-down), reported at the next boot.
             watchdog.feed();
         }
+        // PIL: the answer to the host's plant (nothing on the board).
+        front_end.after_tick(&outcome);
         #[cfg(feature = "qemu")]
         if front_end.finished() {
             // The tick source keeps running: the software watchdog lives in it.
@@ -293,34 +340,114 @@ mod app {
 
     /// QEMU only: TIM5 stands in for TIM6, which QEMU does not model, and
     /// runs the software watchdog that stands in for the IWDG.
-    #[cfg(feature = "qemu")]
+    #[cfg(all(feature = "qemu", not(feature = "pil")))]
     #[task(binds = TIM5, priority = 5)]
     fn qemu_tick(_: qemu_tick::Context) {
         board::on_tick_source();
     }
 
+    /// PIL only: the host plant's sensor frame is the tick (see the QEMU
+    /// board's docs).
+    #[cfg(feature = "pil")]
+    #[task(binds = USART3, priority = 5)]
+    fn sensor_bus(_: sensor_bus::Context) {
+        board::on_sensor_bus();
+    }
+
+    /// Host link, receive interrupt (USART2): bytes into frames; each
+    /// complete frame goes to the `link_frame` task. Deadline: the next byte
+    /// (22 µs at 460 800 baud); it only copies.
+    #[task(binds = USART2, priority = 2, local = [
+        link_rx,
+        reader: FrameReader<MAX_WIRE_LEN> = FrameReader::new(),
+    ])]
+    fn link_rx(cx: link_rx::Context) {
+        let link_rx::LocalResources {
+            link_rx, reader, ..
+        } = cx.local;
+        while let Some(byte) = link_rx.read() {
+            match reader.push(byte) {
+                Pushed::Pending => {}
+                Pushed::Dropped => defmt::warn!(
+                    "link: frame longer than {=usize} bytes dropped",
+                    MAX_WIRE_LEN
+                ),
+                Pushed::Frame(n) => {
+                    let Ok(frame) = Vec::from_slice(&reader.frame()[..n]) else {
+                        continue;
+                    };
+                    if link_frame::spawn(frame).is_err() {
+                        // The host waits for each answer: it sent too soon.
+                        defmt::warn!("link: frame dropped, the last one is still being checked");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Host link frames: checked down to a request (frame, version, body,
+    /// content; a configuration is validated and its filters designed
+    /// here), queued for the control task, which applies one per tick, and
+    /// answered with an acknowledgement that names a refusal. No deadline.
+    #[task(priority = 1, shared = [link_tx], local = [requests_tx])]
+    async fn link_frame(mut cx: link_frame::Context, mut frame: Vec<u8, MAX_WIRE_LEN>) {
+        let n = frame.len();
+        let received = receive(&mut frame, n);
+        let refused = match received.outcome {
+            Ok(request) => {
+                LINK_UP.store(true, Ordering::Relaxed);
+                cx.local.requests_tx.enqueue(request).err().map(|_| {
+                    defmt::warn!("request queue full: request refused");
+                    Refusal::Busy
+                })
+            }
+            Err(Refused::Invalid(e)) => {
+                defmt::warn!(
+                    "request rejected: {=str} must be {=str}",
+                    e.field,
+                    e.expected
+                );
+                Some(Refusal::Invalid)
+            }
+            Err(Refused::Frame(e)) => {
+                defmt::warn!("link: {}", defmt::Display2Format(&e));
+                Some(Refusal::Frame(e.code()))
+            }
+        };
+        let ack = Up::Ack {
+            seq: received.seq,
+            refused,
+        };
+        cx.shared.link_tx.lock(|(tx, seq)| send_up(tx, &ack, seq));
+    }
+
     /// Telemetry: encode the queued raw records and log them; report phase
     /// and fault changes as text. No deadline: when it falls behind, the
     /// control task drops records (counted) instead of waiting.
-    #[task(priority = 1, local = [telemetry_rx, last: (u8, u8) = (u8::MAX, 0)])]
-    async fn telemetry(cx: telemetry::Context) {
+    #[task(priority = 1, shared = [link_tx], local = [telemetry_rx, last: (u8, u8) = (u8::MAX, 0)])]
+    async fn telemetry(mut cx: telemetry::Context) {
         let telemetry::LocalResources {
             telemetry_rx, last, ..
         } = cx.local;
-        drain(telemetry_rx, last);
+        cx.shared
+            .link_tx
+            .lock(|link| drain(telemetry_rx, last, link));
         #[cfg(feature = "qemu")]
         if super::DONE.load(core::sync::atomic::Ordering::SeqCst) {
             // The control task stopped before setting DONE: this drain
             // flushes everything it queued.
-            drain(telemetry_rx, last);
+            cx.shared
+                .link_tx
+                .lock(|link| drain(telemetry_rx, last, link));
             defmt::info!("trace played");
             board::trace_played();
         }
     }
 
-    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8)) {
+    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8), link: &mut (usart::Tx, u8)) {
         while let Some(record) = rx.dequeue() {
-            log_record(&record);
+            let up = LINK_UP.load(Ordering::Relaxed);
+            log_record(&record, up.then_some((&mut link.0, &mut link.1)));
             if let Record::Tick(t) = record {
                 if (t.phase, t.fault) != *last {
                     defmt::info!(
@@ -333,24 +460,6 @@ mod app {
                     *last = (t.phase, t.fault);
                 }
             }
-        }
-    }
-
-    /// Operator requests (mode/command, parameters, fault clear, telemetry
-    /// rate): validated here at priority 1, applied by the control task at
-    /// its next tick, one per tick. No deadline.
-    #[task(priority = 1, local = [requests_tx])]
-    async fn command(cx: command::Context, request: Request) {
-        if let Err(e) = request.validate() {
-            defmt::warn!(
-                "request rejected: {=str} must be {=str}",
-                e.field,
-                e.expected
-            );
-            return;
-        }
-        if cx.local.requests_tx.enqueue(request).is_err() {
-            defmt::warn!("request queue full: request dropped");
         }
     }
 }

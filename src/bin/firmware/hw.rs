@@ -18,6 +18,7 @@
 //! | ADC trigger | TIM8 CC1 → TRGO | – | same period as TIM6, fires 3 µs before its update |
 //! | cycle counter | DWT CYCCNT | – | per-stage cycles in telemetry |
 //! | debug / RTT | SWD | PA13, PA14 | probe-rs |
+//! | host link | USART2, 460 800 baud 8N1 | PA2 (TX), PA3 (RX), AF7 | `cable_joint::link` frames; RX interrupt |
 //! | watchdog | IWDG (LSI, 17–47 kHz) | – | fed by every tick that completes in time; frozen while a debugger halts the core |
 //!
 //! TIM6's TRGO cannot trigger the ADC on the F407 (RM0090 Table 69 lists no
@@ -42,6 +43,12 @@ use stm32f4xx_hal::{
 
 /// One telemetry record every this many ticks (200 Hz at 2 kHz).
 pub const TELEMETRY_DECIMATION: u32 = 10;
+
+/// APB1 clock (USART2), Hz.
+const PCLK1_HZ: u32 = 42_000_000;
+
+/// The host link's baud rate (USART2).
+pub const LINK_BAUD: u32 = 460_800;
 
 /// Timer clock of TIM6 (APB1 ×2) and the rate TIM8 counts at, Hz.
 const TIMER_COUNT_HZ: u32 = 84_000_000;
@@ -71,6 +78,11 @@ impl FrontEnd {
     pub fn finished(&self) -> bool {
         false
     }
+
+    /// After the tick: nothing on the board (the PIL build answers the
+    /// host's plant here).
+    #[inline(always)]
+    pub fn after_tick(&mut self, _outcome: &cable_joint::board::TickOutcome) {}
 }
 
 impl SensorFrontEnd for FrontEnd {
@@ -222,6 +234,10 @@ pub struct Board {
     pub tick: TickTimer,
     /// Independent watchdog, running.
     pub watchdog: Watchdog,
+    /// Host link, transmit half.
+    pub link_tx: crate::usart::Tx,
+    /// Host link, receive half (its interrupt is enabled).
+    pub link_rx: crate::usart::Rx,
 }
 
 /// The configuration the board boots with: the built-in one.
@@ -331,6 +347,14 @@ pub fn init(dp: pac::Peripherals, mut cp: cortex_m::Peripherals, rate_hz: f32) -
     tim8.cr1().write(|w| w.cen().set_bit());
     tim6.cr1().write(|w| w.cen().set_bit());
 
+    // Host link: USART2 on PA2/PA3 (AF7), receive interrupt on.
+    let _link_tx_pin = gpioa.pa2.into_alternate::<7>();
+    let _link_rx_pin = gpioa.pa3.into_alternate::<7>();
+    pac::USART2::enable(&mut rcc);
+    pac::USART2::reset(&mut rcc);
+    let brr = ((PCLK1_HZ + LINK_BAUD / 2) / LINK_BAUD) as u16;
+    let (link_tx, link_rx) = crate::usart::start(pac::USART2::ptr(), brr);
+
     // The watchdog last: from now on only completed ticks keep the MCU
     // running. Frozen while a debugger halts the core (breakpoints).
     let mut iwdg = IndependentWatchdog::new(dp.IWDG);
@@ -345,6 +369,8 @@ pub fn init(dp: pac::Peripherals, mut cp: cortex_m::Peripherals, rate_hz: f32) -
         origin: InputLine::new(origin_pin, false),
         tick: TickTimer { tim: tim6 },
         watchdog: Watchdog(iwdg),
+        link_tx,
+        link_rx,
     }
 }
 

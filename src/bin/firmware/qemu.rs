@@ -27,17 +27,34 @@
 //!   then the run ends through semihosting with success. A panic or a
 //!   HardFault ends it with failure.
 //!
+//! * the host link is USART2, as on the board (QEMU's second `-serial`).
+//!
+//! With `--features pil` (processor in the loop) the trace is replaced by
+//! the host's simulated plant: QEMU's third `-serial` (USART3) is the
+//! sensor bus. Each [`SensorFrame`] the host sends is one tick: its
+//! receive interrupt (priority 5, where TIM5's tick source is otherwise)
+//! stores the sample, raises the input lines' EXTI interrupts on a change,
+//! counts the tick for the software watchdog and pends the control task,
+//! which answers with the tick's telemetry record (DAC code, drive enable,
+//! estimates, instruction counts) on the same bus ([`FrontEnd::after_tick`]).
+//! The host waits for that answer before it integrates the plant over the
+//! period and sends the next sample: lockstep, whatever QEMU's speed. TIM5
+//! is not started, and the watchdog counts sensor frames; the run ends when
+//! the host stops QEMU.
+//!
 //! No RCC register is touched (QEMU has no clock model; HAL clock set-up
 //! would wait forever for the PLL).
 
 use core::convert::Infallible;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
-use cable_joint::board::{
-    DriveEnable, DriveKill, InputLine, ReplayFrontEnd, SensorFrontEnd, Trace,
-};
+use cable_joint::board::{DriveEnable, DriveKill, InputLine};
+#[cfg(not(feature = "pil"))]
+use cable_joint::board::{ReplayFrontEnd, SensorFrontEnd, TickOutcome, Trace};
+#[cfg(not(feature = "pil"))]
 use cable_joint::controller::RawSample;
 use cable_joint::telemetry::Inputs;
+#[cfg(not(feature = "pil"))]
 use cable_joint::units::DacCode;
 use cortex_m_semihosting::debug;
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
@@ -47,6 +64,7 @@ use stm32f4xx_hal::pac::{self, Interrupt};
 pub const TELEMETRY_DECIMATION: u32 = 1;
 
 /// The trace recorded by `host-sim trace` (copied to OUT_DIR by build.rs).
+#[cfg(not(feature = "pil"))]
 static TRACE_BYTES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trace.bin"));
 
 static ORIGIN_LEVEL: AtomicBool = AtomicBool::new(false);
@@ -109,10 +127,12 @@ fn on_inputs(prev: Inputs, now: Inputs) {
 }
 
 /// The trace player.
+#[cfg(not(feature = "pil"))]
 pub struct FrontEnd {
     replay: ReplayFrontEnd<'static, fn(Inputs, Inputs)>,
 }
 
+#[cfg(not(feature = "pil"))]
 impl FrontEnd {
     /// Every sample has been played (a recovery boot plays only the first
     /// [`RECOVERY_TICKS`]).
@@ -120,8 +140,13 @@ impl FrontEnd {
         self.replay.finished()
             || (RECOVERY.load(Ordering::SeqCst) && self.replay.position() >= RECOVERY_TICKS)
     }
+
+    /// After the tick: nothing (the replay test reads the defmt stream).
+    #[inline(always)]
+    pub fn after_tick(&mut self, _outcome: &TickOutcome) {}
 }
 
+#[cfg(not(feature = "pil"))]
 impl SensorFrontEnd for FrontEnd {
     #[inline]
     fn sample(&mut self) -> RawSample {
@@ -139,11 +164,161 @@ impl SensorFrontEnd for FrontEnd {
     }
 }
 
+#[cfg(feature = "pil")]
+pub use pil::{on_sensor_bus, FrontEnd};
+
+#[cfg(feature = "pil")]
+mod pil {
+    use core::cell::{Cell, RefCell};
+    use core::sync::atomic::Ordering;
+
+    use cable_joint::board::{SensorFrontEnd, TickOutcome, TraceSample};
+    use cable_joint::controller::RawSample;
+    use cable_joint::link::{self, FrameReader, Pushed, SensorFrame, Up};
+    use cable_joint::telemetry::{Inputs, Record, MAX_RECORD_LEN};
+    use cable_joint::units::DacCode;
+    use cortex_m::interrupt::{self, Mutex};
+
+    use super::{count_tick, on_inputs, FAULT_LEVEL};
+    use crate::usart;
+
+    /// The sample of the tick being run (written by the bus interrupt,
+    /// read by the control task it then pends).
+    static SAMPLE: Mutex<Cell<TraceSample>> = Mutex::new(Cell::new(TraceSample {
+        raw: RawSample {
+            grating1: cable_joint::units::GratingCount(0),
+            grating2: cable_joint::units::GratingCount(0),
+            motor: cable_joint::units::MotorCount(0),
+            magnetic: cable_joint::units::MagneticCount(0),
+            current: cable_joint::units::AdcCode(0),
+        },
+        inputs: Inputs(0),
+    }));
+
+    /// Largest sensor frame on the wire, bytes (about 30 in practice).
+    const BUS_FRAME_LEN: usize = 64;
+
+    /// The sensor bus's receiving side, the interrupt task's alone (a
+    /// static because RTIC builds a task's locals even where the task is
+    /// configured out; the critical section costs nothing at priority 5,
+    /// the highest).
+    static BUS: Mutex<RefCell<SensorBus>> = Mutex::new(RefCell::new(SensorBus::new()));
+
+    /// USART3 receive interrupt (see [`SensorBus::on_rx`]).
+    pub fn on_sensor_bus() {
+        interrupt::free(|cs| BUS.borrow(cs).borrow_mut().on_rx());
+    }
+
+    struct SensorBus {
+        rx: usart::Rx,
+        reader: FrameReader<BUS_FRAME_LEN>,
+        prev: Inputs,
+    }
+
+    impl SensorBus {
+        /// USART3's receiving side (`init` opens the port; this task alone
+        /// reads it).
+        const fn new() -> Self {
+            Self {
+                rx: usart::Rx::steal(stm32f4xx_hal::pac::USART3::ptr()),
+                reader: FrameReader::new(),
+                prev: Inputs(0),
+            }
+        }
+
+        /// USART3 receive interrupt: collect bytes; a complete sensor
+        /// frame is one tick.
+        fn on_rx(&mut self) {
+            while let Some(byte) = self.rx.read() {
+                let Pushed::Frame(n) = self.reader.push(byte) else {
+                    continue;
+                };
+                match link::decode::<SensorFrame>(self.reader.frame(), n) {
+                    Ok((_, frame)) => {
+                        interrupt::free(|cs| SAMPLE.borrow(cs).set(frame.sample));
+                        on_inputs(self.prev, frame.sample.inputs);
+                        self.prev = frame.sample.inputs;
+                        count_tick();
+                    }
+                    // The host waits for an answer that never comes and
+                    // names the tick.
+                    Err(e) => defmt::error!("sensor bus: {}", defmt::Display2Format(&e)),
+                }
+            }
+        }
+    }
+
+    /// The host's plant behind the sensor bus.
+    pub struct FrontEnd {
+        pub(super) tx: usart::Tx,
+        pub(super) seq: u8,
+    }
+
+    impl FrontEnd {
+        /// The host ends the run.
+        pub fn finished(&self) -> bool {
+            false
+        }
+
+        /// Answer the host: the origin record (on the homing tick), then
+        /// the tick's record, whose DAC code and drive enable the plant
+        /// applies over the next period.
+        pub fn after_tick(&mut self, outcome: &TickOutcome) {
+            if let Some(origin) = outcome.origin {
+                self.send(&Record::Origin(origin));
+            }
+            self.send(&Record::Tick(outcome.record));
+        }
+
+        /// Tell the host the bus is open (an acknowledgement of nothing).
+        pub(super) fn ready(&mut self) {
+            let mut wire = [0u8; 16];
+            let ready = Up::Ack {
+                seq: 0,
+                refused: None,
+            };
+            if let Ok(frame) = link::encode(&ready, 0, &mut wire) {
+                self.tx.write_all(frame);
+            }
+        }
+
+        fn send(&mut self, record: &Record) {
+            let mut bytes = [0u8; MAX_RECORD_LEN];
+            let mut wire = [0u8; 2 * MAX_RECORD_LEN];
+            if let Ok(frame) = link::encode(
+                &Up::Telemetry(record.encode(&mut bytes)),
+                self.seq,
+                &mut wire,
+            ) {
+                self.tx.write_all(frame);
+            }
+            self.seq = self.seq.wrapping_add(1);
+        }
+    }
+
+    impl SensorFrontEnd for FrontEnd {
+        #[inline]
+        fn sample(&mut self) -> RawSample {
+            interrupt::free(|cs| SAMPLE.borrow(cs).get()).raw
+        }
+
+        /// The DAC code goes back in the tick's record.
+        #[inline]
+        fn write_current(&mut self, _dac: DacCode) {}
+
+        #[inline]
+        fn drive_fault_asserted(&mut self) -> bool {
+            FAULT_LEVEL.load(Ordering::SeqCst)
+        }
+    }
+}
+
 /// Ticks without a completed control tick before the software watchdog
 /// resets the MCU (the hardware IWDG's timeout is six periods).
 pub const WATCHDOG_TICKS: u32 = 6;
 
 /// Ticks a recovery boot runs on the trace before the run ends.
+#[cfg(not(feature = "pil"))]
 pub const RECOVERY_TICKS: usize = 50;
 
 /// Pattern of the watchdog's reset flag ("WDOG").
@@ -226,6 +401,7 @@ pub fn trace_played() {
     HANG.store(true, Ordering::SeqCst);
 }
 
+#[cfg(not(feature = "pil"))]
 fn trace() -> Option<Trace<'static>> {
     Trace::parse(TRACE_BYTES).ok()
 }
@@ -233,8 +409,16 @@ fn trace() -> Option<Trace<'static>> {
 /// The configuration the board boots with: the one the trace was recorded
 /// with (the built-in one, with probing on if the trace's header says so),
 /// or the built-in one if the trace is unreadable (`init` then stops).
+#[cfg(not(feature = "pil"))]
 pub fn config() -> cable_joint::Config {
     trace().map_or_else(cable_joint::board::firmware_config, |t| t.config())
+}
+
+/// The configuration the board boots with: the built-in one, as on the
+/// board (the host may send another over the link).
+#[cfg(feature = "pil")]
+pub fn config() -> cable_joint::Config {
+    cable_joint::board::firmware_config()
 }
 
 /// TIM2: virtual nanoseconds = guest instructions under `-icount shift=0`.
@@ -268,10 +452,18 @@ impl TickTimer {
 }
 
 /// TIM5 update: one control tick, and the software watchdog's check.
+#[cfg(not(feature = "pil"))]
 #[inline(always)]
 pub fn on_tick_source() {
     // SAFETY: clear TIM5's update flag (rc_w0); TIM5 is only this tick source.
     unsafe { (*pac::TIM5::ptr()).sr().write(|w| w.bits(0)) };
+    count_tick();
+}
+
+/// One tick of the tick source (TIM5, or a PIL sensor frame): the software
+/// watchdog's check, then the control task.
+#[inline(always)]
+fn count_tick() {
     let now = TICKS.fetch_add(1, Ordering::SeqCst).wrapping_add(1);
     if now.wrapping_sub(FED_AT.load(Ordering::SeqCst)) > WATCHDOG_TICKS {
         watchdog_reset();
@@ -318,40 +510,64 @@ pub struct Board {
     pub tick: TickTimer,
     /// Software watchdog.
     pub watchdog: Watchdog,
+    /// Host link (USART2), transmit half.
+    pub link_tx: crate::usart::Tx,
+    /// Host link, receive half (its interrupt is enabled).
+    pub link_rx: crate::usart::Rx,
 }
 
 /// Bring the virtual board up: drive disabled, trace checked against the
-/// control rate, TIM2 free-running, TIM5 ticking at `rate_hz`.
+/// control rate (PIL: the sensor bus opened instead), TIM2 free-running,
+/// TIM5 ticking at `rate_hz` (replay only), the host link open.
 pub fn init(dp: pac::Peripherals, _cp: cortex_m::Peripherals, rate_hz: f32) -> Board {
     let drive = DriveEnable::new(DriveLine);
-    let Some(trace) = trace() else {
-        panic!("the embedded sensor trace is missing or malformed (run `host-sim trace`)");
-    };
-    if trace.control_rate_hz() != rate_hz || trace.is_empty() {
-        panic!("the sensor trace was recorded at another control rate");
-    }
     // SAFETY (`bits` writes): full-range counter settings of TIM2/TIM5.
     let tim2 = dp.TIM2;
     tim2.psc().write(|w| w.psc().set(0));
     tim2.arr().write(|w| unsafe { w.bits(u32::MAX) });
     tim2.cr1().write(|w| w.cen().set_bit());
-    // QEMU's timers count at 1 GHz: /10 → 100 MHz, then the period.
-    let tim5 = dp.TIM5;
-    tim5.psc().write(|w| w.psc().set(9));
-    tim5.arr()
-        .write(|w| unsafe { w.bits((100e6 / rate_hz) as u32 - 1) });
-    tim5.dier().write(|w| w.uie().set_bit());
-    tim5.cr1().write(|w| w.cen().set_bit());
-    Board {
-        front_end: FrontEnd {
+    // QEMU ignores the baud rate.
+    let (link_tx, link_rx) = crate::usart::start(pac::USART2::ptr(), 1);
+    #[cfg(not(feature = "pil"))]
+    let front_end = {
+        let Some(trace) = trace() else {
+            panic!("the embedded sensor trace is missing or malformed (run `host-sim trace`)");
+        };
+        if trace.control_rate_hz() != rate_hz || trace.is_empty() {
+            panic!("the sensor trace was recorded at another control rate");
+        }
+        // QEMU's timers count at 1 GHz: /10 → 100 MHz, then the period.
+        let tim5 = dp.TIM5;
+        tim5.psc().write(|w| w.psc().set(9));
+        tim5.arr()
+            .write(|w| unsafe { w.bits((100e6 / rate_hz) as u32 - 1) });
+        tim5.dier().write(|w| w.uie().set_bit());
+        tim5.cr1().write(|w| w.cen().set_bit());
+        FrontEnd {
             replay: ReplayFrontEnd::new(trace, on_inputs as fn(Inputs, Inputs)),
-        },
+        }
+    };
+    #[cfg(feature = "pil")]
+    let front_end = {
+        let _ = rate_hz; // the host's plant sets the pace
+                         // The receiving half is the sensor bus task's (`SensorBus::new`).
+        let (tx, _rx) = crate::usart::start(pac::USART3::ptr(), 1);
+        let mut front_end = FrontEnd { tx, seq: 0 };
+        // Bytes that reach a disabled USART are lost: the host sends the
+        // first sample only after this.
+        front_end.ready();
+        front_end
+    };
+    Board {
+        front_end,
         counter: Counter,
         drive,
         drive_fault: InputLine::new(ReplayPin(&FAULT_LEVEL), false),
         origin: InputLine::new(ReplayPin(&ORIGIN_LEVEL), false),
         tick: TickTimer { seen: 0 },
         watchdog: Watchdog,
+        link_tx,
+        link_rx,
     }
 }
 

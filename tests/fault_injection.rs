@@ -70,7 +70,7 @@ fn first_fault(rec: &Recorded) -> (usize, Fault) {
             k + j
         );
         assert_eq!(o.record.dac, zero, "{fault:?}: current at tick {}", k + j);
-        assert_eq!(o.output.current_ref_a, 0.0);
+        assert_eq!(o.record.current_ref_a, 0.0);
     }
     (k, fault)
 }

@@ -36,6 +36,10 @@ enum Command {
     Ingest(host_sim::cli::ingest::IngestArgs),
     /// Record the sensor trace the QEMU firmware replays.
     Trace(host_sim::cli::trace::TraceArgs),
+    /// Processor in the loop: the firmware binary on QEMU against the simulated prototype.
+    Pil(host_sim::cli::pil::PilArgs),
+    /// Operate the firmware over its link: configuration, faults, scenarios, recording.
+    Link(host_sim::cli::link::LinkArgs),
     /// Run one scenario on the simulated prototype and write the CSV log.
     Simulate(host_sim::cli::simulate::SimulateArgs),
     /// Tool payload identification and tool-end wrench estimation (KUKA wrist data).
@@ -57,6 +61,8 @@ fn main() -> ExitCode {
         Some(Command::Import(args)) => host_sim::cli::import::run(args),
         Some(Command::Ingest(args)) => host_sim::cli::ingest::run(args),
         Some(Command::Trace(args)) => host_sim::cli::trace::run(args),
+        Some(Command::Pil(args)) => host_sim::cli::pil::run(args),
+        Some(Command::Link(args)) => host_sim::cli::link::run(args),
         Some(Command::Simulate(a)) => host_sim::cli::simulate::run(a),
         Some(Command::Payload(a)) => host_sim::cli::payload::run(a),
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),

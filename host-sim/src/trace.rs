@@ -98,7 +98,7 @@ pub struct Recorded {
     /// One sample per tick (boot-relative counters, input lines).
     pub samples: Vec<TraceSample>,
     /// The firmware logic's outcome per tick.
-    pub outcomes: Vec<TickOutcome>,
+    pub outcomes: Vec<Ticked>,
     /// True joint angle at each sample, rad.
     pub theta_true_rad: Vec<f64>,
     /// Applied tip force at each sample, N.
@@ -152,6 +152,55 @@ fn boot_relative(raw: &RawSample, boot: &RawSample) -> RawSample {
     }
 }
 
+/// What one tick of the firmware did, as the plant and the recorder see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ticked {
+    /// The tick's telemetry record (DAC code, drive enable, estimates).
+    pub record: TickRecord,
+    /// Homing took this tick's sample as the origin.
+    pub origin: Option<OriginRecord>,
+    /// The drive enable line after the tick.
+    pub drive_enabled: bool,
+}
+
+/// The firmware a closed-loop run drives: its logic on the host
+/// ([`Harness`]), or the firmware binary on QEMU ([`crate::pil::Pil`]).
+pub trait Firmware {
+    /// Run tick `k` on `sample`, with the operator's `request` queued
+    /// before it.
+    fn tick(
+        &mut self,
+        k: usize,
+        sample: &TraceSample,
+        request: Option<Request>,
+    ) -> anyhow::Result<Ticked>;
+    /// The host harness, for fault injections that reach into it between
+    /// ticks (none for a remote firmware).
+    fn harness(&mut self) -> Option<&mut Harness> {
+        None
+    }
+}
+
+impl Firmware for Harness {
+    fn tick(
+        &mut self,
+        _k: usize,
+        sample: &TraceSample,
+        request: Option<Request>,
+    ) -> anyhow::Result<Ticked> {
+        let o: TickOutcome = Harness::tick(self, sample, request);
+        Ok(Ticked {
+            record: o.record,
+            origin: o.origin,
+            drive_enabled: self.drive_enabled(),
+        })
+    }
+
+    fn harness(&mut self) -> Option<&mut Harness> {
+        Some(self)
+    }
+}
+
 /// What a scenario does to the closed loop, tick by tick: fault injection
 /// for the fault tests. Every method has the neutral default.
 pub trait Inject {
@@ -190,6 +239,28 @@ pub fn record_with(
     config: cable_joint::Config,
     inject: &mut dyn Inject,
 ) -> anyhow::Result<Recorded> {
+    let control = ControlLoop::new(config, 1).map_err(|e| anyhow::anyhow!("{e}"))?;
+    record_on(
+        plant,
+        opts,
+        config,
+        inject,
+        &mut Harness::new(control),
+        &mut |_, _| {},
+    )
+}
+
+/// Run the closed loop on `firmware` (whose configuration is `config`)
+/// with `inject` acting on it, and record it; `progress(k, n)` after each
+/// tick.
+pub fn record_on(
+    plant: PlantParams,
+    opts: &TraceOptions,
+    config: cable_joint::Config,
+    inject: &mut dyn Inject,
+    firmware: &mut dyn Firmware,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<Recorded> {
     anyhow::ensure!(
         opts.duration_s.is_finite() && opts.duration_s > 0.0,
         "--duration-s must be > 0"
@@ -210,8 +281,6 @@ pub fn record_with(
     let scales = sim.plant().params().sensors.scales;
     let plant = sim.plant_mut();
 
-    let control = ControlLoop::new(config, 1).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut harness = Harness::new(control);
     let boot = plant.sample();
     let n = (opts.duration_s / period_s).round() as usize;
     let mut rec = Recorded {
@@ -234,10 +303,12 @@ pub fn record_with(
         let mut sample = TraceSample { raw, inputs };
         inject.sample(k, t_s, &mut sample);
         let request = inject.request(k);
-        inject.before_tick(k, &mut harness);
-        let outcome = harness.tick(&sample, request);
-        let current_a = if harness.drive_enabled() {
-            inject.applied_current(k, scales.dac_a(outcome.output.dac) as f64)
+        if let Some(harness) = firmware.harness() {
+            inject.before_tick(k, harness);
+        }
+        let outcome = firmware.tick(k, &sample, request)?;
+        let current_a = if outcome.drive_enabled {
+            inject.applied_current(k, scales.dac_a(outcome.record.dac) as f64)
         } else {
             0.0
         };
@@ -252,6 +323,7 @@ pub fn record_with(
             plant.set_external_force(load(t_s + j as f64 * dt));
             plant.step();
         }
+        progress(k + 1, n);
     }
     Ok(rec)
 }

@@ -20,6 +20,15 @@ pub struct TraceArgs {
     /// Also write the firmware logic's telemetry as a CSV log.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// The closed-loop run.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// The closed-loop run of the firmware's logic on the simulated prototype
+/// (`host-sim trace`, `host-sim pil`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct RunArgs {
     /// Plant parameters (TOML, merged over the prototype's defaults).
     #[arg(long)]
     pub plant: Option<PathBuf>,
@@ -53,7 +62,7 @@ pub struct TraceArgs {
     pub probe: bool,
 }
 
-impl TraceArgs {
+impl RunArgs {
     /// The run these arguments ask for.
     pub fn options(&self) -> TraceOptions {
         TraceOptions {
@@ -70,8 +79,8 @@ impl TraceArgs {
 
 /// `host-sim trace`.
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
-    let plant = crate::io::config::load_plant(args.plant.as_deref())?;
-    let opts = args.options();
+    let plant = crate::io::config::load_plant(args.run.plant.as_deref())?;
+    let opts = args.run.options();
     let rec = record(plant, &opts)?;
     // The trace and the CSV log are written together, or neither is.
     let mut out = Outputs::new();

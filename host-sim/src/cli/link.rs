@@ -1,0 +1,209 @@
+//! `host-sim link`: operate the firmware over its link (the prototype's
+//! USART2, or QEMU's through `host-sim pil --link-port`): load a
+//! configuration, clear a fault, set the telemetry rate, run a scenario's
+//! commands, and record the telemetry stream as the project's CSV log.
+//!
+//! Time is the firmware's: a scenario's commands are sent when the
+//! streamed tick counter reaches each segment's start, and recording ends
+//! after `--duration-s` of firmware ticks, so the same command drives the
+//! prototype in real time and QEMU at whatever speed it runs.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use cable_joint::board::{HomingConfig, Phase, Program};
+use cable_joint::controller::{Command, Mode};
+use cable_joint::link::Down;
+use cable_joint::telemetry::Record;
+use cable_joint::trajectory::Trajectory;
+
+use crate::cli;
+use crate::ingest::{to_log, LogOptions};
+use crate::operator::{open, Client};
+use crate::output::Outputs;
+use crate::scenario::{plan, ScenarioOptions};
+
+/// Arguments of `host-sim link`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct LinkArgs {
+    /// The firmware link: `tcp:HOST:PORT` (QEMU: `host-sim pil
+    /// --link-port`) or a serial device (the prototype's USART2, set to
+    /// 460 800 baud raw with stty).
+    #[arg(long)]
+    pub port: String,
+    /// Clear the latched fault first (refused while its cause persists).
+    #[arg(long)]
+    pub clear_fault: bool,
+    /// Load this configuration (TOML, e.g. from `host-sim identify`):
+    /// checked by `validate()` here, sent, checked and prepared again on the
+    /// MCU, applied between two ticks.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// One telemetry record every this many ticks.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub decimation: Option<u32>,
+    /// Run a scenario's commands (the names of `host-sim simulate`; e.g.
+    /// `id-closed`, `tracking`, `loading`): sensor check and homing, then
+    /// each segment's command at its start. Weights and forces are the
+    /// operator's to apply on the rig.
+    #[arg(long)]
+    pub scenario: Option<String>,
+    /// Record the telemetry stream to this CSV log.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Firmware seconds to record (default: the scenario's length plus
+    /// homing, else 1 s).
+    #[arg(long, value_parser = cli::f64_above(0.0, 1e5))]
+    pub duration_s: Option<f64>,
+    /// Give up when no telemetry arrives for this long (wall clock), s.
+    #[arg(long, default_value_t = 60.0, value_parser = cli::f64_above(0.0, 1e5))]
+    pub idle_timeout_s: f64,
+}
+
+/// A scenario for the firmware: the program that starts it, every command
+/// with its time (s after homing), and its length, s.
+struct Schedule {
+    program: Program,
+    commands: Vec<(f64, Command)>,
+    length_s: f64,
+}
+
+/// A scenario's commands at their firmware times.
+fn schedule(name: &str) -> anyhow::Result<Schedule> {
+    let p = plan(name, &ScenarioOptions::default())?;
+    let mut t = 0.0;
+    let mut commands = Vec::new();
+    for seg in &p.segments {
+        if let Some(c) = seg.command {
+            commands.push((t, c));
+        }
+        t += seg.duration_s;
+    }
+    let hold = Command {
+        mode: Mode::JointClosedLoop,
+        trajectory: Trajectory::Hold { angle_rad: 0.0 },
+    };
+    let first = commands.first().map_or(hold, |&(_, c)| c);
+    let program = Program {
+        homing: HomingConfig::default(),
+        command: first,
+        // The host sends a heartbeat every 0.2 s of firmware time.
+        command_timeout_s: 1.0,
+    };
+    Ok(Schedule {
+        program,
+        commands,
+        length_s: t,
+    })
+}
+
+/// `host-sim link`.
+pub fn run(args: LinkArgs) -> anyhow::Result<()> {
+    let config = crate::io::config::load_or_default(args.config.as_deref())?;
+    let scenario = args.scenario.as_deref().map(schedule).transpose()?;
+    let mut client = Client::new(open(&args.port)?)?;
+    client.request(&Down::Heartbeat)?;
+    eprintln!("connected to {}", args.port);
+    if args.clear_fault {
+        client.request(&Down::ClearFault)?;
+        eprintln!("fault cleared");
+    }
+    if let Some(path) = &args.config {
+        client.request(&Down::SetConfig(config))?;
+        eprintln!("configuration {} loaded", path.display());
+    }
+    if let Some(n) = args.decimation {
+        client.request(&Down::SetDecimation(n))?;
+        eprintln!("telemetry every {n} ticks");
+    }
+    let rate_hz = f64::from(config.control_rate_hz);
+    let mut pending: Vec<(f64, Command)> = Vec::new();
+    let duration_s = match &scenario {
+        Some(s) => {
+            client.request(&Down::Program(s.program))?;
+            pending = s.commands.iter().skip(1).rev().copied().collect();
+            eprintln!(
+                "scenario {}: check, homing, then {} commands over {:.1} s",
+                args.scenario.as_deref().unwrap_or_default(),
+                s.commands.len(),
+                s.length_s
+            );
+            args.duration_s.unwrap_or(s.length_s + 3.0)
+        }
+        None => args.duration_s.unwrap_or(1.0),
+    };
+    let want_ticks = (duration_s * rate_hz).round() as u64;
+    let bar = indicatif::ProgressBar::new(want_ticks);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} firmware ticks, phase {msg} (eta {eta})",
+        )
+        .context("progress bar template")?,
+    );
+    let mut records: Vec<Record> = Vec::new();
+    let (mut first_tick, mut homed_tick, mut last_beat) = (None::<u32>, None::<u32>, 0u32);
+    let mut last_data = Instant::now();
+    let idle = Duration::from_secs_f64(args.idle_timeout_s);
+    loop {
+        let got = client.poll()?;
+        if got.is_empty() {
+            if last_data.elapsed() > idle {
+                bail!(
+                    "no telemetry for {:.0} s (after {} records): is the firmware running?",
+                    args.idle_timeout_s,
+                    records.len()
+                );
+            }
+            continue;
+        }
+        last_data = Instant::now();
+        let mut now = None;
+        for r in &got {
+            if let Record::Tick(t) = r {
+                now = Some(t.tick);
+                bar.set_message(format!("{} fault {}", t.phase, t.fault));
+                if homed_tick.is_none() && t.phase == Phase::Running.code() {
+                    homed_tick = Some(t.tick);
+                }
+            }
+        }
+        records.extend(got);
+        let Some(now) = now else { continue };
+        let start = *first_tick.get_or_insert(now);
+        let elapsed = u64::from(now.wrapping_sub(start));
+        bar.set_position(elapsed.min(want_ticks));
+        if let Some(homed) = homed_tick {
+            let since_s = f64::from(now.wrapping_sub(homed)) / rate_hz;
+            while pending.last().is_some_and(|&(t, _)| t <= since_s) {
+                let (_, c) = pending.pop().expect("checked");
+                client.request(&Down::SetCommand(c))?;
+                last_beat = now;
+            }
+        }
+        if scenario.is_some() && f64::from(now.wrapping_sub(last_beat)) / rate_hz > 0.2 {
+            client.request(&Down::Heartbeat)?;
+            last_beat = now;
+        }
+        if elapsed >= want_ticks {
+            break;
+        }
+    }
+    records.extend(client.take_telemetry());
+    bar.finish_and_clear();
+    let ticks = records
+        .iter()
+        .filter(|r| matches!(r, Record::Tick(_)))
+        .count();
+    eprintln!(
+        "received {ticks} tick records ({} damaged frames)",
+        client.damaged
+    );
+    if let Some(path) = &args.record {
+        let mut out = Outputs::new();
+        to_log(&records, &config, &LogOptions::default())?.stage(&mut out, path)?;
+        out.commit()?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}

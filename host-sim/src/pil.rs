@@ -1,0 +1,479 @@
+//! Processor in the loop: the firmware binary (`cargo fw-pil`: the QEMU
+//! build with the sensor bus instead of the embedded trace) runs on QEMU's
+//! netduinoplus2 and closes the loop on the simulated prototype, in
+//! lockstep over QEMU's emulated serial ports:
+//!
+//! | QEMU `-serial` | firmware | host |
+//! |---|---|---|
+//! | 1 (USART1) | unused | `null` |
+//! | 2 (USART2) | the host link, as on the board | [`crate::operator::Client`] (requests), or a TCP port for `host-sim link` (`--link-port`) |
+//! | 3 (USART3) | the sensor bus | this module: one [`SensorFrame`] per tick, answered by the tick's record |
+//!
+//! Each tick the host sends the sample the board would have read, waits for
+//! the tick's telemetry record (DAC code, drive enable), applies the current
+//! to the plant over one period, and sends the next sample: the loop of
+//! [`crate::trace::record_on`], the same as the host-only run of the same
+//! firmware logic ([`cable_joint::board::Harness`]), so the two can be
+//! compared tick by tick. `-icount shift=0` makes TIM2 count guest
+//! instructions, which the records carry per tick and per stage.
+
+use std::fs::File;
+use std::io::{ErrorKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use cable_joint::board::{Harness, Phase, Program, Request, TraceSample};
+use cable_joint::link::{self, FrameReader, Pushed, SensorFrame, Up};
+use cable_joint::telemetry::{Record, TickRecord};
+
+use crate::ingest::{cycle_stats, CycleStats};
+use crate::operator::{down_for, Client};
+use crate::plant::PlantParams;
+use crate::trace::{
+    record_on, record_with, Firmware, Inject, NoInjection, Recorded, Ticked, TraceOptions,
+};
+
+/// How the PIL run starts QEMU.
+#[derive(Debug, Clone)]
+pub struct PilOptions {
+    /// The PIL firmware (`cargo fw-pil`; its ELF).
+    pub elf: PathBuf,
+    /// Where QEMU's defmt stream (`qemu.defmt`) and stderr go.
+    pub out_dir: PathBuf,
+    /// Expose the firmware link on this local TCP port (for `host-sim
+    /// link`) instead of keeping it for the run's own requests.
+    pub link_port: Option<u16>,
+    /// Longest wait for one tick's answer (QEMU's start included for the
+    /// first).
+    pub tick_timeout: Duration,
+}
+
+/// The firmware binary on QEMU, driven tick by tick.
+pub struct Pil {
+    child: Child,
+    bus: TcpStream,
+    reader: FrameReader<256>,
+    unread: std::collections::VecDeque<u8>,
+    link: Option<Client>,
+    timeout: Duration,
+    out_dir: PathBuf,
+}
+
+/// Wait for QEMU to connect to `listener`, or fail if it exits first.
+fn accept(
+    listener: &TcpListener,
+    child: &mut Child,
+    what: &str,
+    out_dir: &Path,
+) -> anyhow::Result<TcpStream> {
+    listener.set_nonblocking(true)?;
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        match listener.accept() {
+            Ok((s, _)) => {
+                s.set_nonblocking(false)?;
+                s.set_nodelay(true)?;
+                return Ok(s);
+            }
+            Err(e) if e.kind() == ErrorKind::WouldBlock => {}
+            Err(e) => return Err(e).context(format!("accepting QEMU's {what}")),
+        }
+        if let Some(status) = child.try_wait()? {
+            bail!(
+                "QEMU exited ({status}) before connecting its {what}; see {}",
+                out_dir.join("qemu.stderr").display()
+            );
+        }
+        if Instant::now() > deadline {
+            bail!("QEMU did not connect its {what} within 20 s");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+impl Pil {
+    /// Start QEMU on the PIL firmware and connect its serial ports.
+    pub fn start(opts: &PilOptions) -> anyhow::Result<Self> {
+        anyhow::ensure!(
+            opts.elf.is_file(),
+            "the PIL firmware {} does not exist: build it with `cargo fw-pil`",
+            opts.elf.display()
+        );
+        std::fs::create_dir_all(&opts.out_dir)
+            .with_context(|| format!("creating {}", opts.out_dir.display()))?;
+        let bus =
+            TcpListener::bind("127.0.0.1:0").context("opening a local port for the sensor bus")?;
+        let bus_port = bus.local_addr()?.port();
+        let (link_serial, link_listener) = match opts.link_port {
+            Some(p) => (
+                format!("tcp:127.0.0.1:{p},server=on,wait=off,nodelay=on"),
+                None,
+            ),
+            None => {
+                let l = TcpListener::bind("127.0.0.1:0")
+                    .context("opening a local port for the link")?;
+                (
+                    format!("tcp:127.0.0.1:{},nodelay=on", l.local_addr()?.port()),
+                    Some(l),
+                )
+            }
+        };
+        let defmt = File::create(opts.out_dir.join("qemu.defmt"))?;
+        let stderr = File::create(opts.out_dir.join("qemu.stderr"))?;
+        let mut child = Command::new("qemu-system-arm")
+            .args([
+                "-machine",
+                "netduinoplus2",
+                "-nographic",
+                "-monitor",
+                "none",
+            ])
+            .args(["-serial", "null", "-serial", &link_serial])
+            .args(["-serial", &format!("tcp:127.0.0.1:{bus_port},nodelay=on")])
+            .args(["-semihosting-config", "enable=on,target=native"])
+            // Instructions, not host time, drive the virtual clock inside a
+            // tick (TIM2 counts them); sleep=on lets it follow the host's
+            // time while the firmware waits for the next sample.
+            .args(["-icount", "shift=0,sleep=on", "-kernel"])
+            .arg(&opts.elf)
+            .stdin(Stdio::null())
+            .stdout(defmt)
+            .stderr(stderr)
+            .spawn()
+            .context("starting qemu-system-arm (install it: apt-get install qemu-system-arm)")?;
+        // QEMU connects its client ports in order: the link, then the bus.
+        let link = match &link_listener {
+            Some(l) => {
+                let s = accept(l, &mut child, "link port (USART2)", &opts.out_dir)?;
+                Some(Client::new(Box::new(s))?)
+            }
+            None => None,
+        };
+        let bus = accept(&bus, &mut child, "sensor bus (USART3)", &opts.out_dir)?;
+        bus.set_read_timeout(Some(Duration::from_millis(100)))?;
+        let mut pil = Self {
+            child,
+            bus,
+            reader: FrameReader::new(),
+            unread: Default::default(),
+            link,
+            timeout: opts.tick_timeout,
+            out_dir: opts.out_dir.clone(),
+        };
+        // Bytes sent before the firmware opens the bus are lost.
+        if let BusUp::Record(_) = pil.read_up("the firmware's ready frame")? {
+            bail!("the firmware sent telemetry before its ready frame");
+        }
+        Ok(pil)
+    }
+
+    /// Stop QEMU (the run has no end of its own).
+    pub fn stop(mut self) -> anyhow::Result<()> {
+        self.child.kill().ok();
+        self.child.wait()?;
+        Ok(())
+    }
+
+    /// The next frame up the sensor bus, decoded.
+    fn read_up(&mut self, what: &str) -> anyhow::Result<BusUp> {
+        let deadline = Instant::now() + self.timeout;
+        loop {
+            while let Some(b) = self.unread.pop_front() {
+                if let Pushed::Frame(len) = self.reader.push(b) {
+                    let (_, up) = link::decode::<Up>(self.reader.frame(), len)
+                        .map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
+                    return match up {
+                        Up::Ack { .. } => Ok(BusUp::Ready),
+                        Up::Telemetry(bytes) => Record::decode(bytes)
+                            .map(BusUp::Record)
+                            .map_err(|e| anyhow::anyhow!("{what}: the firmware's record: {e}")),
+                    };
+                }
+            }
+            let mut buf = [0u8; 512];
+            match self.bus.read(&mut buf) {
+                Ok(0) => bail!("QEMU closed the sensor bus while waiting for {what}"),
+                Ok(n) => self.unread.extend(&buf[..n]),
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+                Err(e) => return Err(e).context("reading the sensor bus"),
+            }
+            if let Some(status) = self.child.try_wait()? {
+                bail!(
+                    "QEMU exited ({status}) while waiting for {what}; the firmware's log: {}",
+                    self.out_dir.join("qemu.defmt").display()
+                );
+            }
+            if Instant::now() > deadline {
+                bail!("no {what} within {:.1} s", self.timeout.as_secs_f64());
+            }
+        }
+    }
+
+    fn answer(&mut self, k: usize) -> anyhow::Result<Ticked> {
+        let mut origin = None;
+        loop {
+            match self.read_up(&format!("answer to tick {k}"))? {
+                BusUp::Ready => bail!("tick {k}: the firmware restarted (a second ready frame)"),
+                BusUp::Record(Record::Origin(o)) => origin = Some(o),
+                BusUp::Record(Record::Tick(record)) => {
+                    return Ok(Ticked {
+                        record,
+                        origin,
+                        drive_enabled: record.drive_enable,
+                    })
+                }
+                BusUp::Record(Record::Start(_)) => {}
+            }
+        }
+    }
+}
+
+/// What comes up the sensor bus.
+enum BusUp {
+    /// The firmware opened the bus (once, at boot).
+    Ready,
+    /// A telemetry record (the origin on the homing tick, then the tick).
+    Record(Record),
+}
+
+impl Drop for Pil {
+    fn drop(&mut self) {
+        self.child.kill().ok();
+        self.child.wait().ok();
+    }
+}
+
+impl Firmware for Pil {
+    fn tick(
+        &mut self,
+        k: usize,
+        sample: &TraceSample,
+        request: Option<Request>,
+    ) -> anyhow::Result<Ticked> {
+        // The firmware queues its built-in program itself at boot.
+        let builtin = k == 0 && request == Some(Request::Program(Program::default()));
+        if let (Some(req), false) = (request, builtin) {
+            let Some(client) = self.link.as_mut() else {
+                bail!("tick {k}: the link is given to `host-sim link` (--link-port); this run cannot send requests");
+            };
+            // Acknowledged before the sample goes out: queued for this tick,
+            // as the host harness takes it.
+            client.request(&down_for(&req)?)?;
+        }
+        let mut wire = [0u8; 128];
+        let frame = link::encode(
+            &SensorFrame {
+                tick: k as u32,
+                sample: *sample,
+            },
+            k as u8,
+            &mut wire,
+        )
+        .map_err(|e| anyhow::anyhow!("encoding tick {k}'s sample: {e}"))?;
+        self.bus
+            .write_all(frame)
+            .context("writing the sensor bus")?;
+        self.answer(k)
+    }
+
+    fn harness(&mut self) -> Option<&mut Harness> {
+        None
+    }
+}
+
+/// The PIL run against the host-only run of the same firmware logic on
+/// the same plant, noise and load.
+#[derive(Debug, Clone)]
+pub struct Comparison {
+    /// The firmware binary's run.
+    pub pil: Recorded,
+    /// The host harness's run.
+    pub host: Recorded,
+    /// Ticks whose records agree bit for bit (instruction counts aside).
+    pub identical_ticks: usize,
+    /// The first tick where they do not.
+    pub first_difference: Option<usize>,
+    /// Largest |θ̂ PIL − θ̂ host|, rad.
+    pub max_theta_hat_diff_rad: f64,
+    /// Largest |F̂ PIL − F̂ host| (the DOB's), N.
+    pub max_f_ext_hat_diff_n: f64,
+    /// Tracking and force errors of each run.
+    pub errors: [RunErrors; 2],
+    /// Instructions per tick and per stage in the PIL run (TIM2 under
+    /// `-icount shift=0`), over the ticks the controller stepped.
+    pub instructions: Option<CycleStats>,
+}
+
+/// What a closed-loop run achieved, judged on the plant's truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunErrors {
+    /// RMS of θ_ref − θ over the ticks with the program running and the
+    /// drive on, rad.
+    pub tracking_rms_rad: f64,
+    /// Largest |θ_ref − θ| there, rad.
+    pub tracking_max_rad: f64,
+    /// Mean |F̂ − F| of the DOB over the ticks with the full load hung and
+    /// the drive on, N (NaN without such ticks).
+    pub force_mean_abs_n: f64,
+    /// Ticks those means cover: tracking, force.
+    pub ticks: (usize, usize),
+}
+
+impl RunErrors {
+    /// The errors of `rec` (the load as `opts` hangs it).
+    pub fn of(rec: &Recorded, opts: &TraceOptions) -> Self {
+        let period = 1.0 / f64::from(rec.control_rate_hz);
+        let running = Phase::Running.code();
+        let (mut sq, mut max, mut n) = (0.0, 0.0f64, 0usize);
+        let (mut f_sum, mut f_n) = (0.0, 0usize);
+        for (k, o) in rec.outcomes.iter().enumerate() {
+            let r = &o.record;
+            if r.phase != running || !r.drive_enable {
+                continue;
+            }
+            let e = f64::from(r.theta_ref_rad) - rec.theta_true_rad[k];
+            sq += e * e;
+            max = max.max(e.abs());
+            n += 1;
+            let t = k as f64 * period;
+            if opts.load_n != 0.0 && t >= opts.load_at_s + 0.05 {
+                f_sum += (f64::from(r.f_ext_hat_n) - rec.f_ext_true_n[k]).abs();
+                f_n += 1;
+            }
+        }
+        Self {
+            tracking_rms_rad: if n > 0 {
+                (sq / n as f64).sqrt()
+            } else {
+                f64::NAN
+            },
+            tracking_max_rad: max,
+            force_mean_abs_n: if f_n > 0 {
+                f_sum / f_n as f64
+            } else {
+                f64::NAN
+            },
+            ticks: (n, f_n),
+        }
+    }
+}
+
+/// A record without its instruction counts (which only the MCU has).
+fn arithmetic(r: &TickRecord) -> TickRecord {
+    TickRecord {
+        cycles: 0,
+        stage_cycles: [0; 4],
+        ..*r
+    }
+}
+
+/// Run `opts` on the PIL firmware and on the host harness, and compare.
+/// `progress(k, n)` after each PIL tick.
+pub fn compare(
+    plant: PlantParams,
+    opts: &TraceOptions,
+    pil: &PilOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<Comparison> {
+    compare_with(plant, opts, pil, &|| Box::new(NoInjection), progress)
+}
+
+/// [`compare`] with the operator's requests of `inject()` (a fresh one for
+/// each run): the PIL run sends them over the firmware link, acknowledged
+/// before the tick's sample goes out, the host harness takes them at the
+/// same tick.
+pub fn compare_with(
+    plant: PlantParams,
+    opts: &TraceOptions,
+    pil: &PilOptions,
+    inject: &dyn Fn() -> Box<dyn Inject>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<Comparison> {
+    anyhow::ensure!(
+        !opts.probing,
+        "the PIL firmware boots with the built-in configuration (probing off); \
+         send another over the link instead of --probe"
+    );
+    let config = opts.config();
+    let host = record_with(plant, opts, config, inject().as_mut())?;
+    let mut firmware = Pil::start(pil)?;
+    let pil_run = record_on(
+        plant,
+        opts,
+        config,
+        inject().as_mut(),
+        &mut firmware,
+        progress,
+    );
+    firmware.stop()?;
+    let pil_run = pil_run?;
+    let mut identical = 0;
+    let mut first = None;
+    let (mut d_theta, mut d_force) = (0.0f64, 0.0f64);
+    for (k, (a, b)) in pil_run.outcomes.iter().zip(&host.outcomes).enumerate() {
+        if arithmetic(&a.record) == arithmetic(&b.record) && a.origin == b.origin {
+            identical += 1;
+        } else if first.is_none() {
+            first = Some(k);
+        }
+        d_theta = d_theta.max(f64::from(a.record.theta_hat_rad - b.record.theta_hat_rad).abs());
+        d_force = d_force.max(f64::from(a.record.f_ext_hat_n - b.record.f_ext_hat_n).abs());
+    }
+    let stepped: Vec<TickRecord> = pil_run
+        .outcomes
+        .iter()
+        .map(|o| o.record)
+        .filter(|r| r.step_cycles() > 0)
+        .collect();
+    Ok(Comparison {
+        errors: [RunErrors::of(&pil_run, opts), RunErrors::of(&host, opts)],
+        instructions: cycle_stats(&stepped),
+        identical_ticks: identical,
+        first_difference: first,
+        max_theta_hat_diff_rad: d_theta,
+        max_f_ext_hat_diff_n: d_force,
+        pil: pil_run,
+        host,
+    })
+}
+
+impl std::fmt::Display for Comparison {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let n = self.pil.outcomes.len();
+        writeln!(
+            f,
+            "ticks identical to the host run (instruction counts aside): {} of {n}{}",
+            self.identical_ticks,
+            match self.first_difference {
+                Some(k) => format!(", first difference at tick {k}"),
+                None => String::new(),
+            }
+        )?;
+        writeln!(
+            f,
+            "largest difference: theta_hat {:.3e} rad, F_ext_hat {:.3e} N",
+            self.max_theta_hat_diff_rad, self.max_f_ext_hat_diff_n
+        )?;
+        writeln!(
+            f,
+            "{:<6} {:>18} {:>18} {:>22}",
+            "run", "tracking RMS (deg)", "tracking max (deg)", "DOB mean |error| (N)"
+        )?;
+        for (name, e) in ["PIL", "host"].iter().zip(&self.errors) {
+            writeln!(
+                f,
+                "{name:<6} {:>18.4} {:>18.4} {:>22.4}",
+                e.tracking_rms_rad.to_degrees(),
+                e.tracking_max_rad.to_degrees(),
+                e.force_mean_abs_n
+            )?;
+        }
+        match &self.instructions {
+            Some(s) => write!(f, "instructions per tick (PIL, -icount shift=0):\n{s}"),
+            None => write!(f, "no tick stepped the controller: no instruction counts"),
+        }
+    }
+}

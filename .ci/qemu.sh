@@ -23,6 +23,10 @@
 # 7. repeats 3-6 with probing on (`host-sim trace --probe`: the trace's header
 #    tells the QEMU board to boot with the dither on), in $QEMU_OUT/probing,
 #    so the dither's cost per tick is measured too.
+# 8. runs the PIL firmware in closed loop with the simulated prototype
+#    (host-sim pil; tests/pil.rs: bit for bit with the host-only run, a
+#    request over the link included) and the rig workflow under QEMU
+#    (scripts/rig-qemu.sh);
 #
 # Host tools run in the dev profile, so the builds of .ci/run's `cargo test
 # --workspace` are reused. Outputs land in $QEMU_OUT (default: <target dir>/qemu): firmware-hw.elf,
@@ -167,5 +171,23 @@ proof() {
 # and for seven dither periods of hold, with the weight hung during it.
 proof "default" "$OUT"
 proof "probing" "$OUT/probing" --probe --duration-s 4.5 --load-at-s 3.5 --drive-fault-at-s 4.4
+
+# Processor in the loop: the firmware binary closes the loop on the
+# simulated prototype over QEMU's serial ports, and must match the
+# host-only run of its logic tick by tick, bit for bit (tests/pil.rs), with
+# its instructions per tick counted on the way.
+say "PIL: the firmware binary in closed loop (cargo fw-pil, host-sim pil)"
+cargo fw-pil "${LOCKED[@]}"
+cp "$ELF" "$OUT/firmware-pil.elf"
+{
+  echo "PIL build:"
+  size_of "$OUT/firmware-pil.elf"
+} | tee -a "$OUT/sizes.txt"
+cargo run "${LOCKED[@]}" -p host-sim -- pil --elf "$OUT/firmware-pil.elf" --out "$OUT/pil" \
+  --duration-s 4 --load-at-s 3 --drive-fault-at-s 3.9
+CABLE_JOINT_PIL_ELF="$OUT/firmware-pil.elf" cargo test "${LOCKED[@]}" --test pil -- --include-ignored
+
+say "rig workflow under QEMU (scripts/rig-qemu.sh)"
+RIG_OUT="$OUT/rig" bash scripts/rig-qemu.sh
 cat "$OUT/sizes.txt"
 say "QEMU proof passed"

@@ -119,23 +119,13 @@ static LINK_UP: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool:
 /// Log one telemetry record as a `tlm [bytes]` line, and send it up the
 /// host link once a host has spoken.
 #[cfg(target_os = "none")]
-fn log_record(record: &cable_joint::telemetry::Record, link: Option<(&mut usart::Tx, &mut u8)>) {
+fn log_record(record: &cable_joint::telemetry::Record, link: Option<&mut usart::FrameTx>) {
     let mut buf = [0u8; cable_joint::telemetry::MAX_RECORD_LEN];
     let bytes = record.encode(&mut buf);
     defmt::info!("tlm {=[u8]}", bytes);
-    if let Some((tx, seq)) = link {
-        send_up(tx, &cable_joint::link::Up::Telemetry(bytes), seq);
+    if let Some(link) = link {
+        link.send(&cable_joint::link::Up::Telemetry(bytes));
     }
-}
-
-/// One frame up the host link (a frame that does not fit is not sent).
-#[cfg(target_os = "none")]
-fn send_up(tx: &mut usart::Tx, msg: &cable_joint::link::Up, seq: &mut u8) {
-    let mut wire = [0u8; 2 * cable_joint::telemetry::MAX_RECORD_LEN];
-    if let Ok(frame) = cable_joint::link::encode(msg, *seq, &mut wire) {
-        tx.write_all(frame);
-    }
-    *seq = seq.wrapping_add(1);
 }
 
 #[cfg(target_os = "none")]
@@ -151,13 +141,13 @@ mod app {
     use heapless::spsc::{Consumer, Producer, Queue};
     use heapless::Vec;
 
-    use super::{board, log_record, send_up, take_boot_note, usart, EVENTS, LINK_UP};
+    use super::{board, log_record, take_boot_note, usart, EVENTS, LINK_UP};
 
     #[shared]
     struct Shared {
-        /// The host link's transmit half and its frame counter (the link
-        /// and telemetry tasks, both priority 1: the lock costs nothing).
-        link_tx: (usart::Tx, u8),
+        /// The host link's transmit side (the link and telemetry tasks,
+        /// both priority 1: the lock costs nothing).
+        link_tx: usart::FrameTx,
     }
 
     #[local]
@@ -223,7 +213,7 @@ mod app {
         }
         (
             Shared {
-                link_tx: (b.link_tx, 0),
+                link_tx: usart::FrameTx::new(b.link_tx),
             },
             Local {
                 control,
@@ -418,7 +408,7 @@ mod app {
             seq: received.seq,
             refused,
         };
-        cx.shared.link_tx.lock(|(tx, seq)| send_up(tx, &ack, seq));
+        cx.shared.link_tx.lock(|link| link.send(&ack));
     }
 
     /// Telemetry: encode the queued raw records and log them; report phase
@@ -444,10 +434,10 @@ mod app {
         }
     }
 
-    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8), link: &mut (usart::Tx, u8)) {
+    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8), link: &mut usart::FrameTx) {
         while let Some(record) = rx.dequeue() {
             let up = LINK_UP.load(Ordering::Relaxed);
-            log_record(&record, up.then_some((&mut link.0, &mut link.1)));
+            log_record(&record, up.then_some(&mut *link));
             if let Record::Tick(t) = record {
                 if (t.phase, t.fault) != *last {
                     defmt::info!(

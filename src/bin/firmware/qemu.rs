@@ -250,8 +250,7 @@ mod pil {
 
     /// The host's plant behind the sensor bus.
     pub struct FrontEnd {
-        pub(super) tx: usart::Tx,
-        pub(super) seq: u8,
+        pub(super) frames: usart::FrameTx,
     }
 
     impl FrontEnd {
@@ -272,27 +271,15 @@ mod pil {
 
         /// Tell the host the bus is open (an acknowledgement of nothing).
         pub(super) fn ready(&mut self) {
-            let mut wire = [0u8; 16];
-            let ready = Up::Ack {
+            self.frames.send(&Up::Ack {
                 seq: 0,
                 refused: None,
-            };
-            if let Ok(frame) = link::encode(&ready, 0, &mut wire) {
-                self.tx.write_all(frame);
-            }
+            });
         }
 
         fn send(&mut self, record: &Record) {
             let mut bytes = [0u8; MAX_RECORD_LEN];
-            let mut wire = [0u8; 2 * MAX_RECORD_LEN];
-            if let Ok(frame) = link::encode(
-                &Up::Telemetry(record.encode(&mut bytes)),
-                self.seq,
-                &mut wire,
-            ) {
-                self.tx.write_all(frame);
-            }
-            self.seq = self.seq.wrapping_add(1);
+            self.frames.send(&Up::Telemetry(record.encode(&mut bytes)));
         }
     }
 
@@ -552,7 +539,9 @@ pub fn init(dp: pac::Peripherals, _cp: cortex_m::Peripherals, rate_hz: f32) -> B
         let _ = rate_hz; // the host's plant sets the pace
                          // The receiving half is the sensor bus task's (`SensorBus::new`).
         let (tx, _rx) = crate::usart::start(pac::USART3::ptr(), 1);
-        let mut front_end = FrontEnd { tx, seq: 0 };
+        let mut front_end = FrontEnd {
+            frames: crate::usart::FrameTx::new(tx),
+        };
         // Bytes that reach a disabled USART are lost: the host sends the
         // first sample only after this.
         front_end.ready();

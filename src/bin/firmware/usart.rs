@@ -11,6 +11,8 @@
 //! once. At 460 800 baud a 70-byte telemetry frame takes 1.5 ms, which only
 //! the idle loop and the other priority-1 tasks wait for.
 
+use cable_joint::link::{encode, Up};
+use cable_joint::telemetry::MAX_RECORD_LEN;
 use stm32f4xx_hal::pac::usart1::RegisterBlock;
 
 const SR_ORE: u16 = 1 << 3;
@@ -87,5 +89,28 @@ impl Tx {
             // SAFETY: DR takes any 8-bit value.
             regs.dr().write(|w| unsafe { w.bits(u16::from(b)) });
         }
+    }
+}
+
+/// The link's frames out of a USART, numbered in order.
+pub struct FrameTx {
+    tx: Tx,
+    seq: u8,
+}
+
+impl FrameTx {
+    /// Frames out of `tx`, numbered from 0.
+    pub fn new(tx: Tx) -> Self {
+        Self { tx, seq: 0 }
+    }
+
+    /// Send `msg` as the next frame: an acknowledgement or a telemetry
+    /// record (a message that does not fit two records' bytes is not sent).
+    pub fn send(&mut self, msg: &Up) {
+        let mut wire = [0u8; 2 * MAX_RECORD_LEN];
+        if let Ok(frame) = encode(msg, self.seq, &mut wire) {
+            self.tx.write_all(frame);
+        }
+        self.seq = self.seq.wrapping_add(1);
     }
 }

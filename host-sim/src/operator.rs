@@ -12,6 +12,7 @@
 //! the next. A refusal comes back with its reason; no answer within the
 //! timeout is an error naming the request.
 
+use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
@@ -20,6 +21,7 @@ use anyhow::{bail, Context};
 use cable_joint::board::Request;
 use cable_joint::link::{self, Down, FrameReader, Pushed, Refusal, Up, MAX_WIRE_LEN};
 use cable_joint::telemetry::Record;
+use serde::Serialize;
 
 /// A byte stream to the firmware with a read timeout.
 pub trait Port: Read + Write + Send {
@@ -120,6 +122,8 @@ pub struct Client {
     port: Box<dyn Port>,
     reader: FrameReader<MAX_WIRE_LEN>,
     seq: u8,
+    /// Frames read and not yet handed out.
+    incoming: VecDeque<Frame>,
     /// Telemetry records received and not yet taken.
     pending: Vec<Record>,
     /// Frames that failed to decode (damaged on the way).
@@ -128,9 +132,17 @@ pub struct Client {
     pub ack_timeout: Duration,
 }
 
-/// One frame read from the port.
-enum Frame {
-    Ack { seq: u8, refused: Option<Refusal> },
+/// One frame from the firmware.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Frame {
+    /// The answer to the host's frame `seq`.
+    Ack {
+        /// The host frame's sequence number.
+        seq: u8,
+        /// Why it was refused (`None`: accepted).
+        refused: Option<Refusal>,
+    },
+    /// A telemetry record.
     Telemetry(Record),
 }
 
@@ -142,39 +154,44 @@ impl Client {
             port,
             reader: FrameReader::new(),
             seq: 0,
+            incoming: VecDeque::new(),
             pending: Vec::new(),
             damaged: 0,
             ack_timeout: Duration::from_secs(5),
         })
     }
 
+    /// Send `msg` (`what` names it in errors) as the next frame, without
+    /// waiting for an answer; its sequence number.
+    pub fn send<M: Serialize>(&mut self, msg: &M, what: &str) -> anyhow::Result<u8> {
+        self.seq = self.seq.wrapping_add(1);
+        let mut wire = [0u8; MAX_WIRE_LEN];
+        let frame = link::encode(msg, self.seq, &mut wire)
+            .map_err(|e| anyhow::anyhow!("encoding {what}: {e}"))?;
+        self.port
+            .write_all(frame)
+            .with_context(|| format!("sending {what}"))?;
+        self.port.flush()?;
+        Ok(self.seq)
+    }
+
     /// Send `msg` and wait for its acknowledgement; telemetry that arrives
     /// meanwhile is kept for [`Client::take_telemetry`].
     pub fn request(&mut self, msg: &Down) -> anyhow::Result<()> {
-        self.seq = self.seq.wrapping_add(1);
-        let seq = self.seq;
-        let mut wire = [0u8; MAX_WIRE_LEN];
-        let frame = link::encode(msg, seq, &mut wire)
-            .map_err(|e| anyhow::anyhow!("encoding {}: {e}", name(msg)))?;
-        self.port
-            .write_all(frame)
-            .with_context(|| format!("sending {}", name(msg)))?;
-        self.port.flush()?;
+        let seq = self.send(msg, name(msg))?;
         let deadline = Instant::now() + self.ack_timeout;
         while Instant::now() < deadline {
-            for f in self.read_frames()? {
-                match f {
-                    Frame::Ack { seq: s, refused } if s == seq => {
-                        return match refused {
-                            None => Ok(()),
-                            Some(r) => {
-                                bail!("the firmware refused {}: {}", name(msg), refusal_text(r))
-                            }
-                        };
-                    }
-                    Frame::Ack { .. } => {}
-                    Frame::Telemetry(r) => self.pending.push(r),
+            match self.next_frame()? {
+                Some(Frame::Ack { seq: s, refused }) if s == seq => {
+                    return match refused {
+                        None => Ok(()),
+                        Some(r) => {
+                            bail!("the firmware refused {}: {}", name(msg), refusal_text(r))
+                        }
+                    };
                 }
+                Some(Frame::Ack { .. }) | None => {}
+                Some(Frame::Telemetry(r)) => self.pending.push(r),
             }
         }
         bail!(
@@ -187,7 +204,8 @@ impl Client {
     /// Read what has arrived (waiting up to the port's timeout once) and
     /// return the telemetry received so far.
     pub fn poll(&mut self) -> anyhow::Result<Vec<Record>> {
-        for f in self.read_frames()? {
+        self.fill()?;
+        for f in self.incoming.drain(..) {
             if let Frame::Telemetry(r) = f {
                 self.pending.push(r);
             }
@@ -200,7 +218,17 @@ impl Client {
         std::mem::take(&mut self.pending)
     }
 
-    fn read_frames(&mut self) -> anyhow::Result<Vec<Frame>> {
+    /// The next frame, reading the port once (up to its timeout) when none
+    /// is waiting; `None` if nothing complete arrived.
+    pub fn next_frame(&mut self) -> anyhow::Result<Option<Frame>> {
+        if self.incoming.is_empty() {
+            self.fill()?;
+        }
+        Ok(self.incoming.pop_front())
+    }
+
+    /// Read the port once and decode every frame completed.
+    fn fill(&mut self) -> anyhow::Result<()> {
         let mut buf = [0u8; 512];
         let n = match self.port.read(&mut buf) {
             Ok(0) => bail!("the firmware link closed"),
@@ -208,21 +236,22 @@ impl Client {
             Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => 0,
             Err(e) => return Err(e).context("reading the firmware link"),
         };
-        let mut out = Vec::new();
         for &b in &buf[..n] {
             let Pushed::Frame(len) = self.reader.push(b) else {
                 continue;
             };
             match link::decode::<Up>(self.reader.frame(), len) {
-                Ok((_, Up::Ack { seq, refused })) => out.push(Frame::Ack { seq, refused }),
+                Ok((_, Up::Ack { seq, refused })) => {
+                    self.incoming.push_back(Frame::Ack { seq, refused })
+                }
                 Ok((_, Up::Telemetry(bytes))) => match Record::decode(bytes) {
-                    Ok(r) => out.push(Frame::Telemetry(r)),
+                    Ok(r) => self.incoming.push_back(Frame::Telemetry(r)),
                     Err(_) => self.damaged += 1,
                 },
                 Err(_) => self.damaged += 1,
             }
         }
-        Ok(out)
+        Ok(())
     }
 }
 

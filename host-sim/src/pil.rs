@@ -18,19 +18,19 @@
 //! instructions, which the records carry per tick and per stage.
 
 use std::fs::File;
-use std::io::{ErrorKind, Read, Write};
+use std::io::ErrorKind;
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
-use cable_joint::board::{Harness, Phase, Program, Request, TraceSample};
-use cable_joint::link::{self, FrameReader, Pushed, SensorFrame, Up};
+use cable_joint::board::{Phase, Program, Request, TraceSample};
+use cable_joint::link::SensorFrame;
 use cable_joint::telemetry::{Record, TickRecord};
 
 use crate::ingest::{cycle_stats, CycleStats};
-use crate::operator::{down_for, Client};
+use crate::operator::{down_for, Client, Frame};
 use crate::plant::PlantParams;
 use crate::trace::{
     record_on, record_with, Firmware, Inject, NoInjection, Recorded, Ticked, TraceOptions,
@@ -54,9 +54,8 @@ pub struct PilOptions {
 /// The firmware binary on QEMU, driven tick by tick.
 pub struct Pil {
     child: Child,
-    bus: TcpStream,
-    reader: FrameReader<256>,
-    unread: std::collections::VecDeque<u8>,
+    /// The sensor bus: samples down, the ticks' records up.
+    bus: Client,
     link: Option<Client>,
     timeout: Duration,
     out_dir: PathBuf,
@@ -153,18 +152,15 @@ impl Pil {
             None => None,
         };
         let bus = accept(&bus, &mut child, "sensor bus (USART3)", &opts.out_dir)?;
-        bus.set_read_timeout(Some(Duration::from_millis(100)))?;
         let mut pil = Self {
             child,
-            bus,
-            reader: FrameReader::new(),
-            unread: Default::default(),
+            bus: Client::new(Box::new(bus))?,
             link,
             timeout: opts.tick_timeout,
             out_dir: opts.out_dir.clone(),
         };
         // Bytes sent before the firmware opens the bus are lost.
-        if let BusUp::Record(_) = pil.read_up("the firmware's ready frame")? {
+        if let Frame::Telemetry(_) = pil.next_up("the firmware's ready frame")? {
             bail!("the firmware sent telemetry before its ready frame");
         }
         Ok(pil)
@@ -177,28 +173,15 @@ impl Pil {
         Ok(())
     }
 
-    /// The next frame up the sensor bus, decoded.
-    fn read_up(&mut self, what: &str) -> anyhow::Result<BusUp> {
+    /// The next frame up the sensor bus (`what` names it in errors).
+    fn next_up(&mut self, what: &str) -> anyhow::Result<Frame> {
         let deadline = Instant::now() + self.timeout;
         loop {
-            while let Some(b) = self.unread.pop_front() {
-                if let Pushed::Frame(len) = self.reader.push(b) {
-                    let (_, up) = link::decode::<Up>(self.reader.frame(), len)
-                        .map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
-                    return match up {
-                        Up::Ack { .. } => Ok(BusUp::Ready),
-                        Up::Telemetry(bytes) => Record::decode(bytes)
-                            .map(BusUp::Record)
-                            .map_err(|e| anyhow::anyhow!("{what}: the firmware's record: {e}")),
-                    };
-                }
+            if let Some(frame) = self.bus.next_frame()? {
+                return Ok(frame);
             }
-            let mut buf = [0u8; 512];
-            match self.bus.read(&mut buf) {
-                Ok(0) => bail!("QEMU closed the sensor bus while waiting for {what}"),
-                Ok(n) => self.unread.extend(&buf[..n]),
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
-                Err(e) => return Err(e).context("reading the sensor bus"),
+            if self.bus.damaged > 0 {
+                bail!("{what}: a frame on the sensor bus arrived damaged");
             }
             if let Some(status) = self.child.try_wait()? {
                 bail!(
@@ -215,28 +198,22 @@ impl Pil {
     fn answer(&mut self, k: usize) -> anyhow::Result<Ticked> {
         let mut origin = None;
         loop {
-            match self.read_up(&format!("answer to tick {k}"))? {
-                BusUp::Ready => bail!("tick {k}: the firmware restarted (a second ready frame)"),
-                BusUp::Record(Record::Origin(o)) => origin = Some(o),
-                BusUp::Record(Record::Tick(record)) => {
+            match self.next_up(&format!("answer to tick {k}"))? {
+                Frame::Ack { .. } => {
+                    bail!("tick {k}: the firmware restarted (a second ready frame)")
+                }
+                Frame::Telemetry(Record::Origin(o)) => origin = Some(o),
+                Frame::Telemetry(Record::Tick(record)) => {
                     return Ok(Ticked {
                         record,
                         origin,
                         drive_enabled: record.drive_enable,
                     })
                 }
-                BusUp::Record(Record::Start(_)) => {}
+                Frame::Telemetry(Record::Start(_)) => {}
             }
         }
     }
-}
-
-/// What comes up the sensor bus.
-enum BusUp {
-    /// The firmware opened the bus (once, at boot).
-    Ready,
-    /// A telemetry record (the origin on the homing tick, then the tick).
-    Record(Record),
 }
 
 impl Drop for Pil {
@@ -263,24 +240,12 @@ impl Firmware for Pil {
             // as the host harness takes it.
             client.request(&down_for(&req)?)?;
         }
-        let mut wire = [0u8; 128];
-        let frame = link::encode(
-            &SensorFrame {
-                tick: k as u32,
-                sample: *sample,
-            },
-            k as u8,
-            &mut wire,
-        )
-        .map_err(|e| anyhow::anyhow!("encoding tick {k}'s sample: {e}"))?;
-        self.bus
-            .write_all(frame)
-            .context("writing the sensor bus")?;
+        let frame = SensorFrame {
+            tick: k as u32,
+            sample: *sample,
+        };
+        self.bus.send(&frame, &format!("tick {k}'s sample"))?;
         self.answer(k)
-    }
-
-    fn harness(&mut self) -> Option<&mut Harness> {
-        None
     }
 }
 

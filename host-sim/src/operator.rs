@@ -213,6 +213,19 @@ impl Client {
         Ok(self.take_telemetry())
     }
 
+    /// Read and drop whatever has arrived, without waiting (a link whose
+    /// telemetry nobody wants must still be read, or the sender stalls
+    /// once the socket's buffer is full).
+    pub fn discard_waiting(&mut self) -> anyhow::Result<()> {
+        self.port.set_timeout(Duration::from_micros(1))?;
+        let read = self.fill();
+        self.port.set_timeout(Duration::from_millis(50))?;
+        read?;
+        self.incoming.clear();
+        self.pending.clear();
+        Ok(())
+    }
+
     /// The telemetry records received so far.
     pub fn take_telemetry(&mut self) -> Vec<Record> {
         std::mem::take(&mut self.pending)

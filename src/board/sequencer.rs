@@ -5,8 +5,11 @@
 //! 1. **Check** (drive disabled, [`Mode::Idle`]): the controller runs its
 //!    estimators for [`HomingConfig::check_s`]; any latched fault (ADC rail,
 //!    encoder jump, drive fault line) or a current-monitor reading above
-//!    [`HomingConfig::max_idle_current_a`] with the drive off ends start-up
-//!    with [`Fault::Homing`] (or the fault itself).
+//!    [`HomingConfig::max_idle_current_a`] in the check's second half ends
+//!    start-up with [`Fault::Homing`] (or the fault itself). The first
+//!    half lets the current of a drive just disabled decay: a program
+//!    that arrives while the joint moves restarts the sequence on a tick
+//!    whose sample was taken with the drive still on.
 //! 2. **Leaving** (only if the origin switch is already asserted): move away
 //!    from the switch, opposite to the search direction, until it releases.
 //! 3. **Homing**: in [`Mode::MotorPosition`], a smooth move of
@@ -42,7 +45,8 @@ use super::io::Events;
 pub struct HomingConfig {
     /// Sensor check with the drive disabled, s.
     pub check_s: f32,
-    /// Largest current-monitor reading accepted with the drive disabled, A.
+    /// Largest current-monitor reading accepted with the drive disabled
+    /// (judged in the second half of the check), A.
     pub max_idle_current_a: f32,
     /// Signed joint-angle span searched for the origin switch, rad.
     pub search_rad: f32,
@@ -417,7 +421,9 @@ impl Sequencer {
                     self.fail(ctrl);
                 } else if self.phase == Phase::Check {
                     if let Some(p) = &self.program {
-                        if math::abs(out.est.i_meas_a) > p.homing.max_idle_current_a {
+                        let settled =
+                            self.ticks_in_phase > ticks(0.5 * p.homing.check_s, ctrl.period_s());
+                        if settled && math::abs(out.est.i_meas_a) > p.homing.max_idle_current_a {
                             self.fail(ctrl);
                         }
                     }
@@ -575,10 +581,34 @@ mod tests {
         seq.start(&mut ctrl, Program::default());
         let mut raw = rest();
         raw.current = AdcCode(2048 + 400); // about 0.49 A with the drive off
-        let (_, _) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        // The first half of the check (50 ticks at 2 kHz) lets a current decay.
+        for _ in 0..50 {
+            run(&mut seq, &mut ctrl, &raw, false, false, &events);
+            assert_eq!(seq.phase(), Phase::Check);
+        }
+        run(&mut seq, &mut ctrl, &raw, false, false, &events);
         assert_eq!(seq.phase(), Phase::Failed);
         let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
         assert_eq!(out.fault, Some(Fault::Homing));
+    }
+
+    #[test]
+    fn a_program_arriving_with_the_drive_on_is_checked_once_its_current_decayed() {
+        let mut ctrl = Controller::new(config()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        seq.start(&mut ctrl, Program::default());
+        // The sample of the restart's tick and a few after it still carry
+        // the current the drive was giving (0.49 A), then it is gone.
+        let mut driven = rest();
+        driven.current = AdcCode(2048 + 400);
+        for _ in 0..10 {
+            run(&mut seq, &mut ctrl, &driven, false, false, &events);
+        }
+        for _ in 0..=90 {
+            run(&mut seq, &mut ctrl, &rest(), false, false, &events);
+        }
+        assert_eq!(seq.phase(), Phase::Homing);
     }
 
     #[test]

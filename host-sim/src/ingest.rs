@@ -27,6 +27,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use anyhow::{bail, Context};
+use cable_joint::board::Phase;
 use cable_joint::telemetry::{parse_line, Record, StartRecord, TickRecord};
 use cable_joint::units::{Extender16, GratingCount, Scales};
 use cable_joint::Config;
@@ -117,6 +118,37 @@ pub fn columns(opts: &LogOptions) -> Vec<&'static str> {
         "cycles_cascade",
     ]);
     c
+}
+
+/// A firmware log from its first row after homing. The rows of the sensor
+/// check and homing (`fw_phase` below 4) count positions from power-on,
+/// not from the origin homing takes, so a replay through them would see
+/// the origin as a jump; they are left out, and the note says where the
+/// log now starts. A log without `fw_phase`, or running from its first
+/// row, is returned whole and without a note; one that never reaches the
+/// running phase too, with a note saying so.
+pub fn after_homing(log: Log) -> (Log, Option<String>) {
+    let Some(phase) = log.col("fw_phase") else {
+        return (log, None);
+    };
+    let running = f64::from(Phase::Running.code());
+    match phase.iter().position(|&p| p == running) {
+        Some(0) => (log, None),
+        Some(first) => {
+            let t = log.col("t_s").map_or(f64::NAN, |t| t[first]);
+            let note = format!(
+                "the log starts with {first} rows of sensor check and homing (fw_phase < 4), \
+                 counted from power-on: replayed from row {} (t = {t:.3} s), where homing ended",
+                first + 1
+            );
+            let n = log.len();
+            (log.rows(first..n), Some(note))
+        }
+        None => (
+            log,
+            Some("fw_phase never reaches 4 (running): homing did not end in this log".into()),
+        ),
+    }
 }
 
 /// Convert a telemetry stream to the project's CSV log.
@@ -295,6 +327,37 @@ mod tests {
     use cable_joint::telemetry::{OriginRecord, FORMAT_VERSION, MAX_RECORD_LEN};
     use cable_joint::units::{AdcCode, MagneticCount, MotorCount};
     use cable_joint::RawSample;
+
+    fn phased(phases: &[f64]) -> Log {
+        let mut log = Log::with_columns(&["t_s", "x1_m", "fw_phase"]).unwrap();
+        for (k, &p) in phases.iter().enumerate() {
+            log.push_row(&[k as f64 * 0.5e-3, k as f64, p]).unwrap();
+        }
+        log
+    }
+
+    #[test]
+    fn after_homing_starts_a_firmware_log_where_homing_ended() {
+        let (log, note) = after_homing(phased(&[0.0, 1.0, 3.0, 3.0, 4.0, 4.0, 5.0]));
+        assert_eq!(log.col("x1_m").unwrap(), [4.0, 5.0, 6.0]);
+        assert_eq!(log.col("fw_phase").unwrap(), [4.0, 4.0, 5.0]);
+        let note = note.expect("a cut is noted");
+        assert!(note.contains("4 rows of sensor check and homing"), "{note}");
+        assert!(note.contains("row 5 (t = 0.002 s)"), "{note}");
+    }
+
+    #[test]
+    fn after_homing_keeps_a_log_running_from_its_start_or_without_phases() {
+        let (log, note) = after_homing(phased(&[4.0, 4.0]));
+        assert_eq!((log.len(), note), (2, None));
+        let mut plain = Log::with_columns(&["t_s"]).unwrap();
+        plain.push_row(&[0.0]).unwrap();
+        let (log, note) = after_homing(plain);
+        assert_eq!((log.len(), note), (1, None));
+        let (log, note) = after_homing(phased(&[0.0, 3.0, 5.0]));
+        assert_eq!(log.len(), 3);
+        assert!(note.unwrap().contains("never reaches 4"));
+    }
 
     fn line(rec: &Record) -> String {
         let mut buf = [0u8; MAX_RECORD_LEN];

@@ -29,7 +29,10 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         None => Config::default(),
     };
     let name = args.log.display().to_string();
-    let log = Log::read_with(&args.log, &Schema::project())?;
+    let (log, note) = crate::ingest::after_homing(Log::read_with(&args.log, &Schema::project())?);
+    if let Some(note) = note {
+        eprintln!("estimate: {name}: {note}");
+    }
     let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
     for d in &s.derived {
         eprintln!("estimate: {d}");

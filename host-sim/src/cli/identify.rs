@@ -127,7 +127,13 @@ fn read_logs(files: &[(Procedure, PathBuf)], p: Procedure) -> Result<Vec<(String
     files
         .iter()
         .filter(|(q, _)| *q == p)
-        .map(|(_, f)| Ok((f.display().to_string(), Log::read(f)?)))
+        .map(|(_, f)| {
+            let (log, note) = crate::ingest::after_homing(Log::read(f)?);
+            if let Some(note) = note {
+                eprintln!("{}: {note}", f.display());
+            }
+            Ok((f.display().to_string(), log))
+        })
         .collect()
 }
 

@@ -190,6 +190,20 @@ impl Log {
         Ok(log)
     }
 
+    /// The rows `range` of every column, as a log of their own.
+    ///
+    /// # Panics
+    /// If `range` reaches past the last row.
+    pub fn rows(&self, range: std::ops::Range<usize>) -> Log {
+        let mut out = Log::new();
+        for name in self.names() {
+            let col = self.col_opt(name).unwrap_or_default();
+            out.set_col_opt(name, &col[range.clone()])
+                .expect("the names of a log are valid and distinct");
+        }
+        out
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.rows

@@ -80,12 +80,7 @@ pub fn truncate(log: &crate::log::Log, t_max_s: f64) -> Result<crate::log::Log> 
     let t = log.time_s()?;
     let n = t.partition_point(|v| *v <= t_max_s);
     ensure!(n >= 10, "fewer than 10 rows before t = {t_max_s} s");
-    let mut out = crate::log::Log::new();
-    for name in log.names() {
-        let col = log.col_opt(name).unwrap_or_default();
-        out.set_col_opt(name, &col[..n])?;
-    }
-    Ok(out)
+    Ok(log.rows(0..n))
 }
 
 /// Read logs (see [`load_log`]), optionally truncated.

@@ -114,7 +114,11 @@ pub fn load_log(path: &Path, project: bool, zero: MrdlabZero) -> Result<Log> {
     } else {
         Schema::with_required(&["t_s"])
     };
-    Ok(Log::read_with(path, &schema)?)
+    let (log, note) = crate::ingest::after_homing(Log::read_with(path, &schema)?);
+    if let Some(note) = note {
+        eprintln!("{}: {note}", path.display());
+    }
+    Ok(log)
 }
 
 /// A log with its name.

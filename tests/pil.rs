@@ -101,7 +101,7 @@ fn pil_closed_loop_tracks_holds_and_faults_as_the_host_run_bit_for_bit() {
         &opts,
         &pil_options("pil-loading"),
         &|| Box::new(host_sim::trace::NoInjection),
-        &mut |_, _| {},
+        &mut |_, _, _| Ok(()),
     )
     .unwrap();
     check_identical(&cmp);
@@ -144,7 +144,7 @@ fn pil_requests_over_the_link_act_at_the_same_tick_as_on_the_host() {
         &opts,
         &pil_options("pil-operator"),
         &|| Box::new(Operator),
-        &mut |_, _| {},
+        &mut |_, _, _| Ok(()),
     )
     .unwrap();
     check_identical(&cmp);

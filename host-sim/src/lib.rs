@@ -7,6 +7,7 @@ pub mod ident;
 pub mod import;
 pub mod ingest;
 pub mod io;
+pub mod live;
 pub mod log;
 pub mod operator;
 pub mod output;

@@ -33,7 +33,7 @@ use crate::ingest::{cycle_stats, CycleStats};
 use crate::operator::{down_for, Client, Frame};
 use crate::plant::PlantParams;
 use crate::trace::{
-    record_on, record_with, Firmware, Inject, NoInjection, Recorded, Ticked, TraceOptions,
+    record_on, record_with, Firmware, Inject, NoInjection, Progress, Recorded, Ticked, TraceOptions,
 };
 
 /// How the PIL run starts QEMU.
@@ -346,12 +346,12 @@ fn arithmetic(r: &TickRecord) -> TickRecord {
 }
 
 /// Run `opts` on the PIL firmware and on the host harness, and compare.
-/// `progress(k, n)` after each PIL tick.
+/// `progress` is called after each PIL tick.
 pub fn compare(
     plant: PlantParams,
     opts: &TraceOptions,
     pil: &PilOptions,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut Progress,
 ) -> anyhow::Result<Comparison> {
     compare_with(plant, opts, pil, &|| Box::new(NoInjection), progress)
 }
@@ -365,7 +365,7 @@ pub fn compare_with(
     opts: &TraceOptions,
     pil: &PilOptions,
     inject: &dyn Fn() -> Box<dyn Inject>,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut Progress,
 ) -> anyhow::Result<Comparison> {
     anyhow::ensure!(
         !opts.probing,

@@ -226,6 +226,11 @@ pub struct NoInjection;
 
 impl Inject for NoInjection {}
 
+/// What a closed-loop run calls after each tick: the tick's number
+/// (from 1), the run's length in ticks and the tick's outcome. An error
+/// stops the run (the live view's `q`).
+pub type Progress<'a> = dyn FnMut(usize, usize, &Ticked) -> anyhow::Result<()> + 'a;
+
 /// Run the closed loop and record it.
 pub fn record(plant: PlantParams, opts: &TraceOptions) -> anyhow::Result<Recorded> {
     record_with(plant, opts, opts.config(), &mut NoInjection)
@@ -239,6 +244,17 @@ pub fn record_with(
     config: cable_joint::Config,
     inject: &mut dyn Inject,
 ) -> anyhow::Result<Recorded> {
+    record_watched(plant, opts, config, inject, &mut |_, _, _| Ok(()))
+}
+
+/// [`record_with`], calling `progress` after each tick.
+pub fn record_watched(
+    plant: PlantParams,
+    opts: &TraceOptions,
+    config: cable_joint::Config,
+    inject: &mut dyn Inject,
+    progress: &mut Progress,
+) -> anyhow::Result<Recorded> {
     let control = ControlLoop::new(config, 1).map_err(|e| anyhow::anyhow!("{e}"))?;
     record_on(
         plant,
@@ -246,20 +262,20 @@ pub fn record_with(
         config,
         inject,
         &mut Harness::new(control),
-        &mut |_, _| {},
+        progress,
     )
 }
 
 /// Run the closed loop on `firmware` (whose configuration is `config`)
-/// with `inject` acting on it, and record it; `progress(k, n)` after each
-/// tick.
+/// with `inject` acting on it, and record it, calling `progress` after
+/// each tick.
 pub fn record_on(
     plant: PlantParams,
     opts: &TraceOptions,
     config: cable_joint::Config,
     inject: &mut dyn Inject,
     firmware: &mut dyn Firmware,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut Progress,
 ) -> anyhow::Result<Recorded> {
     anyhow::ensure!(
         opts.duration_s.is_finite() && opts.duration_s > 0.0,
@@ -313,6 +329,7 @@ pub fn record_on(
             0.0
         };
         rec.samples.push(sample);
+        progress(k + 1, n, &outcome)?;
         rec.outcomes.push(outcome);
         rec.theta_true_rad.push(theta);
         rec.f_ext_true_n.push(plant.external_force_n());
@@ -323,7 +340,6 @@ pub fn record_on(
             plant.set_external_force(load(t_s + j as f64 * dt));
             plant.step();
         }
-        progress(k + 1, n);
     }
     Ok(rec)
 }

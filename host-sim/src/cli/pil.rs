@@ -4,10 +4,9 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::Context;
-
 use crate::cli;
 use crate::cli::trace::RunArgs;
+use crate::live::{ViewArg, Watch};
 use crate::output::Outputs;
 use crate::pil::{compare, PilOptions};
 
@@ -27,6 +26,9 @@ pub struct PilArgs {
     /// the run differ from the host-only one from that tick on.
     #[arg(long)]
     pub link_port: Option<u16>,
+    /// The live view of the PIL run.
+    #[command(flatten)]
+    pub view: ViewArg,
     /// Longest wait for one tick's answer, s.
     #[arg(long, default_value_t = 20.0, value_parser = cli::f64_above(0.0, 3600.0))]
     pub tick_timeout_s: f64,
@@ -45,22 +47,15 @@ pub fn run(args: PilArgs) -> anyhow::Result<()> {
         link_port: args.link_port,
         tick_timeout: Duration::from_secs_f64(args.tick_timeout_s),
     };
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "PIL {bar:40} {pos}/{len} ticks ({per_sec}, eta {eta})",
-        )
-        .context("progress bar template")?,
-    );
-    let cmp = compare(plant, &opts, &pil, &mut |k, n| {
-        if k == 1 {
-            bar.set_length(n as u64);
-        }
-        bar.set_position(k as u64);
-    })?;
-    bar.finish_and_clear();
-    let summary = cmp.to_string();
     let config = opts.config();
+    let mut watch = Watch::new(
+        args.view,
+        &format!("PIL: {} on QEMU", args.elf.display()),
+        &config,
+        "PIL {bar:40} {pos}/{len} ticks ({per_sec}, eta {eta})",
+    )?;
+    let cmp = compare(plant, &opts, &pil, &mut |k, n, o| watch.tick(k, n, o))?;
+    let summary = cmp.to_string();
     let log_opts = crate::ingest::LogOptions::default();
     let mut out = Outputs::new();
     crate::ingest::to_log(&cmp.pil.telemetry(), &config, &log_opts)?
@@ -69,6 +64,10 @@ pub fn run(args: PilArgs) -> anyhow::Result<()> {
         .stage(&mut out, args.out.join("host.csv"))?;
     out.bytes(&args.out.join("pil.txt"), summary.as_bytes())?;
     out.commit()?;
+    watch.finish(&format!(
+        "wrote {}/{{pil.csv, host.csv, pil.txt}}",
+        args.out.display()
+    ))?;
     println!("{summary}");
     eprintln!(
         "wrote {}/{{pil.csv, host.csv, pil.txt}}",

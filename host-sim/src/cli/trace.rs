@@ -9,7 +9,8 @@ use anyhow::Context;
 use crate::cli;
 use crate::output::Outputs;
 
-use crate::trace::{record, TraceOptions};
+use crate::live::{ViewArg, Watch};
+use crate::trace::{record_watched, NoInjection, TraceOptions};
 
 /// Arguments of `host-sim trace`.
 #[derive(clap::Args, Debug, Clone)]
@@ -20,6 +21,9 @@ pub struct TraceArgs {
     /// Also write the firmware logic's telemetry as a CSV log.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// The live view (the run then goes at real time).
+    #[command(flatten)]
+    pub view: ViewArg,
     /// The closed-loop run.
     #[command(flatten)]
     pub run: RunArgs,
@@ -81,7 +85,16 @@ impl RunArgs {
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let plant = crate::io::config::load_plant(args.run.plant.as_deref())?;
     let opts = args.run.options();
-    let rec = record(plant, &opts)?;
+    let config = opts.config();
+    let mut watch = Watch::new(
+        args.view,
+        "simulated prototype (host-sim trace)",
+        &config,
+        "{bar:40} {pos}/{len} ticks (eta {eta})",
+    )?;
+    let rec = record_watched(plant, &opts, config, &mut NoInjection, &mut |k, n, o| {
+        watch.tick(k, n, o)
+    })?;
     // The trace and the CSV log are written together, or neither is.
     let mut out = Outputs::new();
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -91,12 +104,13 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     if let Some(csv) = &args.csv {
         let log = crate::ingest::to_log(
             &rec.telemetry(),
-            &opts.config(),
+            &config,
             &crate::ingest::LogOptions::default(),
         )?;
         log.stage(&mut out, csv)?;
     }
     out.commit()?;
+    watch.finish(&format!("wrote {}", args.out.display()))?;
     let homed = rec
         .outcomes
         .iter()

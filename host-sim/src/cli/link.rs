@@ -20,6 +20,7 @@ use cable_joint::trajectory::Trajectory;
 
 use crate::cli;
 use crate::ingest::{to_log, LogOptions};
+use crate::live::{Live, Screen, ViewArg};
 use crate::operator::{open, Client};
 use crate::output::Outputs;
 use crate::scenario::{plan, ScenarioOptions};
@@ -49,13 +50,25 @@ pub struct LinkArgs {
     /// operator's to apply on the rig.
     #[arg(long)]
     pub scenario: Option<String>,
+    /// Scale of every segment of `--scenario` (1 = the full programme; the
+    /// same scale as `host-sim simulate --duration-scale`).
+    #[arg(long, default_value_t = 1.0, value_parser = cli::f64_above(0.0, 1e3))]
+    pub duration_scale: f64,
     /// Record the telemetry stream to this CSV log.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// The magnetic joint encoder is fitted (calibration runs): the log
+    /// gets its angle as `theta_rad`, which `host-sim identify` needs.
+    #[arg(long)]
+    pub magnetic: bool,
     /// Firmware seconds to record (default: the scenario's length plus
     /// homing, else 1 s).
     #[arg(long, value_parser = cli::f64_above(0.0, 1e5))]
     pub duration_s: Option<f64>,
+    /// The live view of the stream (recording goes on behind it; `q`
+    /// stops early and keeps what was recorded).
+    #[command(flatten)]
+    pub view: ViewArg,
     /// Give up when no telemetry arrives for this long (wall clock), s.
     #[arg(long, default_value_t = 60.0, value_parser = cli::f64_above(0.0, 1e5))]
     pub idle_timeout_s: f64,
@@ -69,9 +82,14 @@ struct Schedule {
     length_s: f64,
 }
 
-/// A scenario's commands at their firmware times.
-fn schedule(name: &str) -> anyhow::Result<Schedule> {
-    let p = plan(name, &ScenarioOptions::default())?;
+/// A scenario's commands at their firmware times, every segment's length
+/// scaled by `duration_scale`.
+fn schedule(name: &str, duration_scale: f64) -> anyhow::Result<Schedule> {
+    let opts = ScenarioOptions {
+        duration_scale,
+        ..ScenarioOptions::default()
+    };
+    let p = plan(name, &opts)?;
     let mut t = 0.0;
     let mut commands = Vec::new();
     for seg in &p.segments {
@@ -101,7 +119,11 @@ fn schedule(name: &str) -> anyhow::Result<Schedule> {
 /// `host-sim link`.
 pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
-    let scenario = args.scenario.as_deref().map(schedule).transpose()?;
+    let scenario = args
+        .scenario
+        .as_deref()
+        .map(|name| schedule(name, args.duration_scale))
+        .transpose()?;
     let mut client = Client::new(open(&args.port)?)?;
     client.request(&Down::Heartbeat)?;
     eprintln!("connected to {}", args.port);
@@ -134,19 +156,54 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         None => args.duration_s.unwrap_or(1.0),
     };
     let want_ticks = (duration_s * rate_hz).round() as u64;
-    let bar = indicatif::ProgressBar::new(want_ticks);
+    let bar = if args.view.view {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(want_ticks)
+    };
     bar.set_style(
         indicatif::ProgressStyle::with_template(
             "{bar:40} {pos}/{len} firmware ticks, phase {msg} (eta {eta})",
         )
         .context("progress bar template")?,
     );
+    let mut view = if args.view.view {
+        Some((
+            Screen::open()?,
+            Live::new(&args.port, rate_hz, config.scales),
+        ))
+    } else {
+        None
+    };
+    let recording = match &args.record {
+        Some(p) => format!("recording {}", p.display()),
+        None => "not recording".to_string(),
+    };
+    let mut stopped = false;
     let mut records: Vec<Record> = Vec::new();
     let (mut first_tick, mut homed_tick, mut last_beat) = (None::<u32>, None::<u32>, 0u32);
     let mut last_data = Instant::now();
     let idle = Duration::from_secs_f64(args.idle_timeout_s);
     loop {
         let got = client.poll()?;
+        if let Some((screen, live)) = &mut view {
+            for r in &got {
+                if let Record::Tick(t) = r {
+                    live.push(t);
+                }
+            }
+            live.set_note(format!(
+                "{recording} · {:.1} of {duration_s:.1} s · {} damaged frames",
+                first_tick
+                    .zip(live.last_tick())
+                    .map_or(0.0, |(a, b)| f64::from(b.wrapping_sub(a)) / rate_hz),
+                client.damaged
+            ));
+            if screen.refresh(live)? {
+                stopped = true;
+                break;
+            }
+        }
         if got.is_empty() {
             if last_data.elapsed() > idle {
                 bail!(
@@ -191,6 +248,29 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     }
     records.extend(client.take_telemetry());
     bar.finish_and_clear();
+    let mut written = String::from("nothing recorded");
+    if let Some(path) = &args.record {
+        let mut out = Outputs::new();
+        to_log(
+            &records,
+            &config,
+            &LogOptions {
+                magnetic: args.magnetic,
+            },
+        )?
+        .stage(&mut out, path)?;
+        out.commit()?;
+        written = format!("wrote {}", path.display());
+    }
+    if let Some((mut screen, mut live)) = view {
+        if !stopped {
+            live.set_note(&written);
+            screen.hold(&mut live)?;
+        }
+    }
+    if stopped {
+        eprintln!("stopped with q before the end; what was received is kept");
+    }
     let ticks = records
         .iter()
         .filter(|r| matches!(r, Record::Tick(_)))
@@ -199,11 +279,8 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         "received {ticks} tick records ({} damaged frames)",
         client.damaged
     );
-    if let Some(path) = &args.record {
-        let mut out = Outputs::new();
-        to_log(&records, &config, &LogOptions::default())?.stage(&mut out, path)?;
-        out.commit()?;
-        eprintln!("wrote {}", path.display());
+    if args.record.is_some() {
+        eprintln!("{written}");
     }
     Ok(())
 }

@@ -48,10 +48,11 @@ say() { printf -- '--- %s\n' "$*"; }
 
 say "tools"
 rustup target add "$TARGET" >/dev/null
-if ! command -v qemu-system-arm >/dev/null || ! command -v arm-none-eabi-size >/dev/null; then
+if ! command -v qemu-system-arm >/dev/null || ! command -v arm-none-eabi-size >/dev/null \
+  || ! command -v tmux >/dev/null; then
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq qemu-system-arm binutils-arm-none-eabi
+  $SUDO apt-get install -y -qq qemu-system-arm binutils-arm-none-eabi tmux
 fi
 command -v flip-link >/dev/null || cargo install flip-link --locked
 command -v defmt-print >/dev/null || cargo install defmt-print --locked

@@ -2,19 +2,22 @@
 # The rig workflow under QEMU, step by step, each step one command (README,
 # "Operating the prototype"): the PIL firmware on QEMU with the simulated
 # prototype stands in for the rig, and `host-sim link` operates it through
-# the firmware's link exactly as it would the prototype's USART2.
+# the firmware's link exactly as it would the prototype's USART2. Each
+# `host-sim pil` run is one power-on of the "rig".
 #
 #   1. "flash": build the PIL firmware (cargo fw-pil);
-#   2. identification data: a calibration run (simulated here: host-sim
-#      simulate jae-ident) and `host-sim identify` on it, which writes
-#      identified.toml;
-#   3. start the "rig": host-sim pil with the link on a local TCP port;
-#   4. connect, load identified.toml (validated here and on the MCU),
-#      set the telemetry rate (every tick here; on the rig's 460 800 baud
-#      link, every 10th: 200 Hz), run the loading scenario's command list
-#      (check, homing, 30° and hold) and record the stream as a CSV log
-#      with progress on the terminal;
-#   5. read the recorded log back (host-sim estimate replays it).
+#   2. power on, connect, and record an identification run through the
+#      link: the jae-ident scenario's commands (check, homing, motor-side
+#      sines, joint free) at a quarter of their length, telemetry every
+#      tick, the magnetic encoder fitted;
+#   3. `host-sim identify` on that recording writes identified.toml;
+#   4. power on again, connect, load identified.toml (validated here and on
+#      the MCU), run the loading scenario's commands (check, homing, 30° and
+#      hold; the simulated 50 g weight is hung at 4.5 s) and record 5.5 s, with
+#      the live view on (in a tmux pane, read back into live-view.txt, and
+#      closed with q as a person would);
+#   5. read the recorded log back: host-sim estimate replays it from where
+#      homing ended, with the fused force and its bound.
 #
 # Outputs in $RIG_OUT (default target/rig). Usage: scripts/rig-qemu.sh
 set -euo pipefail
@@ -25,34 +28,75 @@ LOCKED=(--locked)
 [ "${QEMU_UNLOCKED:-0}" = 1 ] && LOCKED=()
 mkdir -p "$OUT"
 say() { printf -- '--- %s\n' "$*"; }
-HOST_SIM=(cargo run -q "${LOCKED[@]}" -p host-sim --)
+cargo build -q "${LOCKED[@]}" -p host-sim
+HOST_SIM="${CARGO_TARGET_DIR:-target}/debug/host-sim"
+
+# Power the "rig" on: the PIL firmware with the link on $PORT, for $1
+# seconds of firmware time, its files in $OUT/$2; returns when the link's
+# port accepts a connection.
+RIG=""
+power_on() {
+  "$HOST_SIM" pil --elf "$OUT/firmware-pil.elf" --out "$OUT/$2" --link-port "$PORT" \
+    --duration-s "$1" "${@:3}" >"$OUT/$2.stdout" 2>"$OUT/$2.stderr" &
+  RIG=$!
+  for _ in $(seq 1 300); do
+    (exec 3<>"/dev/tcp/127.0.0.1/$PORT") 2>/dev/null && return 0
+    kill -0 "$RIG" 2>/dev/null || { cat "$OUT/$2.stderr"; return 1; }
+    sleep 0.2
+  done
+  echo "the rig's link never opened" >&2
+  return 1
+}
+trap '[ -n "$RIG" ] && kill "$RIG" 2>/dev/null || true' EXIT
 
 say "1. the PIL firmware (cargo fw-pil)"
 cargo fw-pil "${LOCKED[@]}"
 cp "${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/release/firmware" "$OUT/firmware-pil.elf"
 
-say "2. identification: calibration run and host-sim identify"
-"${HOST_SIM[@]}" simulate --scenario jae-ident --out "$OUT/calibration.csv"
-"${HOST_SIM[@]}" identify --procedure jae --log "$OUT/calibration.csv" --config-out "$OUT/identified.toml" \
-  --json "$OUT/identified.json" | tail -n 5
-
-say "3. the rig: PIL firmware on QEMU, link on tcp:127.0.0.1:$PORT"
-"${HOST_SIM[@]}" pil --elf "$OUT/firmware-pil.elf" --out "$OUT/pil" --link-port "$PORT" \
-  --duration-s 6 --load-at-s 4.5 --drive-fault-at-s -1 >"$OUT/pil.stdout" 2>"$OUT/pil.stderr" &
-RIG=$!
-trap 'kill $RIG 2>/dev/null || true' EXIT
-for _ in $(seq 1 100); do
-  (exec 3<>"/dev/tcp/127.0.0.1/$PORT") 2>/dev/null && break
-  sleep 0.2
-done
-
-say "4. operate it: configuration, telemetry rate, the loading scenario, recording"
-"${HOST_SIM[@]}" link --port "tcp:127.0.0.1:$PORT" --config "$OUT/identified.toml" \
-  --decimation 1 --scenario loading --duration-s 3 --record "$OUT/loading.csv"
+say "2. identification run through the link (jae-ident, quarter length)"
+power_on 15 pil-ident --drive-fault-at-s -1 --load-n 0
+"$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --decimation 1 --scenario jae-ident \
+  --duration-scale 0.25 --magnetic --record "$OUT/calibration.csv"
 wait "$RIG"
-trap - EXIT
 
-say "5. the recorded log, replayed through the core"
-"${HOST_SIM[@]}" estimate --log "$OUT/loading.csv" --config "$OUT/identified.toml" \
+say "3. host-sim identify on the recorded run"
+"$HOST_SIM" identify --procedure jae --log "$OUT/calibration.csv" --config-out "$OUT/identified.toml" \
+  --json "$OUT/identified.json" | tail -n 8
+
+say "4. the loading scenario with identified.toml, recorded, with the live view"
+power_on 7 pil-loading --load-at-s 4.5 --drive-fault-at-s -1
+LINK=("$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --config "$OUT/identified.toml"
+  --decimation 1 --scenario loading --duration-s 5.5 --record "$OUT/loading.csv")
+if command -v tmux >/dev/null; then
+  # A person at a terminal: the view is read back from the pane at the end
+  # of the run, then closed with q.
+  TMUX_SOCKET="rig-qemu-$$"
+  rm -f "$OUT/link.rc"
+  tmux -L "$TMUX_SOCKET" new-session -d -s rig -x 140 -y 40 \
+    "$(printf '%q ' "${LINK[@]}") --view 2>$(printf '%q' "$OUT/link.stderr"); echo \$? > $(printf '%q' "$OUT/link.rc"); sleep 600"
+  for _ in $(seq 1 1500); do
+    tmux -L "$TMUX_SOCKET" capture-pane -p -t rig >"$OUT/live-view.txt"
+    grep -q "run finished: q quits" "$OUT/live-view.txt" && break
+    [ -f "$OUT/link.rc" ] && break
+    sleep 0.4
+  done
+  tmux -L "$TMUX_SOCKET" send-keys -t rig q
+  for _ in $(seq 1 100); do [ -f "$OUT/link.rc" ] && break; sleep 0.2; done
+  tmux -L "$TMUX_SOCKET" kill-server || true
+  cat "$OUT/link.stderr"
+  echo "the live view at the end of the run ($OUT/live-view.txt):"
+  cat "$OUT/live-view.txt"
+  [ "$(cat "$OUT/link.rc" 2>/dev/null)" = 0 ] || { echo "host-sim link failed" >&2; exit 1; }
+  grep -q "run finished: q quits" "$OUT/live-view.txt"
+  grep -q "phase running" "$OUT/live-view.txt"
+else
+  echo "(tmux not installed: recording without the live view)"
+  "${LINK[@]}"
+fi
+wait "$RIG"
+RIG=""
+
+say "5. the recorded log, replayed through the core from where homing ended"
+"$HOST_SIM" estimate --log "$OUT/loading.csv" --config "$OUT/identified.toml" \
   --out "$OUT/loading-estimate.csv"
 say "rig workflow under QEMU passed ($OUT)"

@@ -335,13 +335,7 @@ fn series(points: &VecDeque<Point>, width: u16, f: impl Fn(&Point) -> f64) -> Ve
 type Trace = (&'static str, Color, Vec<(f64, f64)>);
 
 /// One chart: its lines over `x`, the y range fitted to what is shown.
-fn chart(
-    frame: &mut Frame,
-    area: Rect,
-    title: Line<'static>,
-    x: [f64; 2],
-    lines: &[Trace],
-) {
+fn chart(frame: &mut Frame, area: Rect, title: Line<'static>, x: [f64; 2], lines: &[Trace]) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for (_, _, data) in lines {
         for &(_, y) in data {

@@ -134,11 +134,6 @@ impl Live {
         self.finished = true;
     }
 
-    /// The newest tick counter.
-    pub fn last_tick(&self) -> Option<u32> {
-        self.last.map(|r| r.tick)
-    }
-
     /// Tick records taken in.
     pub fn records(&self) -> u64 {
         self.records
@@ -155,94 +150,12 @@ impl Live {
         ])
         .areas(frame.area());
         frame.render_widget(Paragraph::new(self.header()), head);
-        let p = &self.points;
-        let last = p.back().copied();
+        let last = self.points.back().copied();
         let t1 = last.map_or(WINDOW_S, |l| l.t_s.max(WINDOW_S));
         let x = [t1 - WINDOW_S, t1];
-        let title = |name: &str, value: String| {
-            Line::from(vec![
-                Span::styled(
-                    format!(" {name} "),
-                    Style::new().add_modifier(Modifier::BOLD),
-                ),
-                Span::raw(value),
-            ])
-        };
-        let angle_title = title(
-            "joint angle, deg",
-            last.map_or(String::new(), |l| {
-                format!("reference {:.2}  estimate {:.2} ", l.ref_deg, l.est_deg)
-            }),
-        );
-        chart(
-            frame,
-            angle,
-            angle_title,
-            x,
-            &[
-                (
-                    "reference",
-                    Color::Yellow,
-                    series(p, angle.width, |q| q.ref_deg),
-                ),
-                (
-                    "estimate",
-                    Color::Cyan,
-                    series(p, angle.width, |q| q.est_deg),
-                ),
-            ],
-        );
-        let force_title = title(
-            "external force, N",
-            last.map_or(String::new(), |l| {
-                format!(
-                    "estimate {:.2}  bound [{:.2}, {:.2}] ",
-                    l.force_n, l.lo_n, l.hi_n
-                )
-            }),
-        );
-        chart(
-            frame,
-            force,
-            force_title,
-            x,
-            &[
-                ("lower", Color::DarkGray, series(p, force.width, |q| q.lo_n)),
-                ("upper", Color::DarkGray, series(p, force.width, |q| q.hi_n)),
-                (
-                    "estimate",
-                    Color::Green,
-                    series(p, force.width, |q| q.force_n),
-                ),
-            ],
-        );
-        let current_title = title(
-            "motor current, A",
-            last.map_or(String::new(), |l| {
-                format!(
-                    "command {:.3}  measured {:.3} ",
-                    l.current_ref_a, l.current_a
-                )
-            }),
-        );
-        chart(
-            frame,
-            current,
-            current_title,
-            x,
-            &[
-                (
-                    "command",
-                    Color::Yellow,
-                    series(p, current.width, |q| q.current_ref_a),
-                ),
-                (
-                    "measured",
-                    Color::Magenta,
-                    series(p, current.width, |q| q.current_a),
-                ),
-            ],
-        );
+        for (panel, area) in PANELS.iter().zip([angle, force, current]) {
+            chart(frame, area, panel, &self.points, x);
+        }
         frame.render_widget(Paragraph::new(self.footer()), foot);
     }
 
@@ -317,6 +230,88 @@ fn fault_text(code: u8) -> String {
     Fault::from_code(code).map_or_else(|| "unknown code".to_string(), |f| f.to_string())
 }
 
+/// One line of a chart: its legend, colour, and value at a tick.
+struct Trace {
+    name: &'static str,
+    color: Color,
+    value: fn(&Point) -> f64,
+}
+
+/// One chart of the view: its title, the newest values written after it,
+/// and its lines.
+struct Panel {
+    name: &'static str,
+    readout: fn(&Point) -> String,
+    lines: &'static [Trace],
+}
+
+/// The view's charts, top to bottom.
+const PANELS: [Panel; 3] = [
+    Panel {
+        name: "joint angle, deg",
+        readout: |l| format!("reference {:.2}  estimate {:.2} ", l.ref_deg, l.est_deg),
+        lines: &[
+            Trace {
+                name: "reference",
+                color: Color::Yellow,
+                value: |q| q.ref_deg,
+            },
+            Trace {
+                name: "estimate",
+                color: Color::Cyan,
+                value: |q| q.est_deg,
+            },
+        ],
+    },
+    Panel {
+        name: "external force, N",
+        readout: |l| {
+            format!(
+                "estimate {:.2}  bound [{:.2}, {:.2}] ",
+                l.force_n, l.lo_n, l.hi_n
+            )
+        },
+        lines: &[
+            Trace {
+                name: "lower",
+                color: Color::DarkGray,
+                value: |q| q.lo_n,
+            },
+            Trace {
+                name: "upper",
+                color: Color::DarkGray,
+                value: |q| q.hi_n,
+            },
+            Trace {
+                name: "estimate",
+                color: Color::Green,
+                value: |q| q.force_n,
+            },
+        ],
+    },
+    Panel {
+        name: "motor current, A",
+        readout: |l| {
+            format!(
+                "command {:.3}  measured {:.3} ",
+                l.current_ref_a, l.current_a
+            )
+        },
+        lines: &[
+            Trace {
+                name: "command",
+                color: Color::Yellow,
+                value: |q| q.current_ref_a,
+            },
+            Trace {
+                name: "measured",
+                color: Color::Magenta,
+                value: |q| q.current_a,
+            },
+        ],
+    },
+];
+
 /// At most two points per column of a chart `width` cells wide (braille
 /// has two dots per cell), each column's newest sample.
 fn series(points: &VecDeque<Point>, width: u16, f: impl Fn(&Point) -> f64) -> Vec<(f64, f64)> {
@@ -331,13 +326,15 @@ fn series(points: &VecDeque<Point>, width: u16, f: impl Fn(&Point) -> f64) -> Ve
         .collect()
 }
 
-/// A chart's line: its legend, colour and points.
-type Trace = (&'static str, Color, Vec<(f64, f64)>);
-
-/// One chart: its lines over `x`, the y range fitted to what is shown.
-fn chart(frame: &mut Frame, area: Rect, title: Line<'static>, x: [f64; 2], lines: &[Trace]) {
+/// One panel's chart over `x`, the y range fitted to what is shown.
+fn chart(frame: &mut Frame, area: Rect, panel: &Panel, points: &VecDeque<Point>, x: [f64; 2]) {
+    let data: Vec<Vec<(f64, f64)>> = panel
+        .lines
+        .iter()
+        .map(|line| series(points, area.width, line.value))
+        .collect();
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for (_, _, data) in lines {
+    for data in &data {
         for &(_, y) in data {
             lo = lo.min(y);
             hi = hi.max(y);
@@ -348,14 +345,23 @@ fn chart(frame: &mut Frame, area: Rect, title: Line<'static>, x: [f64; 2], lines
     }
     let pad = ((hi - lo) * 0.1).max(1e-3 * hi.abs().max(lo.abs()).max(1.0));
     let y = [lo - pad, hi + pad];
-    let datasets = lines
+    let title = Line::from(vec![
+        Span::styled(
+            format!(" {} ", panel.name),
+            Style::new().add_modifier(Modifier::BOLD),
+        ),
+        Span::raw(points.back().map_or(String::new(), panel.readout)),
+    ]);
+    let datasets = panel
+        .lines
         .iter()
-        .map(|(name, color, data)| {
+        .zip(&data)
+        .map(|(line, data)| {
             Dataset::default()
-                .name(*name)
+                .name(line.name)
                 .marker(Marker::Braille)
                 .graph_type(GraphType::Line)
-                .style(Style::new().fg(*color))
+                .style(Style::new().fg(line.color))
                 .data(data)
         })
         .collect();

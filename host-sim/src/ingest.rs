@@ -151,6 +151,16 @@ pub fn after_homing(log: Log) -> (Log, Option<String>) {
     }
 }
 
+/// [`after_homing`] for a command that replays the log `name`: the note,
+/// if any, goes to stderr.
+pub fn after_homing_noted(log: Log, name: &str) -> Log {
+    let (log, note) = after_homing(log);
+    if let Some(note) = note {
+        eprintln!("{name}: {note}");
+    }
+    log
+}
+
 /// Convert a telemetry stream to the project's CSV log.
 pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow::Result<Log> {
     let start: Option<StartRecord> = records.iter().find_map(|r| match r {

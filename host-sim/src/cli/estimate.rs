@@ -29,10 +29,8 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         None => Config::default(),
     };
     let name = args.log.display().to_string();
-    let (log, note) = crate::ingest::after_homing(Log::read_with(&args.log, &Schema::project())?);
-    if let Some(note) = note {
-        eprintln!("estimate: {name}: {note}");
-    }
+    let log = Log::read_with(&args.log, &Schema::project())?;
+    let log = crate::ingest::after_homing_noted(log, &name);
     let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
     for d in &s.derived {
         eprintln!("estimate: {d}");

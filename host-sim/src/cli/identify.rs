@@ -128,11 +128,9 @@ fn read_logs(files: &[(Procedure, PathBuf)], p: Procedure) -> Result<Vec<(String
         .iter()
         .filter(|(q, _)| *q == p)
         .map(|(_, f)| {
-            let (log, note) = crate::ingest::after_homing(Log::read(f)?);
-            if let Some(note) = note {
-                eprintln!("{}: {note}", f.display());
-            }
-            Ok((f.display().to_string(), log))
+            let name = f.display().to_string();
+            let log = crate::ingest::after_homing_noted(Log::read(f)?, &name);
+            Ok((name, log))
         })
         .collect()
 }

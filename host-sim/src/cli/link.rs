@@ -182,21 +182,31 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let mut stopped = false;
     let mut records: Vec<Record> = Vec::new();
     let (mut first_tick, mut homed_tick, mut last_beat) = (None::<u32>, None::<u32>, 0u32);
+    let mut elapsed = 0u64;
     let mut last_data = Instant::now();
     let idle = Duration::from_secs_f64(args.idle_timeout_s);
     loop {
         let got = client.poll()?;
-        if let Some((screen, live)) = &mut view {
-            for r in &got {
-                if let Record::Tick(t) = r {
+        let mut now = None;
+        for r in &got {
+            if let Record::Tick(t) = r {
+                now = Some(t.tick);
+                bar.set_message(format!("{} fault {}", t.phase, t.fault));
+                if homed_tick.is_none() && t.phase == Phase::Running.code() {
+                    homed_tick = Some(t.tick);
+                }
+                if let Some((_, live)) = &mut view {
                     live.push(t);
                 }
             }
+        }
+        if let Some(now) = now {
+            elapsed = u64::from(now.wrapping_sub(*first_tick.get_or_insert(now)));
+        }
+        if let Some((screen, live)) = &mut view {
             live.set_note(format!(
                 "{recording} · {:.1} of {duration_s:.1} s · {} damaged frames",
-                first_tick
-                    .zip(live.last_tick())
-                    .map_or(0.0, |(a, b)| f64::from(b.wrapping_sub(a)) / rate_hz),
+                elapsed as f64 / rate_hz,
                 client.damaged
             ));
             if screen.refresh(live)? {
@@ -215,20 +225,8 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
             continue;
         }
         last_data = Instant::now();
-        let mut now = None;
-        for r in &got {
-            if let Record::Tick(t) = r {
-                now = Some(t.tick);
-                bar.set_message(format!("{} fault {}", t.phase, t.fault));
-                if homed_tick.is_none() && t.phase == Phase::Running.code() {
-                    homed_tick = Some(t.tick);
-                }
-            }
-        }
         records.extend(got);
         let Some(now) = now else { continue };
-        let start = *first_tick.get_or_insert(now);
-        let elapsed = u64::from(now.wrapping_sub(start));
         bar.set_position(elapsed.min(want_ticks));
         if let Some(homed) = homed_tick {
             let since_s = f64::from(now.wrapping_sub(homed)) / rate_hz;

@@ -114,11 +114,11 @@ pub fn load_log(path: &Path, project: bool, zero: MrdlabZero) -> Result<Log> {
     } else {
         Schema::with_required(&["t_s"])
     };
-    let (log, note) = crate::ingest::after_homing(Log::read_with(path, &schema)?);
-    if let Some(note) = note {
-        eprintln!("{}: {note}", path.display());
-    }
-    Ok(log)
+    let log = Log::read_with(path, &schema)?;
+    Ok(crate::ingest::after_homing_noted(
+        log,
+        &path.display().to_string(),
+    ))
 }
 
 /// A log with its name.

@@ -51,6 +51,13 @@ pub enum Fault {
     /// `limits.min_tension_fraction` of the preload: the cable is going
     /// slack or broke.
     TransmissionSlack,
+    /// Cable 0 (rope wheel to slider 1) went slack: the motor's torque
+    /// balance read its tension below the slack limit while the motor paid
+    /// out more cable than slider 1 took up, by more than the cable could
+    /// shorten between that limit and zero tension. Slider 1's friction can
+    /// hold cable 1 taut (so [`Fault::TransmissionSlack`] stays quiet)
+    /// while the motor unwinds without bound.
+    Cable0Slack,
     /// The control task missed its deadline.
     Overrun,
     /// The drive reported a fault on its fault line.
@@ -93,6 +100,7 @@ impl Fault {
             Fault::OverCurrent => 15,
             Fault::I2t => 16,
             Fault::CurrentTracking => 17,
+            Fault::Cable0Slack => 18,
             Fault::Overrun => 20,
             Fault::DriveFault => 21,
             Fault::OriginDuringMotion => 22,
@@ -119,6 +127,7 @@ impl Fault {
             15 => Fault::OverCurrent,
             16 => Fault::I2t,
             17 => Fault::CurrentTracking,
+            18 => Fault::Cable0Slack,
             20 => Fault::Overrun,
             21 => Fault::DriveFault,
             22 => Fault::OriginDuringMotion,
@@ -152,6 +161,9 @@ impl fmt::Display for Fault {
             Fault::I2t => f.write_str("winding I2t above its continuous rating"),
             Fault::CurrentTracking => f.write_str("measured current does not follow the reference"),
             Fault::TransmissionSlack => f.write_str("cable slack: cable-1 tension below its limit"),
+            Fault::Cable0Slack => {
+                f.write_str("cable 0 slack: the motor paid out cable that slider 1 did not take up")
+            }
             Fault::Overrun => f.write_str("control tick overran its deadline"),
             Fault::DriveFault => f.write_str("drive reported a fault"),
             Fault::OriginDuringMotion => f.write_str("origin switch hit during motion"),
@@ -178,7 +190,7 @@ mod tests {
                 seen[code as usize] = true;
             }
         }
-        assert_eq!(seen.iter().filter(|s| **s).count(), 20);
+        assert_eq!(seen.iter().filter(|s| **s).count(), 21);
         assert_eq!(Fault::from_code(5), None, "code 5 is retired");
         assert_eq!(Fault::from_code(0), None);
         assert_eq!(Fault::code_of(None), 0);

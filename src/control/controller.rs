@@ -236,6 +236,9 @@ struct Derived {
     i2t_weight: f32,
     /// Per-tick weight of the current-error low-pass, `T / tau_error`.
     current_error_weight: f32,
+    /// Cable 1's compliance `1 / K_w1`, m/N, which bounds cable 0's (see
+    /// the cable-0 checks in [`Controller::step_timed`]).
+    cable1_m_per_n: f32,
 }
 
 impl Derived {
@@ -259,6 +262,7 @@ impl Derived {
             max_magnetic_step: 0,
             i2t_weight: 0.0,
             current_error_weight: 0.0,
+            cable1_m_per_n: 0.0,
         };
         derived.set_steps(c);
         derived
@@ -285,6 +289,7 @@ impl Derived {
         let l = &c.limits;
         self.i2t_weight = (period_s / l.thermal_time_constant_s).min(1.0);
         self.current_error_weight = (period_s / l.current_error_time_s).min(1.0);
+        self.cable1_m_per_n = 1.0 / c.stretch.cable1_n_m;
     }
 }
 
@@ -359,6 +364,13 @@ pub struct State {
     i2t_a2: f32,
     /// Low-passed current-tracking error, A.
     current_error_a: f32,
+    /// Cable 0's elongation `phi r_m / z_i - x1` on the last tick the
+    /// motor's torque balance read its tension at or above the slack
+    /// limit, m.
+    cable0_taut_m: f32,
+    /// A lower bound on cable 0's elongation at zero tension, m: the
+    /// highest `elongation - reach` seen since the check was armed.
+    cable0_floor_m: f32,
     tick: u32,
     command_tick: u32,
     primed: bool,
@@ -499,6 +511,8 @@ impl Controller {
             // The winding does not cool down because the counters were zeroed.
             i2t_a2: _,
             current_error_a,
+            cable0_taut_m,
+            cable0_floor_m,
             tick,
             command_tick,
             primed,
@@ -535,6 +549,8 @@ impl Controller {
         *last_current_a = 0.0;
         *drive_was_enabled = false;
         *current_error_a = 0.0;
+        *cable0_taut_m = 0.0;
+        *cable0_floor_m = 0.0;
         *command_tick = *tick;
         *primed = false;
     }
@@ -720,6 +736,43 @@ impl Controller {
             && tension1_stretch_n.max(tension1_motor_n) < cfg.slack_limit_n()
         {
             fault = fault.or(Some(Fault::TransmissionSlack));
+        }
+        // Cable 0 (rope wheel to slider 1): two checks on its elongation
+        // `e = phi r_m / z_i - x1`, which falls below its zero-tension
+        // value `e_0` only when the rope is slack. Cable 0 is the shortest
+        // stretch of rope in the machine, so `K_w0 >= K_w1` and cable 1's
+        // compliance bounds its stretch. A stuck slider 1 can keep cable 1
+        // taut while the motor unwinds, so the check above cannot see this.
+        //
+        // 1. Fast, on the motor's reading: its torque balance puts the
+        //    tension below the limit (no slider friction sits between the
+        //    two) and the motor has paid out more than `limit / K_w1`
+        //    since it last read the limit: more than the rope can shorten
+        //    from the limit to zero tension.
+        // 2. Without the motor's reading (which the drive's own friction,
+        //    or a dither's currents, can hold above the limit while the
+        //    rope hangs slack): quasi-statically `T_0 <= T_1 + 2 f_sc1`
+        //    (slider 1's friction, static up to twice its kinetic band), so
+        //    on every tick `e - reach <= e_0` with
+        //    `reach = (T_1 + 2 f_sc1 + limit) / K_w1`. The highest such
+        //    value seen is a floor under `e_0`; `e` below it is slack.
+        let cable0_m = phi_rad * m.rope_wheel_radius_m / m.gear_ratio - x1_m;
+        let reach_m = (tension1_stretch_n.max(0.0)
+            + 2.0 * math::abs(cfg.tension.f_sc1_n)
+            + cfg.slack_limit_n())
+            * d.cable1_m_per_n;
+        if !st.primed || cfg.limits.min_tension_fraction <= 0.0 {
+            st.cable0_taut_m = cable0_m;
+            st.cable0_floor_m = cable0_m - reach_m;
+        } else {
+            if dob_out.tension1_n >= cfg.slack_limit_n() {
+                st.cable0_taut_m = cable0_m;
+            }
+            st.cable0_floor_m = st.cable0_floor_m.max(cable0_m - reach_m);
+            let payout_m = st.cable0_taut_m - cable0_m;
+            if payout_m > cfg.slack_limit_n() * d.cable1_m_per_n || cable0_m < st.cable0_floor_m {
+                fault = fault.or(Some(Fault::Cable0Slack));
+            }
         }
         timer.mark(Stage::Dob);
 
@@ -959,6 +1012,118 @@ mod tests {
         let (_, slack) = slack_runs(cfg, raw);
         assert!(slack.est.tension1_stretch_n < cfg.slack_limit_n());
         assert_ne!(slack.fault, Some(Fault::TransmissionSlack));
+    }
+
+    /// Cable 0 slack: the motor pays out rope (its shaft turning negative,
+    /// no current, so its torque balance reads no tension) while slider 1
+    /// stays put. The fault latches once the payout passes the slack
+    /// limit's stretch on a cable as compliant as cable 1, not before; the
+    /// same payout taken up by slider 1 (the cable taut, the whole
+    /// transmission moving) is no fault.
+    #[test]
+    fn a_motor_paying_out_rope_that_slider_1_does_not_take_up_is_cable_0_slack() {
+        let mut cfg = Config::default();
+        cfg.dob.use_measured_current = true;
+        // The drive's current stays at zero (the rope carries nothing):
+        // not a tracking fault here.
+        cfg.limits.max_current_error_a = 0.0;
+        let m = cfg.machine;
+        let s = cfg.scales;
+        let limit_m = cfg.slack_limit_n() / cfg.stretch.cable1_n_m;
+        let rope_m_per_rad = m.rope_wheel_radius_m / m.gear_ratio;
+        // Pay out `payout_m` of rope; slider 1 follows by
+        // `follow` of it. Returns the payout when the fault latched, if it did.
+        let run = |payout_m: f32, follow: f32| {
+            let mut c = Controller::new(cfg).unwrap();
+            c.set_command(Command {
+                mode: Mode::MotorPosition,
+                trajectory: Trajectory::Hold { angle_rad: 0.0 },
+            });
+            let mut raw = at_rest();
+            // The DOB starts from the modelled preload: let it read the
+            // idle rope first (0.5 s, many times its time constant).
+            for _ in 0..1000 {
+                assert_eq!(c.step(&raw).fault, None);
+            }
+            // Slowly (2 s), so the shaft's inertia and viscous drag, which
+            // the torque balance reads as rope tension, stay far below the
+            // limit.
+            for k in 1..=4000 {
+                let out_m = payout_m * k as f32 / 4000.0;
+                let phi_rad = -out_m / rope_m_per_rad;
+                let counts = phi_rad / (2.0 * math::PI) * s.motor_counts_per_rev as f32;
+                raw.motor = MotorCount(counts as i32 as u16);
+                raw.grating1 = GratingCount((-follow * out_m / s.grating_m_per_count) as i32);
+                let out = c.step(&raw);
+                if let Some(f) = out.fault {
+                    assert_eq!(f, Fault::Cable0Slack);
+                    assert!(!out.drive_enable);
+                    return Some(out_m);
+                }
+            }
+            None
+        };
+        assert_eq!(run(0.8 * limit_m, 0.0), None, "within the limit's stretch");
+        let at_m = run(2.0 * limit_m, 0.0).expect("twice the limit's stretch paid out");
+        assert!(
+            (at_m - limit_m).abs() < 0.02 * limit_m,
+            "latched at {at_m} m of payout, limit {limit_m} m"
+        );
+        assert_eq!(run(2.0 * limit_m, 1.0), None, "slider 1 took the rope up");
+    }
+
+    /// Cable 0 slack while the motor's torque balance still reads the full
+    /// preload (a drive whose friction or currents the DOB does not model):
+    /// with slider 1 stuck, a payout beyond what cable 1's tension plus
+    /// twice slider 1's friction band (and the limit) could stretch the
+    /// rope is slack; less is not.
+    #[test]
+    fn a_payout_beyond_any_stretch_the_tensions_allow_is_cable_0_slack_whatever_the_motor_reads() {
+        let mut cfg = Config::default();
+        cfg.dob.use_measured_current = true;
+        cfg.limits.max_current_error_a = 0.0;
+        let m = cfg.machine;
+        let s = cfg.scales;
+        let preload_a =
+            cfg.tension.f_0_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
+        let code = (preload_a / s.adc_a_per_code + s.adc_zero_code) as u16;
+        // Cable 1 holds the preload (slider 1 and the joint at zero).
+        let reach_m = (cfg.tension.f_0_n + 2.0 * cfg.tension.f_sc1_n + cfg.slack_limit_n())
+            / cfg.stretch.cable1_n_m;
+        let rope_m_per_rad = m.rope_wheel_radius_m / m.gear_ratio;
+        let run = |payout_m: f32| {
+            let mut c = Controller::new(cfg).unwrap();
+            c.set_command(Command {
+                mode: Mode::MotorPosition,
+                trajectory: Trajectory::Hold { angle_rad: 0.0 },
+            });
+            let mut raw = RawSample {
+                current: AdcCode(code),
+                ..Default::default()
+            };
+            for _ in 0..1000 {
+                assert_eq!(c.step(&raw).fault, None);
+            }
+            for k in 1..=4000 {
+                let out_m = payout_m * k as f32 / 4000.0;
+                let counts =
+                    -out_m / rope_m_per_rad / (2.0 * math::PI) * s.motor_counts_per_rev as f32;
+                raw.motor = MotorCount(counts as i32 as u16);
+                let out = c.step(&raw);
+                assert!(out.est.tension1_stretch_n > 0.9 * cfg.tension.f_0_n);
+                if let Some(f) = out.fault {
+                    assert_eq!(f, Fault::Cable0Slack);
+                    return Some(out_m);
+                }
+            }
+            None
+        };
+        assert_eq!(run(0.9 * reach_m), None, "within the reach");
+        let at_m = run(2.0 * reach_m).expect("twice the reach paid out");
+        assert!(
+            (at_m - reach_m).abs() < 0.02 * reach_m,
+            "latched at {at_m} m of payout, reach {reach_m} m"
+        );
     }
 
     /// Hold the motor at zero and turn the joint positive by slider 2 alone

@@ -223,6 +223,11 @@ struct CaseRec {
     fault_confirmed: bool,
     /// The slack check's threshold, N (the controller's own).
     slack_limit_n: f64,
+    /// When the current stretch of a truly slack cable (cable 0 or 1
+    /// carrying no tension, drive on, no fault yet) began, s.
+    slack_since_s: Option<f64>,
+    /// The longest such stretch, s.
+    slack_undetected_s: f64,
     /// The range check's limit, rad.
     range_rad: f64,
 }
@@ -247,7 +252,7 @@ impl CaseRec {
         let t = &r.tensions;
         let cable_slack = t.rope_n.min(t.cable1_n) < self.slack_limit_n;
         let (confirmed, truth) = match f {
-            Fault::TransmissionSlack => (
+            Fault::TransmissionSlack | Fault::Cable0Slack => (
                 cable_slack,
                 format!(
                     "true tensions: cable 0 {:.2} N, cable 1 {:.2} N, limit {:.2} N",
@@ -279,6 +284,17 @@ impl CaseRec {
 
 impl Recorder for CaseRec {
     fn record(&mut self, r: &TickRecord) {
+        // A slack cable (no tension at all; the checks' limit, a fraction
+        // of the preload, is their margin) that the checks have not caught
+        // yet: the drive still on and no fault (on the tick a fault latches
+        // the drive is off).
+        let t = &r.tensions;
+        if self.fault.is_none() && r.output.drive_enable && t.rope_n.min(t.cable1_n) <= 0.0 {
+            let since = *self.slack_since_s.get_or_insert(r.t_s);
+            self.slack_undetected_s = self.slack_undetected_s.max(r.t_s - since);
+        } else {
+            self.slack_since_s = None;
+        }
         if self.fault.is_none() {
             if let Some(f) = r.output.fault {
                 self.fault = Some(self.judge(r, f));
@@ -374,6 +390,12 @@ pub struct Protocol {
     /// inside its range and both cables taut, any other fault): the false
     /// ones.
     pub false_faults: usize,
+    /// The longest time a cable was truly slack (cable 0 or 1 carrying no
+    /// tension) with the drive on and no fault latched, s: how late the
+    /// checks catch a lost transmission (0 when it never happened).
+    pub slack_undetected_s: f64,
+    /// The case of that longest stretch (empty when none).
+    pub slack_undetected_case: String,
 }
 
 /// Run the seed's loading protocol (every angle, weight and direction) on
@@ -415,6 +437,10 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                     continue;
                 }
                 rec.close_noload();
+                if rec.slack_undetected_s > out.slack_undetected_s {
+                    out.slack_undetected_s = rec.slack_undetected_s;
+                    out.slack_undetected_case = format!("{a}° {m} g {d:?}");
+                }
                 if let Some(f) = rec.fault {
                     out.faults.push(format!("{a}° {m} g {d:?}: {f}"));
                     out.false_faults += usize::from(!rec.fault_confirmed);
@@ -588,5 +614,43 @@ mod tests {
         );
         rec.judge(&tick(10.0, 10.0, 0.0), Fault::Overrun);
         assert!(!rec.fault_confirmed, "no plant check: counted false");
+        rec.judge(&tick(0.0, 6.0, 0.0), Fault::Cable0Slack);
+        assert!(rec.fault_confirmed, "cable 0 slack, read by the motor");
+        rec.judge(&tick(5.0, 6.0, 0.0), Fault::Cable0Slack);
+        assert!(!rec.fault_confirmed, "both cables above the limit");
+    }
+
+    /// A cable carrying no tension with the drive on counts as undetected
+    /// until the tick its fault latches (drive off); a taut tick in
+    /// between (even one below the checks' limit) ends a stretch.
+    #[test]
+    fn slack_counts_as_undetected_from_the_first_slack_tick_to_the_fault() {
+        let mut rec = CaseRec {
+            slack_limit_n: 3.9,
+            range_rad: 1.5,
+            ..CaseRec::default()
+        };
+        let at = |t_s: f64, rope_n: f64, fault: Option<Fault>| {
+            let mut r = tick(rope_n, 6.0, 0.0);
+            r.t_s = t_s;
+            r.output.drive_enable = fault.is_none();
+            r.output.fault = fault;
+            r
+        };
+        rec.record(&at(1.0, 0.0, None));
+        rec.record(&at(1.1, 0.0, None));
+        rec.record(&at(1.2, 1.0, None));
+        assert!((rec.slack_undetected_s - 0.1).abs() < 1e-12);
+        for k in 0..=30 {
+            rec.record(&at(2.0 + 0.01 * f64::from(k), 0.0, None));
+        }
+        rec.record(&at(2.35, 0.0, Some(Fault::Cable0Slack)));
+        rec.record(&at(3.0, 0.0, None));
+        assert!(
+            (rec.slack_undetected_s - 0.3).abs() < 1e-9,
+            "{}",
+            rec.slack_undetected_s
+        );
+        assert!(rec.fault_confirmed);
     }
 }

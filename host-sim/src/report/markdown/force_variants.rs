@@ -128,6 +128,19 @@ struct Row {
     faults: Option<String>,
 }
 
+/// How late the slack checks were: the longest time a cable was truly
+/// slack with the drive still on.
+fn slack_line(p: &Protocol) -> String {
+    if p.slack_undetected_case.is_empty() {
+        "slack undetected: never (no cable without tension while the drive was on)".to_owned()
+    } else {
+        format!(
+            "slack undetected: at most {:.3} s with a cable carrying no tension and the drive on ({})",
+            p.slack_undetected_s, p.slack_undetected_case
+        )
+    }
+}
+
 /// One row of the variant table: `cells` are the variant, rate and
 /// estimate columns.
 fn table_row(s: &mut String, cells: [&str; 3], st: &SourceStats, p: &Protocol, row: &Row) {
@@ -251,6 +264,7 @@ pub fn markdown(results: &[VariantResult]) -> String {
         for f in &r.passive.faults {
             let _ = writeln!(s, "  * fault: {f}");
         }
+        let _ = writeln!(s, "  * {}", slack_line(&r.passive));
         for (text, ok) in probing_goal_lines(r) {
             let _ = writeln!(s, "  * {}: {text}", if ok { "met" } else { "NOT met" });
         }
@@ -258,6 +272,7 @@ pub fn markdown(results: &[VariantResult]) -> String {
             for f in &p.faults {
                 let _ = writeln!(s, "  * fault with probing: {f}");
             }
+            let _ = writeln!(s, "  * with probing, {}", slack_line(p));
         }
     }
     let _ = writeln!(
@@ -272,7 +287,10 @@ pub fn markdown(results: &[VariantResult]) -> String {
          way) and keeps at the datasheet's unless that fit's %sigma is below 5 % and the datasheet's rate \
          lies outside the fit's uncertainty; the notes above give the \
          rate each variant used against the plant's. The slack check needs both cable 1's stretch and the \
-         motor's torque balance (less slider 1's friction band) below the limit.\n"
+         motor's torque balance (less slider 1's friction band) below the limit; cable 0 (the motor's) is \
+         slack (fault 18) when the motor pays out rope that slider 1 does not take up, beyond what the \
+         limit or the tensions allow. \"Slack undetected\" is the longest time a cable carried no tension \
+         at all with the drive on and no fault latched yet.\n"
     );
     s
 }

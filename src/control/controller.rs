@@ -239,6 +239,10 @@ struct Derived {
     /// Cable 1's compliance `1 / K_w1`, m/N, which bounds cable 0's (see
     /// the cable-0 checks in [`Controller::step_timed`]).
     cable1_m_per_n: f32,
+    /// Rope the rope wheel winds per motor radian, `r_m / z_i`, m/rad.
+    rope_m_per_motor_rad: f32,
+    /// Check 1's payout limit, `limit / K_w1`, m.
+    cable0_payout_m: f32,
 }
 
 impl Derived {
@@ -263,6 +267,8 @@ impl Derived {
             i2t_weight: 0.0,
             current_error_weight: 0.0,
             cable1_m_per_n: 0.0,
+            rope_m_per_motor_rad: 1.0 / m.motor_rad_per_cable_m(),
+            cable0_payout_m: 0.0,
         };
         derived.set_steps(c);
         derived
@@ -290,6 +296,7 @@ impl Derived {
         self.i2t_weight = (period_s / l.thermal_time_constant_s).min(1.0);
         self.current_error_weight = (period_s / l.current_error_time_s).min(1.0);
         self.cable1_m_per_n = 1.0 / c.stretch.cable1_n_m;
+        self.cable0_payout_m = c.slack_limit_n() * self.cable1_m_per_n;
     }
 }
 
@@ -756,7 +763,7 @@ impl Controller {
         //    on every tick `e - reach <= e_0` with
         //    `reach = (T_1 + 2 f_sc1 + limit) / K_w1`. The highest such
         //    value seen is a floor under `e_0`; `e` below it is slack.
-        let cable0_m = phi_rad * m.rope_wheel_radius_m / m.gear_ratio - x1_m;
+        let cable0_m = phi_rad * d.rope_m_per_motor_rad - x1_m;
         let reach_m = (tension1_stretch_n.max(0.0)
             + 2.0 * math::abs(cfg.tension.f_sc1_n)
             + cfg.slack_limit_n())
@@ -770,7 +777,7 @@ impl Controller {
             }
             st.cable0_floor_m = st.cable0_floor_m.max(cable0_m - reach_m);
             let payout_m = st.cable0_taut_m - cable0_m;
-            if payout_m > cfg.slack_limit_n() * d.cable1_m_per_n || cable0_m < st.cable0_floor_m {
+            if payout_m > d.cable0_payout_m || cable0_m < st.cable0_floor_m {
                 fault = fault.or(Some(Fault::Cable0Slack));
             }
         }
@@ -1001,12 +1008,8 @@ mod tests {
     fn a_stretch_that_reads_slack_while_the_motor_holds_the_preload_is_no_fault() {
         let mut cfg = Config::default();
         cfg.dob.use_measured_current = true;
-        let m = &cfg.machine;
-        let preload_a =
-            cfg.tension.f_0_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
-        let code = (preload_a / cfg.scales.adc_a_per_code + cfg.scales.adc_zero_code) as u16;
         let raw = RawSample {
-            current: AdcCode(code),
+            current: preload_current(&cfg),
             ..Default::default()
         };
         let (_, slack) = slack_runs(cfg, raw);
@@ -1022,46 +1025,10 @@ mod tests {
     /// transmission moving) is no fault.
     #[test]
     fn a_motor_paying_out_rope_that_slider_1_does_not_take_up_is_cable_0_slack() {
-        let mut cfg = Config::default();
-        cfg.dob.use_measured_current = true;
-        // The drive's current stays at zero (the rope carries nothing):
-        // not a tracking fault here.
-        cfg.limits.max_current_error_a = 0.0;
-        let m = cfg.machine;
-        let s = cfg.scales;
+        let cfg = cable0_config();
         let limit_m = cfg.slack_limit_n() / cfg.stretch.cable1_n_m;
-        let rope_m_per_rad = m.rope_wheel_radius_m / m.gear_ratio;
-        // Pay out `payout_m` of rope; slider 1 follows by
-        // `follow` of it. Returns the payout when the fault latched, if it did.
         let run = |payout_m: f32, follow: f32| {
-            let mut c = Controller::new(cfg).unwrap();
-            c.set_command(Command {
-                mode: Mode::MotorPosition,
-                trajectory: Trajectory::Hold { angle_rad: 0.0 },
-            });
-            let mut raw = at_rest();
-            // The DOB starts from the modelled preload: let it read the
-            // idle rope first (0.5 s, many times its time constant).
-            for _ in 0..1000 {
-                assert_eq!(c.step(&raw).fault, None);
-            }
-            // Slowly (2 s), so the shaft's inertia and viscous drag, which
-            // the torque balance reads as rope tension, stay far below the
-            // limit.
-            for k in 1..=4000 {
-                let out_m = payout_m * k as f32 / 4000.0;
-                let phi_rad = -out_m / rope_m_per_rad;
-                let counts = phi_rad / (2.0 * math::PI) * s.motor_counts_per_rev as f32;
-                raw.motor = MotorCount(counts as i32 as u16);
-                raw.grating1 = GratingCount((-follow * out_m / s.grating_m_per_count) as i32);
-                let out = c.step(&raw);
-                if let Some(f) = out.fault {
-                    assert_eq!(f, Fault::Cable0Slack);
-                    assert!(!out.drive_enable);
-                    return Some(out_m);
-                }
-            }
-            None
+            pay_out_rope(cfg, at_rest().current, payout_m, follow, |_| {})
         };
         assert_eq!(run(0.8 * limit_m, 0.0), None, "within the limit's stretch");
         let at_m = run(2.0 * limit_m, 0.0).expect("twice the limit's stretch paid out");
@@ -1079,44 +1046,14 @@ mod tests {
     /// rope is slack; less is not.
     #[test]
     fn a_payout_beyond_any_stretch_the_tensions_allow_is_cable_0_slack_whatever_the_motor_reads() {
-        let mut cfg = Config::default();
-        cfg.dob.use_measured_current = true;
-        cfg.limits.max_current_error_a = 0.0;
-        let m = cfg.machine;
-        let s = cfg.scales;
-        let preload_a =
-            cfg.tension.f_0_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
-        let code = (preload_a / s.adc_a_per_code + s.adc_zero_code) as u16;
+        let cfg = cable0_config();
         // Cable 1 holds the preload (slider 1 and the joint at zero).
         let reach_m = (cfg.tension.f_0_n + 2.0 * cfg.tension.f_sc1_n + cfg.slack_limit_n())
             / cfg.stretch.cable1_n_m;
-        let rope_m_per_rad = m.rope_wheel_radius_m / m.gear_ratio;
         let run = |payout_m: f32| {
-            let mut c = Controller::new(cfg).unwrap();
-            c.set_command(Command {
-                mode: Mode::MotorPosition,
-                trajectory: Trajectory::Hold { angle_rad: 0.0 },
-            });
-            let mut raw = RawSample {
-                current: AdcCode(code),
-                ..Default::default()
-            };
-            for _ in 0..1000 {
-                assert_eq!(c.step(&raw).fault, None);
-            }
-            for k in 1..=4000 {
-                let out_m = payout_m * k as f32 / 4000.0;
-                let counts =
-                    -out_m / rope_m_per_rad / (2.0 * math::PI) * s.motor_counts_per_rev as f32;
-                raw.motor = MotorCount(counts as i32 as u16);
-                let out = c.step(&raw);
+            pay_out_rope(cfg, preload_current(&cfg), payout_m, 0.0, |out| {
                 assert!(out.est.tension1_stretch_n > 0.9 * cfg.tension.f_0_n);
-                if let Some(f) = out.fault {
-                    assert_eq!(f, Fault::Cable0Slack);
-                    return Some(out_m);
-                }
-            }
-            None
+            })
         };
         assert_eq!(run(0.9 * reach_m), None, "within the reach");
         let at_m = run(2.0 * reach_m).expect("twice the reach paid out");
@@ -1124,6 +1061,70 @@ mod tests {
             (at_m - reach_m).abs() < 0.02 * reach_m,
             "latched at {at_m} m of payout, reach {reach_m} m"
         );
+    }
+
+    /// The cable-0 tests' configuration: the DOB on the measured current,
+    /// which the tests set and the drive never follows (not a tracking
+    /// fault here).
+    fn cable0_config() -> Config {
+        let mut cfg = Config::default();
+        cfg.dob.use_measured_current = true;
+        cfg.limits.max_current_error_a = 0.0;
+        cfg
+    }
+
+    /// The current-monitor code of a motor holding the preload on cable 0.
+    fn preload_current(cfg: &Config) -> AdcCode {
+        let m = &cfg.machine;
+        let preload_a =
+            cfg.tension.f_0_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
+        AdcCode((preload_a / cfg.scales.adc_a_per_code + cfg.scales.adc_zero_code) as u16)
+    }
+
+    /// Hold the motor at zero with `current` measured, then pay out
+    /// `payout_m` of rope while slider 1 follows by `follow` of it; `each`
+    /// sees every output of the payout. The payout at which cable 0's fault
+    /// latched (the drive off), if it did.
+    fn pay_out_rope(
+        cfg: Config,
+        current: AdcCode,
+        payout_m: f32,
+        follow: f32,
+        each: impl Fn(&Output),
+    ) -> Option<f32> {
+        let s = cfg.scales;
+        let rope_m_per_rad = 1.0 / cfg.machine.motor_rad_per_cable_m();
+        let mut c = Controller::new(cfg).unwrap();
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        });
+        let mut raw = RawSample {
+            current,
+            ..Default::default()
+        };
+        // The DOB starts from the modelled preload: let it read the idle
+        // rope first (0.5 s, many times its time constant).
+        for _ in 0..1000 {
+            assert_eq!(c.step(&raw).fault, None);
+        }
+        // Slowly (2 s), so the shaft's inertia and viscous drag, which the
+        // torque balance reads as rope tension, stay far below the limit.
+        for k in 1..=4000 {
+            let out_m = payout_m * k as f32 / 4000.0;
+            let phi_rad = -out_m / rope_m_per_rad;
+            let counts = phi_rad / (2.0 * math::PI) * s.motor_counts_per_rev as f32;
+            raw.motor = MotorCount(counts as i32 as u16);
+            raw.grating1 = GratingCount((-follow * out_m / s.grating_m_per_count) as i32);
+            let out = c.step(&raw);
+            each(&out);
+            if let Some(f) = out.fault {
+                assert_eq!(f, Fault::Cable0Slack);
+                assert!(!out.drive_enable);
+                return Some(out_m);
+            }
+        }
+        None
     }
 
     /// Hold the motor at zero and turn the joint positive by slider 2 alone

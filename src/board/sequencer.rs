@@ -580,8 +580,9 @@ mod tests {
         let events = Events::new();
         seq.start(&mut ctrl, Program::default());
         let mut raw = rest();
-        raw.current = AdcCode(2048 + 400); // about 0.49 A with the drive off
-                                           // The first half of the check (50 ticks at 2 kHz) lets a current decay.
+        // About 0.49 A with the drive off. The first half of the check (50
+        // ticks at 2 kHz) lets a current decay.
+        raw.current = AdcCode(2048 + 400);
         for _ in 0..50 {
             run(&mut seq, &mut ctrl, &raw, false, false, &events);
             assert_eq!(seq.phase(), Phase::Check);

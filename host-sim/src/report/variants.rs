@@ -590,13 +590,18 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_fault_is_true_only_when_the_plants_state_shows_its_cause() {
-        let mut rec = CaseRec {
+    /// A case recorder with the default plant's slack limit and range.
+    fn case_rec() -> CaseRec {
+        CaseRec {
             slack_limit_n: 3.9,
             range_rad: 1.5,
             ..CaseRec::default()
-        };
+        }
+    }
+
+    #[test]
+    fn a_fault_is_true_only_when_the_plants_state_shows_its_cause() {
+        let mut rec = case_rec();
         let msg = rec.judge(&tick(0.2, 6.0, 0.0), Fault::TransmissionSlack);
         assert!(rec.fault_confirmed, "cable 0 slack: {msg}");
         rec.judge(&tick(6.0, 3.0, 0.0), Fault::TransmissionSlack);
@@ -625,11 +630,7 @@ mod tests {
     /// between (even one below the checks' limit) ends a stretch.
     #[test]
     fn slack_counts_as_undetected_from_the_first_slack_tick_to_the_fault() {
-        let mut rec = CaseRec {
-            slack_limit_n: 3.9,
-            range_rad: 1.5,
-            ..CaseRec::default()
-        };
+        let mut rec = case_rec();
         let at = |t_s: f64, rope_n: f64, fault: Option<Fault>| {
             let mut r = tick(rope_n, 6.0, 0.0);
             r.t_s = t_s;

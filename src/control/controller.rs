@@ -20,7 +20,7 @@ use crate::fusion::{self, Fusion, FusionIn, FusionState};
 use crate::jae::{self, JaeState};
 use crate::math;
 use crate::model::{sig, AddedState, Signals};
-use crate::probe::{Probe, ProbeState};
+use crate::probe::{Averaged, Probe, ProbeState};
 use crate::trajectory::{Reference, Trajectory};
 use crate::units::{AdcCode, DacCode, Extender16, GratingCount, MagneticCount, MotorCount};
 
@@ -356,6 +356,9 @@ pub struct State {
     probe: ProbeState,
     /// The last tick dithered (the probe state is reset when a hold ends).
     probing: bool,
+    /// The probe's means over the last whole dither period, once it
+    /// publishes them (`None` when not probing).
+    probe_mean: Option<Averaged>,
     /// `Q[F_1']`'s Coulomb part (model C's sign terms), N.
     tension_friction_n: f32,
     cascade: CascadeState,
@@ -375,6 +378,10 @@ pub struct State {
     /// motor's torque balance read its tension at or above the slack
     /// limit, m.
     cable0_taut_m: f32,
+    /// While probing: the period mean of cable 0's elongation at the last
+    /// block whose mean reading of the motor was at or above the slack
+    /// limit, m (`None` until one is, and when not probing).
+    cable0_mean_taut_m: Option<f32>,
     /// A lower bound on cable 0's elongation at zero tension, m: the
     /// highest `elongation - reach` seen since the check was armed.
     cable0_floor_m: f32,
@@ -509,6 +516,7 @@ impl Controller {
             fusion,
             probe,
             probing,
+            probe_mean,
             tension_friction_n,
             cascade,
             stretch_force_n,
@@ -519,6 +527,7 @@ impl Controller {
             i2t_a2: _,
             current_error_a,
             cable0_taut_m,
+            cable0_mean_taut_m,
             cable0_floor_m,
             tick,
             command_tick,
@@ -549,6 +558,7 @@ impl Controller {
         *fusion = FusionState::default();
         probe.restart();
         *probing = false;
+        *probe_mean = None;
         *tension_friction_n = 0.0;
         *cascade = CascadeState::default();
         *stretch_force_n = 0.0;
@@ -557,6 +567,7 @@ impl Controller {
         *drive_was_enabled = false;
         *current_error_a = 0.0;
         *cable0_taut_m = 0.0;
+        *cable0_mean_taut_m = None;
         *cable0_floor_m = 0.0;
         *command_tick = *tick;
         *primed = false;
@@ -763,20 +774,44 @@ impl Controller {
         //    on every tick `e - reach <= e_0` with
         //    `reach = (T_1 + 2 f_sc1 + limit) / K_w1`. The highest such
         //    value seen is a floor under `e_0`; `e` below it is slack.
+        //
+        // While probing, check 1 also runs on the means over the last whole
+        // dither period of the motor's reading and of `e`: the dither's
+        // currents lift the instantaneous reading above the limit once a
+        // period with the rope slack, which re-arms the check on each tick
+        // every period and can hide the payout. The means keep the check's
+        // bound: a mean tension at the limit puts the mean of `e` at most
+        // `limit / K_w0` above `e_0` (the tension is `K_w0 (e - e_0)` where
+        // positive, zero where slack), and a mean of `e` below `e_0` means
+        // the rope hung slack during that period. Either check latches. (A
+        // rope already slack when the first mean is published leaves the
+        // means nothing taut to compare with: check 2 stands.)
         let cable0_m = phi_rad * d.rope_m_per_motor_rad - x1_m;
-        let reach_m = (tension1_stretch_n.max(0.0)
-            + 2.0 * math::abs(cfg.tension.f_sc1_n)
-            + cfg.slack_limit_n())
-            * d.cable1_m_per_n;
+        let limit_n = cfg.slack_limit_n();
+        let reach_m =
+            (tension1_stretch_n.max(0.0) + 2.0 * math::abs(cfg.tension.f_sc1_n) + limit_n)
+                * d.cable1_m_per_n;
         if !st.primed || cfg.limits.min_tension_fraction <= 0.0 {
             st.cable0_taut_m = cable0_m;
             st.cable0_floor_m = cable0_m - reach_m;
+            st.cable0_mean_taut_m = None;
         } else {
-            if dob_out.tension1_n >= cfg.slack_limit_n() {
+            if dob_out.tension1_n >= limit_n {
                 st.cable0_taut_m = cable0_m;
             }
+            let mut payout_m = st.cable0_taut_m - cable0_m;
+            match st.probe_mean {
+                Some(p) => {
+                    if p.tension1_dob_n >= limit_n {
+                        st.cable0_mean_taut_m = Some(p.cable0_m);
+                    }
+                    if let Some(taut_m) = st.cable0_mean_taut_m {
+                        payout_m = payout_m.max(taut_m - p.cable0_m);
+                    }
+                }
+                None => st.cable0_mean_taut_m = None,
+            }
             st.cable0_floor_m = st.cable0_floor_m.max(cable0_m - reach_m);
-            let payout_m = st.cable0_taut_m - cable0_m;
             if payout_m > d.cable0_payout_m || cable0_m < st.cable0_floor_m {
                 fault = fault.or(Some(Fault::Cable0Slack));
             }
@@ -802,8 +837,15 @@ impl Controller {
             let (angle_rad, vel_rad_s) = d.probe.dither(&st.probe);
             reference.angle_rad += angle_rad;
             reference.vel_rad_s += vel_rad_s;
-            let values = [fused.f_ext_n, fused.lo_n, fused.hi_n];
-            if let Some(p) = d.probe.update(&mut st.probe, values) {
+            let values = Averaged {
+                f_ext_n: fused.f_ext_n,
+                lo_n: fused.lo_n,
+                hi_n: fused.hi_n,
+                tension1_dob_n: dob_out.tension1_n,
+                cable0_m,
+            };
+            st.probe_mean = d.probe.update(&mut st.probe, values);
+            if let Some(p) = st.probe_mean {
                 fused.f_ext_n = p.f_ext_n;
                 fused.lo_n = p.lo_n;
                 fused.hi_n = p.hi_n;
@@ -811,6 +853,7 @@ impl Controller {
             }
         } else if st.probing {
             st.probe.restart();
+            st.probe_mean = None;
         }
         st.probing = probing;
         if !st.primed {
@@ -1028,7 +1071,7 @@ mod tests {
         let cfg = cable0_config();
         let limit_m = cfg.slack_limit_n() / cfg.stretch.cable1_n_m;
         let run = |payout_m: f32, follow: f32| {
-            pay_out_rope(cfg, at_rest().current, payout_m, follow, |_| {})
+            pay_out_rope(cfg, |_| at_rest().current, payout_m, follow, |_| {})
         };
         assert_eq!(run(0.8 * limit_m, 0.0), None, "within the limit's stretch");
         let at_m = run(2.0 * limit_m, 0.0).expect("twice the limit's stretch paid out");
@@ -1051,9 +1094,15 @@ mod tests {
         let reach_m = (cfg.tension.f_0_n + 2.0 * cfg.tension.f_sc1_n + cfg.slack_limit_n())
             / cfg.stretch.cable1_n_m;
         let run = |payout_m: f32| {
-            pay_out_rope(cfg, preload_current(&cfg), payout_m, 0.0, |out| {
-                assert!(out.est.tension1_stretch_n > 0.9 * cfg.tension.f_0_n);
-            })
+            pay_out_rope(
+                cfg,
+                |_| preload_current(&cfg),
+                payout_m,
+                0.0,
+                |out| {
+                    assert!(out.est.tension1_stretch_n > 0.9 * cfg.tension.f_0_n);
+                },
+            )
         };
         assert_eq!(run(0.9 * reach_m), None, "within the reach");
         let at_m = run(2.0 * reach_m).expect("twice the reach paid out");
@@ -1062,6 +1111,60 @@ mod tests {
             "latched at {at_m} m of payout, reach {reach_m} m"
         );
     }
+
+    /// Cable 0 slack while probing: the rope taut at the preload through
+    /// the hold's first periods, then slack while the motor pays out, the
+    /// dither's currents swinging the motor's torque balance by twice the
+    /// slack limit either side of its mean once a period. The
+    /// instantaneous reading would re-arm check 1 every period (a quarter
+    /// of the limit's stretch is paid out per period here); over a whole
+    /// period it reads no tension, and check 1 latches within two periods'
+    /// payout of the limit's stretch. With the rope taut throughout and
+    /// slider 1 taking it up, it does not.
+    #[test]
+    fn a_dithers_current_swing_does_not_hide_a_slack_cable_0_while_probing() {
+        let mut cfg = cable0_config();
+        cfg.probe.enabled = true;
+        let limit_m = cfg.slack_limit_n() / cfg.stretch.cable1_n_m;
+        let period_ticks = crate::probe::Probe::block_ticks(&cfg.probe, cfg.period_s())
+            * crate::probe::BLOCKS as u32;
+        let per_n = |n: f32| {
+            let m = &cfg.machine;
+            let a = n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
+            a / cfg.scales.adc_a_per_code
+        };
+        let zero = cfg.scales.adc_zero_code;
+        // The motor's reading: the preload while the hold settles, then
+        // `mean_n`, plus a swing of twice the limit in phase with the dither.
+        let swing = |mean_n: f32| {
+            move |tick: u32| {
+                let phase = 2.0 * math::PI * (tick % period_ticks) as f32 / period_ticks as f32;
+                let mean_n = if tick < SETTLE_TICKS {
+                    cfg.tension.f_0_n
+                } else {
+                    mean_n
+                };
+                let n = mean_n + 2.0 * cfg.slack_limit_n() * math::sin(phase);
+                AdcCode((zero + per_n(n)) as u16)
+            }
+        };
+        // The payout takes 2 s: eight periods at the default 4 Hz.
+        let at_m = pay_out_rope(cfg, swing(0.0), 2.0 * limit_m, 0.0, |_| {})
+            .expect("the rope reads no tension over a whole period: slack");
+        let per_period_m = 2.0 * limit_m * period_ticks as f32 / 4000.0;
+        assert!(
+            at_m <= limit_m + 2.0 * per_period_m,
+            "latched at {at_m} m of payout, limit {limit_m} m, {per_period_m} m per period"
+        );
+        assert_eq!(
+            pay_out_rope(cfg, swing(cfg.tension.f_0_n), 2.0 * limit_m, 1.0, |_| {}),
+            None,
+            "slider 1 took the rope up"
+        );
+    }
+
+    /// Ticks [`pay_out_rope`] holds still before paying out.
+    const SETTLE_TICKS: u32 = 1000;
 
     /// The cable-0 tests' configuration: the DOB on the measured current,
     /// which the tests set and the drive never follows (not a tracking
@@ -1081,13 +1184,14 @@ mod tests {
         AdcCode((preload_a / cfg.scales.adc_a_per_code + cfg.scales.adc_zero_code) as u16)
     }
 
-    /// Hold the motor at zero with `current` measured, then pay out
+    /// Hold the motor at zero with the current-monitor code `current(tick)`
+    /// measured, then pay out
     /// `payout_m` of rope while slider 1 follows by `follow` of it; `each`
     /// sees every output of the payout. The payout at which cable 0's fault
     /// latched (the drive off), if it did.
     fn pay_out_rope(
         cfg: Config,
-        current: AdcCode,
+        current: impl Fn(u32) -> AdcCode,
         payout_m: f32,
         follow: f32,
         each: impl Fn(&Output),
@@ -1099,13 +1203,11 @@ mod tests {
             mode: Mode::MotorPosition,
             trajectory: Trajectory::Hold { angle_rad: 0.0 },
         });
-        let mut raw = RawSample {
-            current,
-            ..Default::default()
-        };
+        let mut raw = RawSample::default();
         // The DOB starts from the modelled preload: let it read the idle
         // rope first (0.5 s, many times its time constant).
-        for _ in 0..1000 {
+        for tick in 0..SETTLE_TICKS {
+            raw.current = current(tick);
             assert_eq!(c.step(&raw).fault, None);
         }
         // Slowly (2 s), so the shaft's inertia and viscous drag, which the
@@ -1116,6 +1218,7 @@ mod tests {
             let counts = phi_rad / (2.0 * math::PI) * s.motor_counts_per_rev as f32;
             raw.motor = MotorCount(counts as i32 as u16);
             raw.grating1 = GratingCount((-follow * out_m / s.grating_m_per_count) as i32);
+            raw.current = current(SETTLE_TICKS + k);
             let out = c.step(&raw);
             each(&out);
             if let Some(f) = out.fault {

@@ -20,9 +20,15 @@
 //! amplitude peak to peak). The report measures accuracy against tip motion
 //! on every plant variant.
 //!
+//! The same window also averages two quantities the cable-0 slack check
+//! needs (`crate::control::controller`): the motor's reading of the cable
+//! tension and cable 0's elongation. The dither's currents swing that
+//! reading above the slack limit once a period even with the rope hanging
+//! slack, so while probing the check compares period means.
+//!
 //! Cost per tick: a phasor rotation (four multiplications; no
 //! transcendental function, the phasor is reset exactly once per period) and
-//! three additions. The window is exact without a buffer of every sample: the
+//! five additions. The window is exact without a buffer of every sample: the
 //! period is eight blocks of whole ticks, each block's sums go into an
 //! eight-slot ring, and the mean over the ring (one whole period) is
 //! refreshed at every block's end.
@@ -33,8 +39,8 @@ use crate::math;
 /// Blocks per dither period (the ring's size).
 pub const BLOCKS: usize = 8;
 
-/// Quantities averaged over a period: the fused point and its bound.
-const VALUES: usize = 3;
+/// Quantities averaged over a period (the fields of [`Averaged`]).
+const VALUES: usize = 5;
 
 /// Constants derived from [`ProbeConfig`] and the control period.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,7 +92,7 @@ impl ProbeState {
     /// Start a new hold: phase, block and sums back to their start. The ring
     /// is left as it is: [`Probe::update`] reads it only after two whole
     /// periods, by which time every slot has been written again, so clearing
-    /// its 96 bytes would cost a control tick instructions for nothing.
+    /// its 160 bytes would cost a control tick instructions for nothing.
     pub fn restart(&mut self) {
         self.phasor = (1.0, 0.0);
         self.tick = 0;
@@ -96,15 +102,44 @@ impl ProbeState {
     }
 }
 
-/// The probed estimate: means over the last whole dither period.
+/// The quantities the probe averages: one tick's values in, their means
+/// over the last whole dither period out.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ProbeOut {
-    /// Mean fused point estimate, N.
+pub struct Averaged {
+    /// Fused point estimate, N.
     pub f_ext_n: f32,
-    /// Mean lower end of the fused bound, N.
+    /// Lower end of the fused bound, N.
     pub lo_n: f32,
-    /// Mean upper end of the fused bound, N.
+    /// Upper end of the fused bound, N.
     pub hi_n: f32,
+    /// The motor's torque-balance reading of the cable tension (the DOB's
+    /// `T_1`), N.
+    pub tension1_dob_n: f32,
+    /// Cable 0's elongation `phi r_m / z_i - x1`, m.
+    pub cable0_m: f32,
+}
+
+impl Averaged {
+    fn to_array(self) -> [f32; VALUES] {
+        [
+            self.f_ext_n,
+            self.lo_n,
+            self.hi_n,
+            self.tension1_dob_n,
+            self.cable0_m,
+        ]
+    }
+
+    fn from_array(v: [f32; VALUES]) -> Self {
+        let [f_ext_n, lo_n, hi_n, tension1_dob_n, cable0_m] = v;
+        Self {
+            f_ext_n,
+            lo_n,
+            hi_n,
+            tension1_dob_n,
+            cable0_m,
+        }
+    }
 }
 
 impl Probe {
@@ -148,12 +183,12 @@ impl Probe {
         (self.amplitude_rad * s, self.amplitude_rad_s * c)
     }
 
-    /// Add this tick's fused estimate `(point, lo, hi)`, advance the phase,
-    /// and return the mean over the last whole period once the first period
-    /// of the hold (the settling of the dither) has passed.
+    /// Add this tick's values, advance the phase, and return their means
+    /// over the last whole period once the first period of the hold (the
+    /// settling of the dither) has passed.
     #[inline]
-    pub fn update(&self, st: &mut ProbeState, values: [f32; VALUES]) -> Option<ProbeOut> {
-        for (a, v) in st.acc.iter_mut().zip(values) {
+    pub fn update(&self, st: &mut ProbeState, values: Averaged) -> Option<Averaged> {
+        for (a, v) in st.acc.iter_mut().zip(values.to_array()) {
             *a += v;
         }
         let (c, s) = st.phasor;
@@ -186,11 +221,10 @@ impl Probe {
                 *s += *b;
             }
         }
-        Some(ProbeOut {
-            f_ext_n: sum[0] * self.inv_period_ticks,
-            lo_n: sum[1] * self.inv_period_ticks,
-            hi_n: sum[2] * self.inv_period_ticks,
-        })
+        for s in &mut sum {
+            *s *= self.inv_period_ticks;
+        }
+        Some(Averaged::from_array(sum))
     }
 }
 
@@ -231,7 +265,7 @@ mod tests {
             let (a, _) = p.dither(&st);
             max = max.max(a);
             min = min.min(a);
-            p.update(&mut st, [0.0; 3]);
+            p.update(&mut st, Averaged::default());
         }
         let amp = ProbeConfig::default().amplitude_rad;
         assert!((max - amp).abs() < 1e-3 * amp, "{max} vs {amp}");
@@ -252,20 +286,32 @@ mod tests {
             let (angle, rate) = p.dither(&st);
             let friction = 1.5 * math::sign_eps(rate, 0.0);
             let v = force_n + friction + 40.0 * angle;
-            last = p.update(&mut st, [v, v - 2.0, v + 2.0]);
+            last = p.update(
+                &mut st,
+                Averaged {
+                    f_ext_n: v,
+                    lo_n: v - 2.0,
+                    hi_n: v + 2.0,
+                    tension1_dob_n: v,
+                    cable0_m: 1e-3 * angle,
+                },
+            );
         }
         let out = last.expect("published after the settling period");
         assert!((out.f_ext_n - force_n).abs() < 0.02, "{out:?}");
         assert!(out.lo_n < force_n && force_n < out.hi_n);
+        assert_eq!(out.tension1_dob_n, out.f_ext_n);
+        assert!(out.cable0_m.abs() < 1e-9, "{out:?}");
     }
 
     #[test]
     fn nothing_is_published_during_the_first_period() {
         let p = probe(2000.0, 4.0);
         let mut st = ProbeState::default();
+        let ones = Averaged::from_array([1.0; VALUES]);
         for _ in 0..2 * p.block_ticks * BLOCKS as u32 - 1 {
-            assert!(p.update(&mut st, [1.0; 3]).is_none());
+            assert!(p.update(&mut st, ones).is_none());
         }
-        assert_eq!(p.update(&mut st, [1.0; 3]).map(|o| o.f_ext_n), Some(1.0));
+        assert_eq!(p.update(&mut st, ones), Some(ones));
     }
 }

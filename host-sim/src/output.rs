@@ -85,10 +85,25 @@ struct Staged {
 
 /// Outputs of one command, written all or none: stage each one, then
 /// [`Outputs::commit`]. Dropping an `Outputs` without committing removes
-/// every temporary file and touches no target.
+/// every temporary file and every directory it created, and touches no
+/// target.
 #[derive(Default)]
 pub struct Outputs {
     staged: Vec<Staged>,
+    /// Directories [`Outputs::create_dir`] created, parents first.
+    made_dirs: Vec<PathBuf>,
+}
+
+impl Drop for Outputs {
+    fn drop(&mut self) {
+        // The temporary files first (they sit in the directories), then
+        // the directories this value created, deepest first; one that is
+        // not empty (something else was written there) stays.
+        self.staged.clear();
+        for d in self.made_dirs.iter().rev() {
+            let _ = fs::remove_dir(d);
+        }
+    }
 }
 
 /// What a target is, if it exists and is not a regular file.
@@ -176,6 +191,23 @@ impl Outputs {
     /// No output staged.
     pub fn is_empty(&self) -> bool {
         self.staged.is_empty()
+    }
+
+    /// Create the directory `dir` (and its missing parents) for outputs to
+    /// be staged in. The directories created here are removed again if the
+    /// outputs are dropped without a successful commit.
+    ///
+    /// # Errors
+    /// `dir` cannot be created (a file in the way, no permission).
+    pub fn create_dir(&mut self, dir: &Path) -> Result<(), OutputError> {
+        let missing: Vec<PathBuf> = dir
+            .ancestors()
+            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+            .map(Path::to_owned)
+            .collect();
+        fs::create_dir_all(dir).map_err(|e| OutputError::new(dir, e))?;
+        self.made_dirs.extend(missing.into_iter().rev());
+        Ok(())
     }
 
     /// Stage `bytes` as the content of `path`.
@@ -284,7 +316,7 @@ impl Outputs {
     ///
     /// # Errors
     /// A target staged in both; nothing is taken over then.
-    pub fn append(&mut self, other: Outputs) -> Result<(), OutputError> {
+    pub fn append(&mut self, mut other: Outputs) -> Result<(), OutputError> {
         if let Some(s) = other
             .staged
             .iter()
@@ -298,7 +330,8 @@ impl Outputs {
                 ),
             ));
         }
-        self.staged.extend(other.staged);
+        self.staged.extend(std::mem::take(&mut other.staged));
+        self.made_dirs.extend(std::mem::take(&mut other.made_dirs));
         Ok(())
     }
 
@@ -309,10 +342,11 @@ impl Outputs {
     /// A target that became something other than a regular file since it
     /// was staged, or a failed rename: every target is then as it was before
     /// the call, and the temporary files are removed.
-    pub fn commit(self) -> Result<Vec<PathBuf>, OutputError> {
+    pub fn commit(mut self) -> Result<Vec<PathBuf>, OutputError> {
+        let staged = std::mem::take(&mut self.staged);
         // Check every target again (it may have changed while the command
         // worked) before the first rename.
-        for s in &self.staged {
+        for s in &staged {
             if let Ok(m) = fs::symlink_metadata(&s.target) {
                 if let Some(what) = not_regular(&m) {
                     return Err(OutputError::refused(&s.named, what));
@@ -321,8 +355,8 @@ impl Outputs {
         }
         // Keep every file about to be replaced under a hard link, to put it
         // back if a later rename fails.
-        let mut backups: Vec<Option<tempfile::TempPath>> = Vec::with_capacity(self.staged.len());
-        for s in &self.staged {
+        let mut backups: Vec<Option<tempfile::TempPath>> = Vec::with_capacity(staged.len());
+        for s in &staged {
             let backup = if s.target.exists() {
                 tempfile::Builder::new()
                     .prefix(".host-sim-old-")
@@ -335,8 +369,8 @@ impl Outputs {
             backups.push(backup);
         }
         let mut done: Vec<(PathBuf, Option<tempfile::TempPath>)> = Vec::new();
-        let mut written = Vec::with_capacity(self.staged.len());
-        for (s, backup) in self.staged.into_iter().zip(backups) {
+        let mut written = Vec::with_capacity(staged.len());
+        for (s, backup) in staged.into_iter().zip(backups) {
             if let Err(e) = s.tmp.persist(&s.target) {
                 // Put back what was replaced, remove what was created.
                 for (target, backup) in done.into_iter().rev() {
@@ -361,6 +395,8 @@ impl Outputs {
                 let _ = f.sync_all();
             }
         }
+        // The directories now hold the outputs: they stay.
+        self.made_dirs.clear();
         Ok(written)
     }
 }
@@ -393,6 +429,39 @@ mod tests {
     fn mode(p: &Path) -> u32 {
         use std::os::unix::fs::PermissionsExt;
         fs::metadata(p).unwrap().permissions().mode() & 0o777
+    }
+
+    #[test]
+    fn directories_created_for_outputs_go_with_them_unless_committed() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("a").join("b");
+        // Dropped without a commit: the file and both new directories go.
+        let mut out = Outputs::new();
+        out.create_dir(&sub).unwrap();
+        out.bytes(&sub.join("x.txt"), b"x\n").unwrap();
+        drop(out);
+        assert!(entries(dir.path()).is_empty());
+        // A failed commit (a target that became a directory) too.
+        let mut out = Outputs::new();
+        out.create_dir(&sub).unwrap();
+        out.bytes(&sub.join("x.txt"), b"x\n").unwrap();
+        let blocked = dir.path().join("y.txt");
+        out.bytes(&blocked, b"y\n").unwrap();
+        fs::create_dir(&blocked).unwrap();
+        assert!(out.commit().is_err());
+        assert_eq!(entries(dir.path()), ["y.txt"]);
+        fs::remove_dir(&blocked).unwrap();
+        // Committed: they stay, with the file; a directory that already
+        // existed is never removed.
+        let mut out = Outputs::new();
+        out.create_dir(&sub).unwrap();
+        out.bytes(&sub.join("x.txt"), b"x\n").unwrap();
+        out.commit().unwrap();
+        assert_eq!(entries(&sub), ["x.txt"]);
+        let mut out = Outputs::new();
+        out.create_dir(&sub).unwrap();
+        drop(out);
+        assert_eq!(entries(&sub), ["x.txt"]);
     }
 
     #[cfg(unix)]

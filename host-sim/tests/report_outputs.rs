@@ -359,6 +359,43 @@ fn identified_configurations_load_and_differ_from_the_datasheet() {
     );
 }
 
+/// Every plant variant's plant and identified configuration are written
+/// beside the report, so `host-sim simulate` can rerun any of its cases:
+/// the plant reads back as the variant's, the configuration loads, and the
+/// probing one differs from it only by the dither being on.
+#[test]
+fn every_variant_writes_its_plant_and_configurations() {
+    let r = run();
+    let variants = host_sim::report::variants::variants();
+    let reported = r.json["force_variants"].as_array().expect("force_variants");
+    assert_eq!(reported.len(), variants.len());
+    let dirs: Vec<_> = std::fs::read_dir(r.out.join("variants"))
+        .expect("variants/")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    assert_eq!(dirs.len(), variants.len(), "{dirs:?}");
+    for d in &dirs {
+        let plant = host_sim::io::config::load_plant(Some(&d.join("plant.toml")))
+            .unwrap_or_else(|e| panic!("{}: {e:#}", d.display()));
+        assert!(
+            variants.iter().any(|v| v.plant == plant),
+            "{}: not a variant's plant",
+            d.display()
+        );
+        let c = host_sim::io::config::load_config(d.join("config.toml")).expect("config.toml");
+        let mut p = host_sim::io::config::load_config(d.join("config_probing.toml"))
+            .expect("config_probing.toml");
+        assert!(!c.probe.enabled && p.probe.enabled);
+        p.probe.enabled = false;
+        assert_eq!(p, c);
+        let name = d.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(
+            r.md.contains(&format!("--plant variants/{name}/plant.toml")),
+            "report.md tells how to rerun {name}"
+        );
+    }
+}
+
 #[test]
 fn the_clean_programme_depends_only_on_the_seed() {
     // The same seed on one thread and without step 7 gives the same clean

@@ -30,7 +30,11 @@
 //! progress lines on stderr, and in `--out` (default `report/`): `report.md`
 //! (tables, goals, embedded plots), `report.json` (every figure under
 //! `figures` with stable keys), the plots as SVG and PNG, and the identified
-//! configurations (`config_clean.toml`, `config_effects_*.toml`). Every file is
+//! configurations (`config_clean.toml`, `config_effects_*.toml`), and for
+//! every plant variant its plant and identified configuration
+//! (`variants/<name>/plant.toml`, `config.toml`, `config_probing.toml`), from
+//! which `host-sim simulate` reruns any loading case with the seed the report
+//! prints beside its fault. Every file is
 //! written through a temporary file and renamed. Results depend only on
 //! `--seed` and `--duration-scale` (each run's noise seed is derived from
 //! `--seed` and the run's name); the clean and the effects programmes run on
@@ -323,7 +327,7 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         for (name, a) in [("jae", &fx.residual.jae), ("tension", &fx.residual.tension)] {
             let sub = format!("residual_{name}");
             let d = dir.join(&sub);
-            std::fs::create_dir_all(&d).with_context(|| format!("creating {}", d.display()))?;
+            staged.create_dir(&d)?;
             for p in crate::residual::report::stage_plots(&mut staged, a, &d)? {
                 if p.extension().is_some_and(|e| e == "svg") {
                     if let Some(stem) = p.file_stem() {
@@ -371,6 +375,17 @@ pub fn write(r: &mut Report) -> Result<String> {
             dir.join("config_effects_residual.toml"),
             &fx.residual.config,
         )?;
+    }
+    for v in &r.variants {
+        let d = dir.join("variants").join(v.slug());
+        out.create_dir(&d)?;
+        out.bytes(&d.join("plant.toml"), v.plant.to_toml_string()?.as_bytes())?;
+        if let Some(c) = &v.config {
+            stage_config(&mut out, d.join("config.toml"), c)?;
+            let mut probed = *c;
+            probed.probe.enabled = true;
+            stage_config(&mut out, d.join("config_probing.toml"), &probed)?;
+        }
     }
     let md = markdown::markdown(r, &rows);
     out.bytes(&dir.join("report.md"), md.as_bytes())?;

@@ -203,6 +203,28 @@ pub struct VariantResult {
     /// The same protocol with probing on ([`cable_joint::probe`], the
     /// configuration's default dither).
     pub probing: Option<Protocol>,
+    /// The plant (written beside the report, so a case can be rerun).
+    #[serde(skip)]
+    pub plant: PlantParams,
+    /// The configuration identified on it (`None` if identification failed).
+    #[serde(skip)]
+    pub config: Option<Config>,
+}
+
+impl VariantResult {
+    /// The variant's directory name under the report's `variants/`: its
+    /// name, lower case, every run of other characters one `-`.
+    pub fn slug(&self) -> String {
+        let mut out = String::new();
+        for c in self.name.chars() {
+            if c.is_ascii_alphanumeric() {
+                out.push(c.to_ascii_lowercase());
+            } else if !out.is_empty() && !out.ends_with('-') {
+                out.push('-');
+            }
+        }
+        out.trim_end_matches('-').to_owned()
+    }
 }
 
 #[derive(Default)]
@@ -411,6 +433,7 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
             for d in [Direction::Pos, Direction::Neg] {
                 out.cases += 1;
                 let case = format!("{label}/{a}/{m}/{d:?}");
+                let seed = run_seed(s.seed, &case);
                 let opts = ScenarioOptions {
                     duration_scale: s.scale,
                     angle_deg: Some(a),
@@ -424,15 +447,11 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                     range_rad: f64::from(config.limits.max_joint_angle_rad),
                     ..CaseRec::default()
                 };
-                if let Err(e) = scenario::run(
-                    "loading",
-                    *plant,
-                    *config,
-                    Some(run_seed(s.seed, &case)),
-                    &opts,
-                    &mut rec,
-                ) {
-                    out.faults.push(format!("{a}° {m} g {d:?}: {e:#}"));
+                if let Err(e) =
+                    scenario::run("loading", *plant, *config, Some(seed), &opts, &mut rec)
+                {
+                    out.faults
+                        .push(format!("{a}° {m} g {d:?} (seed {seed}): {e:#}"));
                     out.false_faults += 1;
                     continue;
                 }
@@ -442,7 +461,8 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                     out.slack_undetected_case = format!("{a}° {m} g {d:?}");
                 }
                 if let Some(f) = rec.fault {
-                    out.faults.push(format!("{a}° {m} g {d:?}: {f}"));
+                    out.faults
+                        .push(format!("{a}° {m} g {d:?} (seed {seed}): {f}"));
                     out.false_faults += usize::from(!rec.fault_confirmed);
                     continue;
                 }
@@ -515,6 +535,8 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
             ..Protocol::default()
         },
         probing: None,
+        plant: v.plant,
+        config: None,
     };
     let (base, _) = Config::default().at_rate(v.rate_hz);
     let config = match identify_config(&v.plant, &base, s, &tag) {
@@ -529,6 +551,7 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
             return out;
         }
     };
+    out.config = Some(config);
     out.passive = run_protocol(&v.plant, &config, s, &format!("variant/{}", v.name));
     let mut probed = config;
     probed.probe.enabled = true;
@@ -628,6 +651,40 @@ mod tests {
     /// A cable carrying no tension with the drive on counts as undetected
     /// until the tick its fault latches (drive off); a taut tick in
     /// between (even one below the checks' limit) ends a stretch.
+    #[test]
+    fn every_variant_has_its_own_directory_name() {
+        let names: Vec<String> = variants()
+            .iter()
+            .map(|v| {
+                VariantResult {
+                    name: v.name.clone(),
+                    what: v.what.clone(),
+                    rate_hz: v.rate_hz,
+                    error: None,
+                    notes: Vec::new(),
+                    pin_at_tip_n: 0.0,
+                    passive: Protocol::default(),
+                    probing: None,
+                    plant: v.plant,
+                    config: None,
+                }
+                .slug()
+            })
+            .collect();
+        assert!(names.contains(&"draw-13-1-khz".to_owned()), "{names:?}");
+        let mut unique = names.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), names.len(), "{names:?}");
+        for n in &names {
+            assert!(
+                !n.is_empty()
+                    && n.chars()
+                        .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
+            );
+        }
+    }
+
     #[test]
     fn slack_counts_as_undetected_from_the_first_slack_tick_to_the_fault() {
         let mut rec = case_rec();

@@ -265,6 +265,15 @@ pub fn markdown(results: &[VariantResult]) -> String {
             let _ = writeln!(s, "  * fault: {f}");
         }
         let _ = writeln!(s, "  * {}", slack_line(&r.passive));
+        if r.config.is_some() {
+            let _ = writeln!(
+                s,
+                "  * rerun a case: `host-sim simulate --scenario loading --plant variants/{0}/plant.toml \
+                 --config variants/{0}/config.toml --angle-deg A --mass-g M --direction pos|neg --seed N \
+                 --out case.csv` (`config_probing.toml` for probing; N is the seed printed beside a fault)",
+                r.slug()
+            );
+        }
         for (text, ok) in probing_goal_lines(r) {
             let _ = writeln!(s, "  * {}: {text}", if ok { "met" } else { "NOT met" });
         }

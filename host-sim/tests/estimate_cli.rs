@@ -151,3 +151,80 @@ fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
     );
     assert!(!out2.exists());
 }
+
+/// A configuration file that sets only a 1 kHz control rate: `simulate` and
+/// `estimate` both run with it, each saying which rate-dependent settings
+/// it derived; the same file with a bandwidth the rate cannot serve is
+/// refused with the field named.
+#[test]
+fn a_configuration_that_sets_only_a_1khz_rate_runs_and_says_what_was_derived() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("c1k.toml");
+    std::fs::write(&config, "control_rate_hz = 1000.0\n").unwrap();
+    let log = dir.path().join("run.csv");
+    let exe = env!("CARGO_BIN_EXE_host-sim");
+    let run = |args: &[&str]| {
+        let o = Command::new(exe).args(args).output().unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (ok, stderr) = run(&[
+        "simulate",
+        "--scenario",
+        "loading",
+        "--angle-deg",
+        "30",
+        "--mass-g",
+        "100",
+        "--direction",
+        "pos",
+        "--duration",
+        "2",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        log.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stderr.contains("motor_bandwidth_hz = 100 (not in the file"),
+        "{stderr}"
+    );
+    let t = Log::read_with(&log, &Schema::any()).unwrap();
+    let dt = t.col_required("t_s").unwrap()[1] - t.col_required("t_s").unwrap()[0];
+    assert!((dt - 1e-3).abs() < 1e-9, "simulated at 1 kHz: dt {dt}");
+    let est = dir.path().join("est.csv");
+    let (ok, stderr) = run(&[
+        "estimate",
+        "--log",
+        log.to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        est.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("motor_bandwidth_hz = 100"), "{stderr}");
+
+    std::fs::write(
+        &config,
+        "control_rate_hz = 1000.0\n[differentiators]\nmotor_bandwidth_hz = 150.0\n",
+    )
+    .unwrap();
+    let (ok, stderr) = run(&[
+        "estimate",
+        "--log",
+        log.to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        est.to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(
+        stderr.contains("c1k.toml") && stderr.contains("motor_bandwidth_hz"),
+        "{stderr}"
+    );
+}

@@ -12,19 +12,90 @@ use crate::log::toml_error;
 use crate::output::Outputs;
 use crate::plant::PlantParams;
 
-/// Read and check a configuration file (TOML). Missing tables and keys take
-/// the datasheet defaults; an unknown key, a type error or a value that
-/// [`Config::validate`] rejects is an error naming the file and the field.
+/// Read and check a configuration file (TOML), and say on stderr what it
+/// derived ([`load_config_noted`]).
 pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
+    let path = path.as_ref();
+    let (config, notes) = load_config_noted(path)?;
+    for n in notes {
+        eprintln!("note: {}: {n}", path.display());
+    }
+    Ok(config)
+}
+
+/// Read and check a configuration file (TOML). Missing tables and keys take
+/// the datasheet defaults, except the rate-dependent settings: those the
+/// file leaves out and that the datasheet's values cannot serve at the
+/// file's `control_rate_hz` are derived from that rate ([`Config::at_rate`]),
+/// each with a note for the caller to print. A setting the file gives is
+/// kept as given. An unknown key, a type error or a value that
+/// [`Config::validate`] rejects is an error naming the file and the field.
+pub fn load_config_noted(path: impl AsRef<Path>) -> Result<(Config, Vec<String>)> {
     let path = path.as_ref();
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading configuration {}", path.display()))?;
-    let config: Config = toml::from_str(&text)
-        .map_err(|e| anyhow!("{}: {}", path.display(), toml_error(&text, &e)))?;
-    config
-        .validate()
-        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    Ok(config)
+    let parse_err = |e: toml::de::Error| anyhow!("{}: {}", path.display(), toml_error(&text, &e));
+    let mut table: toml::Table = toml::from_str(&text).map_err(parse_err)?;
+    let config: Config = toml::from_str(&text).map_err(parse_err)?;
+    let rate_hz = config.control_rate_hz;
+    let (_, changes) = config.at_rate(rate_hz);
+    let mut notes = Vec::new();
+    let missing: Vec<_> = changes
+        .iter()
+        .filter(|a| !has_key(&table, a.field))
+        .collect();
+    for a in missing {
+        set_key(&mut table, a.field, toml::Value::Float(f64::from(a.to)));
+        notes.push(format!(
+            "{} = {} (not in the file; the default {} does not fit control_rate_hz = {rate_hz}, so derived from it)",
+            a.field, a.to, a.from
+        ));
+    }
+    let config: Config = if notes.is_empty() {
+        config
+    } else {
+        table
+            .try_into()
+            .map_err(|e: toml::de::Error| anyhow!("{}: {e}", path.display()))?
+    };
+    config.validate().map_err(|e| {
+        anyhow!(
+            "{}: {e} (at control_rate_hz = {rate_hz}: the value in the file is kept; leave it out to derive it from the rate)",
+            path.display()
+        )
+    })?;
+    Ok((config, notes))
+}
+
+/// Whether the dotted `field` (`cascade.kp_vel_a_s_rad`) is set in `table`.
+fn has_key(table: &toml::Table, field: &str) -> bool {
+    let mut t = table;
+    let mut parts = field.split('.').peekable();
+    while let Some(p) = parts.next() {
+        match (t.get(p), parts.peek()) {
+            (Some(_), None) => return true,
+            (Some(toml::Value::Table(sub)), Some(_)) => t = sub,
+            _ => return false,
+        }
+    }
+    false
+}
+
+/// Set the dotted `field` in `table`, creating the tables on its way.
+fn set_key(table: &mut toml::Table, field: &str, value: toml::Value) {
+    match field.split_once('.') {
+        None => {
+            table.insert(field.to_owned(), value);
+        }
+        Some((head, rest)) => {
+            let sub = table
+                .entry(head.to_owned())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            if let toml::Value::Table(sub) = sub {
+                set_key(sub, rest, value);
+            }
+        }
+    }
 }
 
 /// [`load_config`] when a file is given, else the datasheet defaults.
@@ -165,6 +236,56 @@ mod tests {
         let c: Config = toml::from_str(&text).unwrap();
         assert_eq!(c.jae.added.active(), &[Term::new(EffectKind::Linear, 9)]);
         assert_eq!(c.jae.added.coef[0], 2.0);
+    }
+
+    fn load_text(text: &str) -> Result<(Config, Vec<String>)> {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.toml");
+        std::fs::write(&p, text).unwrap();
+        load_config_noted(&p)
+    }
+
+    /// A file that sets only the rate: the settings the datasheet's values
+    /// cannot serve at that rate are derived from it, each noted, and
+    /// equal to what `Config::at_rate` derives; at 2 kHz nothing is.
+    #[test]
+    fn a_file_that_sets_only_the_rate_gets_the_rate_dependent_settings_derived() {
+        let (c, notes) = load_text("control_rate_hz = 1000.0\n").unwrap();
+        let (expected, changes) = Config::default().at_rate(1000.0);
+        assert!(!changes.is_empty(), "1 kHz needs derived settings");
+        assert_eq!(c, expected);
+        assert_eq!(notes.len(), changes.len(), "{notes:?}");
+        assert!(
+            notes
+                .iter()
+                .any(|n| n.starts_with("differentiators.motor_bandwidth_hz = 100")),
+            "{notes:?}"
+        );
+        let (c, notes) = load_text("control_rate_hz = 2000.0\n").unwrap();
+        assert_eq!(c, Config::default());
+        assert!(notes.is_empty(), "{notes:?}");
+    }
+
+    /// A rate-dependent setting the file gives is the user's: kept as given,
+    /// and refused by `validate` when the rate cannot serve it, with the
+    /// field named and how to have it derived.
+    #[test]
+    fn a_rate_dependent_setting_the_file_gives_is_kept_or_refused_never_replaced() {
+        let (c, notes) =
+            load_text("control_rate_hz = 1000.0\n[differentiators]\nmotor_bandwidth_hz = 80.0\n")
+                .unwrap();
+        assert_eq!(c.differentiators.motor_bandwidth_hz, 80.0);
+        assert!(notes
+            .iter()
+            .all(|n| !n.starts_with("differentiators.motor")));
+        let e =
+            load_text("control_rate_hz = 1000.0\n[differentiators]\nmotor_bandwidth_hz = 150.0\n")
+                .unwrap_err()
+                .to_string();
+        assert!(
+            e.contains("motor_bandwidth_hz") && e.contains("leave it out"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -36,7 +36,9 @@ HOST_SIM="${CARGO_TARGET_DIR:-target}/debug/host-sim"
 # port accepts a connection.
 RIG=""
 power_on() {
-  "$HOST_SIM" pil --elf "$OUT/firmware-pil.elf" --out "$OUT/$2" --link-port "$PORT" \
+  # In a session of its own, so that a failed step stops QEMU with it (a
+  # QEMU left behind would keep the port and answer the next run).
+  setsid "$HOST_SIM" pil --elf "$OUT/firmware-pil.elf" --out "$OUT/$2" --link-port "$PORT" \
     --duration-s "$1" "${@:3}" >"$OUT/$2.stdout" 2>"$OUT/$2.stderr" &
   RIG=$!
   for _ in $(seq 1 300); do
@@ -47,7 +49,7 @@ power_on() {
   echo "the rig's link never opened" >&2
   return 1
 }
-trap '[ -n "$RIG" ] && kill "$RIG" 2>/dev/null || true' EXIT
+trap '[ -n "$RIG" ] && kill -- -"$RIG" 2>/dev/null || true' EXIT
 
 say "1. the PIL firmware (cargo fw-pil)"
 cargo fw-pil "${LOCKED[@]}"

@@ -50,6 +50,8 @@ enum Command {
     Estimate(host_sim::cli::estimate::EstimateArgs),
     /// Residual analysis: rank and add effect terms, judged on validation data.
     Residual(host_sim::cli::residual::ResidualArgs),
+    /// Undeclared effects alone and in pairs on drawn plants: what the residual loop names.
+    Undeclared(host_sim::cli::undeclared::UndeclaredArgs),
     /// The seed's experimental programme on the simulated prototype, with a report (default).
     Report(host_sim::cli::report::ReportArgs),
 }
@@ -67,6 +69,7 @@ fn main() -> ExitCode {
         Some(Command::Payload(a)) => host_sim::cli::payload::run(a),
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
         Some(Command::Residual(a)) => host_sim::cli::residual::run(a),
+        Some(Command::Undeclared(a)) => host_sim::cli::undeclared::run(a),
         Some(Command::Estimate(a)) => host_sim::cli::estimate::run(a),
         Some(Command::Report(a)) => host_sim::cli::report::run(a),
         #[allow(unreachable_patterns)]

@@ -356,9 +356,6 @@ pub struct State {
     probe: ProbeState,
     /// The last tick dithered (the probe state is reset when a hold ends).
     probing: bool,
-    /// The probe's means over the last whole dither period, once it
-    /// publishes them (`None` when not probing).
-    probe_mean: Option<Averaged>,
     /// `Q[F_1']`'s Coulomb part (model C's sign terms), N.
     tension_friction_n: f32,
     cascade: CascadeState,
@@ -516,7 +513,6 @@ impl Controller {
             fusion,
             probe,
             probing,
-            probe_mean,
             tension_friction_n,
             cascade,
             stretch_force_n,
@@ -558,7 +554,6 @@ impl Controller {
         *fusion = FusionState::default();
         probe.restart();
         *probing = false;
-        *probe_mean = None;
         *tension_friction_n = 0.0;
         *cascade = CascadeState::default();
         *stretch_force_n = 0.0;
@@ -800,7 +795,7 @@ impl Controller {
                 st.cable0_taut_m = cable0_m;
             }
             let mut payout_m = st.cable0_taut_m - cable0_m;
-            match st.probe_mean {
+            match st.probe.mean() {
                 Some(p) => {
                     if p.tension1_dob_n >= limit_n {
                         st.cable0_mean_taut_m = Some(p.cable0_m);
@@ -844,8 +839,7 @@ impl Controller {
                 tension1_dob_n: dob_out.tension1_n,
                 cable0_m,
             };
-            st.probe_mean = d.probe.update(&mut st.probe, values);
-            if let Some(p) = st.probe_mean {
+            if let Some(p) = d.probe.update(&mut st.probe, values) {
                 fused.f_ext_n = p.f_ext_n;
                 fused.lo_n = p.lo_n;
                 fused.hi_n = p.hi_n;
@@ -853,7 +847,6 @@ impl Controller {
             }
         } else if st.probing {
             st.probe.restart();
-            st.probe_mean = None;
         }
         st.probing = probing;
         if !st.primed {

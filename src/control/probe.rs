@@ -28,7 +28,7 @@
 //!
 //! Cost per tick: a phasor rotation (four multiplications; no
 //! transcendental function, the phasor is reset exactly once per period) and
-//! five additions. The window is exact without a buffer of every sample: the
+//! five additions; at each block's end the ring's sums (forty additions). The window is exact without a buffer of every sample: the
 //! period is eight blocks of whole ticks, each block's sums go into an
 //! eight-slot ring, and the mean over the ring (one whole period) is
 //! refreshed at every block's end.
@@ -73,6 +73,9 @@ pub struct ProbeState {
     ring: [[f32; VALUES]; BLOCKS],
     /// Blocks completed since the hold began (saturating).
     blocks_done: u32,
+    /// The means over the last whole period, refreshed at each block's end
+    /// once the first period of the hold has passed.
+    mean: Option<Averaged>,
 }
 
 impl Default for ProbeState {
@@ -84,6 +87,7 @@ impl Default for ProbeState {
             acc: [0.0; VALUES],
             ring: [[0.0; VALUES]; BLOCKS],
             blocks_done: 0,
+            mean: None,
         }
     }
 }
@@ -99,6 +103,13 @@ impl ProbeState {
         self.block = 0;
         self.acc = [0.0; VALUES];
         self.blocks_done = 0;
+        self.mean = None;
+    }
+
+    /// The means over the last whole dither period, once published (the
+    /// value [`Probe::update`] last returned).
+    pub fn mean(&self) -> Option<Averaged> {
+        self.mean
     }
 }
 
@@ -211,20 +222,22 @@ impl Probe {
                 st.phasor = (1.0, 0.0);
             }
             st.blocks_done = st.blocks_done.saturating_add(1);
-        }
-        if st.blocks_done < 2 * BLOCKS as u32 {
-            return None;
-        }
-        let mut sum = [0.0f32; VALUES];
-        for block in &st.ring {
-            for (s, b) in sum.iter_mut().zip(block) {
-                *s += *b;
+            // The ring changes only here: the mean is summed once a block,
+            // not on every tick.
+            if st.blocks_done >= 2 * BLOCKS as u32 {
+                let mut sum = [0.0f32; VALUES];
+                for block in &st.ring {
+                    for (s, b) in sum.iter_mut().zip(block) {
+                        *s += *b;
+                    }
+                }
+                for s in &mut sum {
+                    *s *= self.inv_period_ticks;
+                }
+                st.mean = Some(Averaged::from_array(sum));
             }
         }
-        for s in &mut sum {
-            *s *= self.inv_period_ticks;
-        }
-        Some(Averaged::from_array(sum))
+        st.mean
     }
 }
 

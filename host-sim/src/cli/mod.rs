@@ -26,6 +26,7 @@ pub mod report;
 pub mod residual;
 pub mod simulate;
 pub mod trace;
+pub mod undeclared;
 
 use std::fmt::Display;
 use std::str::FromStr;

@@ -57,7 +57,7 @@ fn stick(p: &mut PlantParams, ratio: f64) {
 
 /// Every parameter that shapes the force path drawn uniformly within ±30 %
 /// of the default, and the static/kinetic ratio within 1.05..1.45.
-fn drawn(seed: u64) -> PlantParams {
+pub fn drawn(seed: u64) -> PlantParams {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut f = || rng.gen_range(0.7..1.3);
     let mut p = PlantParams::default();

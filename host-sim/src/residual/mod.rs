@@ -32,6 +32,7 @@ mod generic;
 pub mod library;
 pub mod outcome;
 pub mod problem;
+pub mod programme;
 pub mod report;
 mod search;
 pub mod select;

@@ -1,0 +1,806 @@
+//! The undeclared-effect programme (issue 12, item 5): does the residual
+//! loop name an effect its models lack, and cut the error it causes, on
+//! plants it was never tuned on and at the sizes a real joint shows?
+//!
+//! For every drawn plant (every force-path parameter ±30 %,
+//! [`crate::report::variants::drawn`], on seeds no test or default was
+//! tuned on) and every control rate:
+//!
+//! 1. a clean calibration run (`jae-ident`, 42 s) gives the declared model:
+//!    the JAE and model C, each with the terms the loop finds on clean data
+//!    (at most 4, as `host-sim report` does);
+//! 2. the same run, same noise, with one effect on, then with every pair, at
+//!    each size ([`Size`]); the loop continues from the declared model (at
+//!    most 8 terms) and is judged on the held-out last 30 % of the run;
+//! 3. the loop also runs, the same way, on the clean run: what it adds there
+//!    is what the declared model (at most 4 terms) still lacks on this plant,
+//!    not the effect, so those terms (same kind on the same signal) are set
+//!    apart from the effect run's;
+//! 4. per effect and model: is the effect visible at all (does it raise the
+//!    declared model's validation error to at least [`VISIBLE_RISE`] times
+//!    the clean run's?), the family of the first term the loop adds that it
+//!    did not add on the clean run, every family it adds, the validation
+//!    error before and after, and the share of the effect's excess error
+//!    (before, less the clean run's) it removed.
+//!
+//! Each effect acts on one model's target: cable creep and spring
+//! hardening move the joint angle the JAE predicts from slider 2; presliding
+//! friction, winding heating and the current sensor's drift move the tension
+//! model C predicts from the motor. A case's verdict for an effect is read
+//! on that model only.
+
+use anyhow::{Context, Result};
+use cable_joint::Config;
+use serde::Serialize;
+
+use super::{analyse, config_with, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions};
+use crate::plant::PlantParams;
+use crate::plant::{Creep, OffsetDrift, Presliding, SpringHardening, Thermal};
+use crate::report::programme::run_seed;
+use crate::scenario::{self, ScenarioOptions};
+use crate::sim::LogRecorder;
+
+/// An effect is visible when it raises the declared model's validation
+/// RMSE to at least this many times the clean run's (the same plant, noise
+/// and trajectory without the effect). Below, the loop has nothing to find
+/// and the case says so instead of counting a miss.
+pub const VISIBLE_RISE: f64 = 1.2;
+
+/// The model an effect moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Target {
+    /// The joint-angle estimator (`theta_rad` from slider 2).
+    Jae,
+    /// Model C (`tension1_hat_n` from the motor).
+    Tension,
+}
+
+impl Target {
+    fn kind(self) -> ModelKind {
+        match self {
+            Target::Jae => ModelKind::Jae,
+            Target::Tension => ModelKind::Tension,
+        }
+    }
+
+    /// The model's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::Jae => "JAE",
+            Target::Tension => "tension",
+        }
+    }
+}
+
+/// How large an effect is made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Size {
+    /// The plant's defaults, each from a datasheet or a measured order of
+    /// magnitude ([`crate::plant::effects`]).
+    Datasheet,
+    /// The upper end of the physical range, stated per effect
+    /// ([`Effect::upper`]).
+    Upper,
+}
+
+impl Size {
+    /// Its name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Size::Datasheet => "datasheet",
+            Size::Upper => "upper",
+        }
+    }
+}
+
+/// An effect the estimators' models lack.
+#[derive(Clone, Copy, Debug)]
+pub struct Effect {
+    /// Its name (as `simulate --effect` takes it).
+    pub name: &'static str,
+    /// The model it moves.
+    pub target: Target,
+    /// The family a term explaining it belongs to
+    /// ([`effect_class`](super::families::effect_class)).
+    pub class: &'static str,
+    /// The physics of the datasheet size.
+    pub datasheet: &'static str,
+    /// The physics of the upper size.
+    pub upper: &'static str,
+}
+
+/// The five effects the plant can add.
+pub const EFFECTS: [Effect; 5] = [
+    Effect {
+        name: "creep",
+        target: Target::Jae,
+        class: "creep / relaxation",
+        datasheet: "steel wire rope: strand bedding, 10 % of the elastic stretch, 30 s",
+        upper: "polymer-core or fibre rope: 30 % of the elastic stretch, 10 s",
+    },
+    Effect {
+        name: "spring",
+        target: Target::Jae,
+        class: "stiffness",
+        datasheet: "cylindrical coil spring: k3 = 3.6e6 N/m³, 5 % extra force at 3 mm",
+        upper: "progressive (conical or variable-pitch) spring: k3 = 1.8e7 N/m³, 25 % at 3 mm",
+    },
+    Effect {
+        name: "presliding",
+        target: Target::Tension,
+        class: "hysteresis",
+        datasheet: "rolling guides 20 µm, pin 3 mrad (LuGre)",
+        upper: "rolling guides 50 µm (the upper end of 10-50 µm), a worn pin 10 mrad",
+    },
+    Effect {
+        name: "thermal",
+        target: Target::Tension,
+        class: "thermal",
+        datasheet: "25 mm motor: 2.3 Ω, 12.5 s winding, 600 s housing, K_m -0.4 %/K",
+        upper: "16 mm motor: 7 Ω, 6 s winding, 30 K/W to ambient, K_m -0.4 %/K",
+    },
+    Effect {
+        name: "drift",
+        target: Target::Tension,
+        class: "drift",
+        datasheet: "current-sensor offset 0.1 mA/s ramp, 0.2 mA/√s walk",
+        upper: "a Hall sensor warming up: 0.5 mA/s (30 mA a minute)",
+    },
+];
+
+impl Effect {
+    /// Switch this effect on in `p` at `size`.
+    pub fn apply(&self, p: &mut PlantParams, size: Size) {
+        let e = &mut p.effects;
+        let upper = size == Size::Upper;
+        match self.name {
+            "creep" => {
+                let mut c = Creep::default();
+                if upper {
+                    c.ratio = 0.3;
+                    c.tau_s = 10.0;
+                }
+                e.creep = Some(c);
+            }
+            "spring" => {
+                let mut s = SpringHardening::default();
+                if upper {
+                    s.cubic_n_m3 = 1.8e7;
+                }
+                e.spring_hardening = Some(s);
+            }
+            "presliding" => {
+                let mut s = Presliding::default();
+                if upper {
+                    s.slider_presliding_m = 50e-6;
+                    s.joint_presliding_rad = 1e-2;
+                }
+                e.presliding = Some(s);
+            }
+            "thermal" => {
+                let mut t = Thermal::default();
+                if upper {
+                    t.resistance_ohm = 7.0;
+                    t.tau_winding_s = 6.0;
+                    t.housing_ambient_k_w = 30.0;
+                }
+                e.thermal = Some(t);
+            }
+            _ => {
+                let mut d = OffsetDrift::default();
+                if upper {
+                    d.rate_a_s = 5e-4;
+                }
+                e.offset_drift = Some(d);
+            }
+        }
+    }
+}
+
+/// The programme's settings.
+#[derive(Clone, Debug)]
+pub struct ProgrammeOptions {
+    /// Seeds of the drawn plants.
+    pub draws: Vec<u64>,
+    /// Control rates, Hz.
+    pub rates_hz: Vec<f32>,
+    /// Effect sizes.
+    pub sizes: Vec<Size>,
+    /// Also every pair of effects.
+    pub pairs: bool,
+    /// Base of every run's noise seed.
+    pub seed: u64,
+    /// Progress lines on stderr.
+    pub progress: bool,
+}
+
+impl Default for ProgrammeOptions {
+    fn default() -> Self {
+        Self {
+            draws: vec![31, 32],
+            rates_hz: vec![2000.0, 1000.0],
+            sizes: vec![Size::Datasheet, Size::Upper],
+            pairs: true,
+            seed: 1,
+            progress: true,
+        }
+    }
+}
+
+/// One case on one model: what the loop found against what was there.
+#[derive(Clone, Debug, Serialize)]
+pub struct CaseRow {
+    /// The effects switched on.
+    pub effects: Vec<&'static str>,
+    /// Their size.
+    pub size: Size,
+    /// Control rate, Hz.
+    pub rate_hz: f32,
+    /// Seed of the drawn plant.
+    pub draw: u64,
+    /// The model judged.
+    pub model: Target,
+    /// The families of the effects that act on this model.
+    pub expected: Vec<&'static str>,
+    /// Validation RMSE of the declared model on the clean run.
+    pub clean_rmse: f64,
+    /// Validation RMSE of the declared model on this run.
+    pub before_rmse: f64,
+    /// Validation RMSE after the loop's terms.
+    pub after_rmse: f64,
+    /// Share of the effect's excess error removed,
+    /// `(before - after) / (before - clean)`.
+    pub excess_removed: f64,
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Every term added, in order (label).
+    pub terms: Vec<String>,
+    /// Their families, in order.
+    pub classes: Vec<String>,
+    /// Which of them the loop also added on the clean run (the declared
+    /// model's own deficit on this plant, not the effect).
+    pub also_clean: Vec<bool>,
+    /// A rival family for the first term, when the data do not tell them
+    /// apart.
+    pub rival: Option<String>,
+}
+
+/// What a case shows for its model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// The effects raise the validation error by less than
+    /// [`VISIBLE_RISE`]: nothing to find, whatever was added.
+    BelowNoise,
+    /// Visible, and every expected family is among the terms added (for a
+    /// single effect: it is the first one).
+    Named,
+    /// Visible, and an expected family is missing (or, for a single effect,
+    /// not first).
+    Missed,
+}
+
+/// The verdict for one model: `expected` families against the `classes`
+/// added (in order; those the loop also added on the clean run, marked in
+/// `also_clean`, do not count), with the validation errors of the clean run
+/// and of this run before the loop.
+pub fn verdict(
+    expected: &[&str],
+    classes: &[String],
+    also_clean: &[bool],
+    clean_rmse: f64,
+    before_rmse: f64,
+) -> Verdict {
+    // NaN (no clean reference) is below the noise too.
+    let visible = before_rmse >= VISIBLE_RISE * clean_rmse;
+    if !visible {
+        return Verdict::BelowNoise;
+    }
+    let new: Vec<&String> = classes
+        .iter()
+        .zip(also_clean.iter().chain(std::iter::repeat(&false)))
+        .filter(|(_, clean)| !**clean)
+        .map(|(c, _)| c)
+        .collect();
+    let named = match expected {
+        [one] => new.first().is_some_and(|c| c == one),
+        many => many.iter().all(|e| new.iter().any(|c| c == e)),
+    };
+    if named {
+        Verdict::Named
+    } else {
+        Verdict::Missed
+    }
+}
+
+/// What one drawn plant's clean run gave, per model.
+#[derive(Clone, Debug, Serialize)]
+pub struct CleanRef {
+    /// Seed of the drawn plant.
+    pub draw: u64,
+    /// Control rate, Hz.
+    pub rate_hz: f32,
+    /// The model.
+    pub model: Target,
+    /// The declared model's terms (the loop on the clean run from the
+    /// datasheet model, at most 4).
+    pub declared: Vec<String>,
+    /// The declared model's validation RMSE on the clean run.
+    pub rmse: f64,
+    /// What the loop adds to the declared model on the same clean run.
+    pub added: Vec<String>,
+}
+
+/// The programme's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct Programme {
+    /// Every drawn plant's clean reference.
+    pub clean: Vec<CleanRef>,
+    /// Every case on every model it touches.
+    pub rows: Vec<CaseRow>,
+    /// Visibility threshold used.
+    pub visible_rise: f64,
+}
+
+fn simulate(plant: PlantParams, config: Config, seed: u64) -> Result<NamedLog> {
+    let mut rec = LogRecorder::new(true);
+    scenario::run(
+        "jae-ident",
+        plant,
+        config,
+        Some(seed),
+        &ScenarioOptions::default(),
+        &mut rec,
+    )?;
+    Ok(NamedLog {
+        name: "jae-ident".to_owned(),
+        log: rec.to_log()?,
+    })
+}
+
+fn fit(
+    target: Target,
+    log: &NamedLog,
+    config: &Config,
+    keep: bool,
+    max: usize,
+) -> Result<Analysis> {
+    analyse(
+        target.kind(),
+        std::slice::from_ref(log),
+        &[],
+        config,
+        BuildOptions {
+            holdout: 0.3,
+            keep_added: keep,
+            ..BuildOptions::default()
+        },
+        SelectOptions {
+            max_terms: max,
+            decimate: 0,
+            ..SelectOptions::default()
+        },
+    )
+}
+
+/// The cases: every effect alone, then (with `pairs`) every pair.
+pub fn cases(pairs: bool) -> Vec<Vec<Effect>> {
+    let mut out: Vec<Vec<Effect>> = EFFECTS.iter().map(|e| vec![*e]).collect();
+    if pairs {
+        for (i, a) in EFFECTS.iter().enumerate() {
+            for b in &EFFECTS[i + 1..] {
+                out.push(vec![*a, *b]);
+            }
+        }
+    }
+    out
+}
+
+/// Run the programme.
+///
+/// # Errors
+/// A simulation or an analysis that fails (named with its case).
+pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
+    let cases = cases(opts.pairs);
+    let total = opts.draws.len() * opts.rates_hz.len() * (1 + opts.sizes.len() * cases.len());
+    let mut done = 0usize;
+    let started = std::time::Instant::now();
+    let mut rows = Vec::new();
+    let mut refs = Vec::new();
+    for &draw in &opts.draws {
+        let base = crate::report::variants::drawn(draw);
+        for &rate_hz in &opts.rates_hz {
+            let (config, _) = scenario::tuned_gains(&Config::default()).at_rate(rate_hz);
+            let seed = run_seed(opts.seed, &format!("undeclared/{draw}/{rate_hz}"));
+            let tag = format!("draw {draw}, {rate_hz} Hz");
+            let clean =
+                simulate(base, config, seed).with_context(|| format!("{tag}: clean run"))?;
+            let jae = fit(Target::Jae, &clean, &config, false, 4)?;
+            let with_jae = config_with(&jae, &config)?;
+            let tension = fit(Target::Tension, &clean, &with_jae, false, 4)?;
+            let declared = config_with(&tension, &with_jae)?;
+            // The loop on the clean run, from the declared model: the
+            // reference error, and the terms that are not the effect's.
+            let mut clean_ref = Vec::new();
+            for (target, first) in [(Target::Jae, &jae), (Target::Tension, &tension)] {
+                let a = fit(target, &clean, &declared, true, 8)
+                    .with_context(|| format!("{tag}: clean run, {}", target.name()))?;
+                refs.push(CleanRef {
+                    draw,
+                    rate_hz,
+                    model: target,
+                    declared: first
+                        .outcome
+                        .accepted
+                        .iter()
+                        .map(|s| s.label.clone())
+                        .collect(),
+                    rmse: a.outcome.baseline.val_rmse,
+                    added: a.outcome.accepted.iter().map(|s| s.label.clone()).collect(),
+                });
+                let keys: Vec<(&'static str, u8)> = a
+                    .outcome
+                    .accepted
+                    .iter()
+                    .map(|s| (s.term.kind.name(), s.term.input))
+                    .collect();
+                clean_ref.push((target, a.outcome.baseline.val_rmse, keys));
+            }
+            let clean_of = |t: Target| {
+                clean_ref
+                    .iter()
+                    .find(|(x, _, _)| *x == t)
+                    .map(|(_, rmse, keys)| (*rmse, keys.clone()))
+                    .unwrap_or((f64::NAN, Vec::new()))
+            };
+            done += 1;
+            for &size in &opts.sizes {
+                for case in &cases {
+                    let mut plant = base;
+                    for e in case {
+                        e.apply(&mut plant, size);
+                    }
+                    let names: Vec<&'static str> = case.iter().map(|e| e.name).collect();
+                    let label = format!("{tag}, {} {}", names.join(" + "), size.name());
+                    let log = simulate(plant, config, seed).with_context(|| label.clone())?;
+                    for target in [Target::Jae, Target::Tension] {
+                        let expected: Vec<&'static str> = case
+                            .iter()
+                            .filter(|e| e.target == target)
+                            .map(|e| e.class)
+                            .collect();
+                        if expected.is_empty() {
+                            continue;
+                        }
+                        let a = fit(target, &log, &declared, true, 8)
+                            .with_context(|| format!("{label}: {}", target.name()))?;
+                        let o = &a.outcome;
+                        let (clean_rmse, clean_keys) = clean_of(target);
+                        let classes: Vec<String> =
+                            o.accepted.iter().map(|s| s.class.clone()).collect();
+                        let also_clean: Vec<bool> = o
+                            .accepted
+                            .iter()
+                            .map(|s| clean_keys.contains(&(s.term.kind.name(), s.term.input)))
+                            .collect();
+                        let (before, after) = (o.baseline.val_rmse, o.final_fit.val_rmse);
+                        let row = CaseRow {
+                            effects: names.clone(),
+                            size,
+                            rate_hz,
+                            draw,
+                            model: target,
+                            verdict: verdict(&expected, &classes, &also_clean, clean_rmse, before),
+                            expected,
+                            clean_rmse,
+                            before_rmse: before,
+                            after_rmse: after,
+                            excess_removed: (before - after) / (before - clean_rmse),
+                            terms: o.accepted.iter().map(|s| s.label.clone()).collect(),
+                            classes,
+                            also_clean,
+                            rival: o
+                                .accepted
+                                .first()
+                                .and_then(|s| s.rival.as_ref())
+                                .map(|r| r.class.clone()),
+                        };
+                        rows.push(row);
+                    }
+                    done += 1;
+                    if opts.progress {
+                        eprintln!(
+                            "[{done}/{total}, {:.0} s] {label}",
+                            started.elapsed().as_secs_f64()
+                        );
+                    }
+                }
+            }
+        }
+    }
+    Ok(Programme {
+        clean: refs,
+        rows,
+        visible_rise: VISIBLE_RISE,
+    })
+}
+
+/// A summary line per size and rate: single effects visible, named first,
+/// and with the validation error at most half of before; pairs named.
+pub fn summary(p: &Programme) -> Vec<String> {
+    let mut keys: Vec<(Size, u32)> = Vec::new();
+    for r in &p.rows {
+        let k = (r.size, r.rate_hz as u32);
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    keys.iter()
+        .map(|&(size, rate)| {
+            let of = |single: bool| {
+                p.rows
+                    .iter()
+                    .filter(move |r| {
+                        r.size == size && r.rate_hz as u32 == rate && (r.effects.len() == 1) == single
+                    })
+                    .collect::<Vec<_>>()
+            };
+            let singles = of(true);
+            let visible: Vec<_> = singles
+                .iter()
+                .filter(|r| r.verdict != Verdict::BelowNoise)
+                .collect();
+            let named = visible.iter().filter(|r| r.verdict == Verdict::Named).count();
+            let halved = visible
+                .iter()
+                .filter(|r| r.after_rmse <= 0.5 * r.before_rmse)
+                .count();
+            let excess = visible
+                .iter()
+                .filter(|r| r.excess_removed >= 0.5)
+                .count();
+            let pairs = of(false);
+            let pv: Vec<_> = pairs
+                .iter()
+                .filter(|r| r.verdict != Verdict::BelowNoise)
+                .collect();
+            let pn = pv.iter().filter(|r| r.verdict == Verdict::Named).count();
+            format!(
+                "{} size, {rate} Hz: single effects visible {}/{}; of those named first {named}, error halved {halved}, half the effect's excess removed {excess}; pairs (per model) visible {}/{}, every family named {pn}/{}",
+                size.name(),
+                visible.len(),
+                singles.len(),
+                pv.len(),
+                pairs.len(),
+                pv.len()
+            )
+        })
+        .collect()
+}
+
+/// The programme as Markdown: the method, the sizes with their physics,
+/// the summary, and every case.
+pub fn markdown(p: &Programme) -> String {
+    use std::fmt::Write;
+    let mut s = String::from("# Undeclared effects: the residual loop on drawn plants\n\n");
+    let _ = writeln!(
+        s,
+        "Each case: a 42 s calibration run (`jae-ident`) of a drawn plant (every force-path \
+         parameter ±30 %) with the effects on, the loop continuing from the model declared on the \
+         same plant's clean run, judged on the held-out last 30 %. An effect is *visible* when it \
+         raises the declared model's validation RMSE to at least {:.1}× the clean run's; below that \
+         the loop has nothing to find and the case is not counted. The loop also runs on the \
+         clean run: the terms it adds there (same kind on the same signal) are the declared \
+         model's own deficit on this plant, marked and not counted. *Named*: a single effect's \
+         family is the first of the other terms; for a pair, every family on that model is among \
+         them. *Excess removed*: `(before - after) / (before - clean)`.\n",
+        p.visible_rise
+    );
+    let _ = writeln!(
+        s,
+        "| effect | model | family | datasheet size | upper size |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|");
+    for e in EFFECTS {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            e.name,
+            e.target.name(),
+            e.class,
+            e.datasheet,
+            e.upper
+        );
+    }
+    let _ = writeln!(s, "\n## Summary\n");
+    for l in summary(p) {
+        let _ = writeln!(s, "* {l}");
+    }
+    let _ = writeln!(s, "\n## The clean runs\n");
+    let _ = writeln!(
+        s,
+        "| draw | rate | model | declared terms | validation RMSE | the loop adds on the clean run |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    for c in &p.clean {
+        let list = |v: &[String]| {
+            if v.is_empty() {
+                "none".to_owned()
+            } else {
+                v.iter()
+                    .map(|t| format!("`{t}`"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        };
+        let (u, k) = match c.model {
+            Target::Jae => ("°", 180.0 / std::f64::consts::PI),
+            Target::Tension => (" N", 1.0),
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} Hz | {} | {} | {:.4}{u} | {} |",
+            c.draw,
+            c.rate_hz,
+            c.model.name(),
+            list(&c.declared),
+            c.rmse * k,
+            list(&c.added)
+        );
+    }
+    let _ = writeln!(s, "\n## Every case\n");
+    let _ = writeln!(
+        s,
+        "| effects | size | rate | draw | model | rise over clean | verdict | terms added (families) | validation RMSE before → after | excess removed |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    for r in &p.rows {
+        let terms = if r.terms.is_empty() {
+            "none".to_owned()
+        } else {
+            r.terms
+                .iter()
+                .zip(&r.classes)
+                .zip(&r.also_clean)
+                .map(|((t, c), clean)| {
+                    let mark = if *clean {
+                        ", also on the clean run"
+                    } else {
+                        ""
+                    };
+                    format!("`{t}` ({c}{mark})")
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let rival = r
+            .rival
+            .as_ref()
+            .map(|c| format!("; {c} as likely"))
+            .unwrap_or_default();
+        let unit = match r.model {
+            Target::Jae => ("°", 180.0 / std::f64::consts::PI),
+            Target::Tension => (" N", 1.0),
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} Hz | {} | {} | ×{:.2} | {:?} | {terms}{rival} | {:.4}{u} → {:.4}{u} | {:.0} % |",
+            r.effects.join(" + "),
+            r.size.name(),
+            r.rate_hz,
+            r.draw,
+            r.model.name(),
+            r.before_rmse / r.clean_rmse,
+            r.verdict,
+            r.before_rmse * unit.1,
+            r.after_rmse * unit.1,
+            100.0 * r.excess_removed,
+            u = unit.0
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn v(classes: &[&str]) -> Vec<String> {
+        classes.iter().map(|c| (*c).to_owned()).collect()
+    }
+
+    #[test]
+    fn an_effect_that_does_not_raise_the_error_is_below_the_noise_whatever_was_added() {
+        assert_eq!(
+            verdict(&["thermal"], &v(&["thermal"]), &[], 1.0, 1.19),
+            Verdict::BelowNoise
+        );
+        assert_eq!(
+            verdict(&["thermal"], &v(&[]), &[], 1.0, 1.2),
+            Verdict::Missed
+        );
+        assert_eq!(
+            verdict(&["thermal"], &v(&["thermal"]), &[false], 1.0, 1.2),
+            Verdict::Named
+        );
+    }
+
+    #[test]
+    fn a_single_effect_is_named_only_when_its_family_comes_first() {
+        let e = ["creep / relaxation"];
+        assert_eq!(
+            verdict(
+                &e,
+                &v(&["stiffness", "creep / relaxation"]),
+                &[false, false],
+                1.0,
+                3.0
+            ),
+            Verdict::Missed
+        );
+        assert_eq!(
+            verdict(
+                &e,
+                &v(&["creep / relaxation", "stiffness"]),
+                &[false, false],
+                1.0,
+                3.0
+            ),
+            Verdict::Named
+        );
+        // A term the loop adds on the clean run too is the declared model's
+        // deficit: the effect's family after it still comes first.
+        assert_eq!(
+            verdict(
+                &e,
+                &v(&["stiffness", "creep / relaxation"]),
+                &[true, false],
+                1.0,
+                3.0
+            ),
+            Verdict::Named
+        );
+    }
+
+    #[test]
+    fn a_pair_on_one_model_is_named_when_both_families_are_among_the_terms() {
+        let e = ["thermal", "drift"];
+        assert_eq!(
+            verdict(&e, &v(&["drift", "load", "thermal"]), &[false; 3], 1.0, 2.0),
+            Verdict::Named
+        );
+        assert_eq!(
+            verdict(&e, &v(&["drift", "load"]), &[false; 2], 1.0, 2.0),
+            Verdict::Missed
+        );
+        assert_eq!(
+            verdict(&e, &v(&["drift", "thermal"]), &[false, true], 1.0, 2.0),
+            Verdict::Missed,
+            "a family found only in a term the clean run has too does not count"
+        );
+    }
+
+    #[test]
+    fn every_effect_alone_and_every_pair_once_each_acting_on_its_model() {
+        let c = cases(true);
+        assert_eq!(c.len(), 5 + 10);
+        let mut names: Vec<String> = c
+            .iter()
+            .map(|k| k.iter().map(|e| e.name).collect::<Vec<_>>().join("+"))
+            .collect();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), 15);
+        // Each size switches on exactly its effect, the upper size larger.
+        for e in EFFECTS {
+            let mut d = PlantParams::default();
+            e.apply(&mut d, Size::Datasheet);
+            let mut u = PlantParams::default();
+            e.apply(&mut u, Size::Upper);
+            assert_eq!(d.effects.enabled(), vec![e.name], "{}", e.name);
+            assert_eq!(u.effects.enabled(), vec![e.name], "{}", e.name);
+            assert_ne!(d, u, "{}: the upper size differs", e.name);
+        }
+    }
+}

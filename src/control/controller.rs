@@ -795,16 +795,19 @@ impl Controller {
                 st.cable0_taut_m = cable0_m;
             }
             let mut payout_m = st.cable0_taut_m - cable0_m;
-            match st.probe.mean() {
-                Some(p) => {
-                    if p.tension1_dob_n >= limit_n {
-                        st.cable0_mean_taut_m = Some(p.cable0_m);
+            // (Only a configuration with probing on can publish a mean.)
+            if d.probe.enabled() {
+                match st.probe.mean() {
+                    Some(p) => {
+                        if p.tension1_dob_n >= limit_n {
+                            st.cable0_mean_taut_m = Some(p.cable0_m);
+                        }
+                        if let Some(taut_m) = st.cable0_mean_taut_m {
+                            payout_m = payout_m.max(taut_m - p.cable0_m);
+                        }
                     }
-                    if let Some(taut_m) = st.cable0_mean_taut_m {
-                        payout_m = payout_m.max(taut_m - p.cable0_m);
-                    }
+                    None => st.cable0_mean_taut_m = None,
                 }
-                None => st.cable0_mean_taut_m = None,
             }
             st.cable0_floor_m = st.cable0_floor_m.max(cable0_m - reach_m);
             if payout_m > d.cable0_payout_m || cable0_m < st.cable0_floor_m {

@@ -77,7 +77,7 @@ impl Target {
 #[serde(rename_all = "lowercase")]
 pub enum Size {
     /// The plant's defaults, each from a datasheet or a measured order of
-    /// magnitude ([`crate::plant::effects`]).
+    /// magnitude ([`crate::plant::Effects`]).
     Datasheet,
     /// The upper end of the physical range, stated per effect
     /// ([`Effect::upper`]).

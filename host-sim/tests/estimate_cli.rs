@@ -196,15 +196,18 @@ fn a_configuration_that_sets_only_a_1khz_rate_runs_and_says_what_was_derived() {
     let dt = t.col_required("t_s").unwrap()[1] - t.col_required("t_s").unwrap()[0];
     assert!((dt - 1e-3).abs() < 1e-9, "simulated at 1 kHz: dt {dt}");
     let est = dir.path().join("est.csv");
-    let (ok, stderr) = run(&[
-        "estimate",
-        "--log",
-        log.to_str().unwrap(),
-        "--config",
-        config.to_str().unwrap(),
-        "--out",
-        est.to_str().unwrap(),
-    ]);
+    let estimate = || {
+        run(&[
+            "estimate",
+            "--log",
+            log.to_str().unwrap(),
+            "--config",
+            config.to_str().unwrap(),
+            "--out",
+            est.to_str().unwrap(),
+        ])
+    };
+    let (ok, stderr) = estimate();
     assert!(ok, "{stderr}");
     assert!(stderr.contains("motor_bandwidth_hz = 100"), "{stderr}");
 
@@ -213,15 +216,7 @@ fn a_configuration_that_sets_only_a_1khz_rate_runs_and_says_what_was_derived() {
         "control_rate_hz = 1000.0\n[differentiators]\nmotor_bandwidth_hz = 150.0\n",
     )
     .unwrap();
-    let (ok, stderr) = run(&[
-        "estimate",
-        "--log",
-        log.to_str().unwrap(),
-        "--config",
-        config.to_str().unwrap(),
-        "--out",
-        est.to_str().unwrap(),
-    ]);
+    let (ok, stderr) = estimate();
     assert!(!ok);
     assert!(
         stderr.contains("c1k.toml") && stderr.contains("motor_bandwidth_hz"),

@@ -1124,12 +1124,6 @@ mod tests {
         let limit_m = cfg.slack_limit_n() / cfg.stretch.cable1_n_m;
         let period_ticks = crate::probe::Probe::block_ticks(&cfg.probe, cfg.period_s())
             * crate::probe::BLOCKS as u32;
-        let per_n = |n: f32| {
-            let m = &cfg.machine;
-            let a = n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
-            a / cfg.scales.adc_a_per_code
-        };
-        let zero = cfg.scales.adc_zero_code;
         // The motor's reading: the preload while the hold settles, then
         // `mean_n`, plus a swing of twice the limit in phase with the dither.
         let swing = |mean_n: f32| {
@@ -1140,8 +1134,7 @@ mod tests {
                 } else {
                     mean_n
                 };
-                let n = mean_n + 2.0 * cfg.slack_limit_n() * math::sin(phase);
-                AdcCode((zero + per_n(n)) as u16)
+                current_holding(&cfg, mean_n + 2.0 * cfg.slack_limit_n() * math::sin(phase))
             }
         };
         // The payout takes 2 s: eight periods at the default 4 Hz.
@@ -1174,10 +1167,14 @@ mod tests {
 
     /// The current-monitor code of a motor holding the preload on cable 0.
     fn preload_current(cfg: &Config) -> AdcCode {
+        current_holding(cfg, cfg.tension.f_0_n)
+    }
+
+    /// The current-monitor code of a motor holding `tension_n` on cable 0.
+    fn current_holding(cfg: &Config, tension_n: f32) -> AdcCode {
         let m = &cfg.machine;
-        let preload_a =
-            cfg.tension.f_0_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
-        AdcCode((preload_a / cfg.scales.adc_a_per_code + cfg.scales.adc_zero_code) as u16)
+        let a = tension_n * m.rope_wheel_radius_m / (m.gear_ratio * m.torque_constant_nm_a);
+        AdcCode((a / cfg.scales.adc_a_per_code + cfg.scales.adc_zero_code) as u16)
     }
 
     /// Hold the motor at zero with the current-monitor code `current(tick)`

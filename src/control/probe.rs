@@ -28,10 +28,11 @@
 //!
 //! Cost per tick: a phasor rotation (four multiplications; no
 //! transcendental function, the phasor is reset exactly once per period) and
-//! five additions; at each block's end the ring's sums (forty additions). The window is exact without a buffer of every sample: the
-//! period is eight blocks of whole ticks, each block's sums go into an
-//! eight-slot ring, and the mean over the ring (one whole period) is
-//! refreshed at every block's end.
+//! five additions; at each block's end, the ring's sums (forty additions).
+//! The window is exact without a buffer of every sample: the period is
+//! eight blocks of whole ticks, each block's sums go into an eight-slot
+//! ring, and the mean over the ring (one whole period) is refreshed at every
+//! block's end.
 
 use crate::config::ProbeConfig;
 use crate::math;

@@ -212,19 +212,25 @@ pub struct VariantResult {
 }
 
 impl VariantResult {
-    /// The variant's directory name under the report's `variants/`: its
-    /// name, lower case, every run of other characters one `-`.
+    /// The variant's directory name under the report's `variants/`
+    /// ([`dir_name`]).
     pub fn slug(&self) -> String {
-        let mut out = String::new();
-        for c in self.name.chars() {
-            if c.is_ascii_alphanumeric() {
-                out.push(c.to_ascii_lowercase());
-            } else if !out.is_empty() && !out.ends_with('-') {
-                out.push('-');
-            }
-        }
-        out.trim_end_matches('-').to_owned()
+        dir_name(&self.name)
     }
+}
+
+/// A variant's directory name: its name, lower case, every run of other
+/// characters one `-`.
+pub fn dir_name(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if !out.is_empty() && !out.ends_with('-') {
+            out.push('-');
+        }
+    }
+    out.trim_end_matches('-').to_owned()
 }
 
 #[derive(Default)]
@@ -648,29 +654,9 @@ mod tests {
         assert!(!rec.fault_confirmed, "both cables above the limit");
     }
 
-    /// A cable carrying no tension with the drive on counts as undetected
-    /// until the tick its fault latches (drive off); a taut tick in
-    /// between (even one below the checks' limit) ends a stretch.
     #[test]
     fn every_variant_has_its_own_directory_name() {
-        let names: Vec<String> = variants()
-            .iter()
-            .map(|v| {
-                VariantResult {
-                    name: v.name.clone(),
-                    what: v.what.clone(),
-                    rate_hz: v.rate_hz,
-                    error: None,
-                    notes: Vec::new(),
-                    pin_at_tip_n: 0.0,
-                    passive: Protocol::default(),
-                    probing: None,
-                    plant: v.plant,
-                    config: None,
-                }
-                .slug()
-            })
-            .collect();
+        let names: Vec<String> = variants().iter().map(|v| dir_name(&v.name)).collect();
         assert!(names.contains(&"draw-13-1-khz".to_owned()), "{names:?}");
         let mut unique = names.clone();
         unique.sort();
@@ -685,6 +671,9 @@ mod tests {
         }
     }
 
+    /// A cable carrying no tension with the drive on counts as undetected
+    /// until the tick its fault latches (drive off); a taut tick in
+    /// between (even one below the checks' limit) ends a stretch.
     #[test]
     fn slack_counts_as_undetected_from_the_first_slack_tick_to_the_fault() {
         let mut rec = case_rec();

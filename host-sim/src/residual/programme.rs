@@ -34,17 +34,18 @@ use cable_joint::Config;
 use serde::Serialize;
 
 use super::{analyse, config_with, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions};
-use crate::plant::PlantParams;
-use crate::plant::{Creep, OffsetDrift, Presliding, SpringHardening, Thermal};
+use crate::plant::{Creep, OffsetDrift, PlantParams, Presliding, SpringHardening, Thermal};
 use crate::report::programme::run_seed;
-use crate::scenario::{self, ScenarioOptions};
-use crate::sim::LogRecorder;
+use crate::scenario::{self, SimulateOptions};
 
 /// An effect is visible when it raises the declared model's validation
 /// RMSE to at least this many times the clean run's (the same plant, noise
 /// and trajectory without the effect). Below, the loop has nothing to find
 /// and the case says so instead of counting a miss.
 pub const VISIBLE_RISE: f64 = 1.2;
+
+/// The two models, in the order the programme keeps their references.
+const TARGETS: [Target; 2] = [Target::Jae, Target::Tension];
 
 /// The model an effect moves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -343,19 +344,16 @@ pub struct Programme {
     pub visible_rise: f64,
 }
 
+/// The calibration run (`jae-ident`) through `host-sim simulate`'s own path.
 fn simulate(plant: PlantParams, config: Config, seed: u64) -> Result<NamedLog> {
-    let mut rec = LogRecorder::new(true);
-    scenario::run(
-        "jae-ident",
-        plant,
-        config,
-        Some(seed),
-        &ScenarioOptions::default(),
-        &mut rec,
-    )?;
+    let opts = SimulateOptions {
+        scenario: "jae-ident".to_owned(),
+        seed: Some(seed),
+        ..SimulateOptions::default()
+    };
     Ok(NamedLog {
-        name: "jae-ident".to_owned(),
-        log: rec.to_log()?,
+        name: opts.scenario.clone(),
+        log: scenario::simulate(plant, config, &opts)?.log.to_log()?,
     })
 }
 
@@ -421,11 +419,21 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
             let tension = fit(Target::Tension, &clean, &with_jae, false, 4)?;
             let declared = config_with(&tension, &with_jae)?;
             // The loop on the clean run, from the declared model: the
-            // reference error, and the terms that are not the effect's.
-            let mut clean_ref = Vec::new();
-            for (target, first) in [(Target::Jae, &jae), (Target::Tension, &tension)] {
+            // reference error, and the terms that are not the effect's (kind
+            // and signal), per model in the order of `TARGETS`.
+            let mut clean_rmse = [f64::NAN; 2];
+            let mut clean_keys: [Vec<(&'static str, u8)>; 2] = Default::default();
+            for (i, first) in [&jae, &tension].into_iter().enumerate() {
+                let target = TARGETS[i];
                 let a = fit(target, &clean, &declared, true, 8)
                     .with_context(|| format!("{tag}: clean run, {}", target.name()))?;
+                clean_rmse[i] = a.outcome.baseline.val_rmse;
+                clean_keys[i] = a
+                    .outcome
+                    .accepted
+                    .iter()
+                    .map(|s| (s.term.kind.name(), s.term.input))
+                    .collect();
                 refs.push(CleanRef {
                     draw,
                     rate_hz,
@@ -439,21 +447,7 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
                     rmse: a.outcome.baseline.val_rmse,
                     added: a.outcome.accepted.iter().map(|s| s.label.clone()).collect(),
                 });
-                let keys: Vec<(&'static str, u8)> = a
-                    .outcome
-                    .accepted
-                    .iter()
-                    .map(|s| (s.term.kind.name(), s.term.input))
-                    .collect();
-                clean_ref.push((target, a.outcome.baseline.val_rmse, keys));
             }
-            let clean_of = |t: Target| {
-                clean_ref
-                    .iter()
-                    .find(|(x, _, _)| *x == t)
-                    .map(|(_, rmse, keys)| (*rmse, keys.clone()))
-                    .unwrap_or((f64::NAN, Vec::new()))
-            };
             done += 1;
             for &size in &opts.sizes {
                 for case in &cases {
@@ -464,7 +458,7 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
                     let names: Vec<&'static str> = case.iter().map(|e| e.name).collect();
                     let label = format!("{tag}, {} {}", names.join(" + "), size.name());
                     let log = simulate(plant, config, seed).with_context(|| label.clone())?;
-                    for target in [Target::Jae, Target::Tension] {
+                    for (i, target) in TARGETS.into_iter().enumerate() {
                         let expected: Vec<&'static str> = case
                             .iter()
                             .filter(|e| e.target == target)
@@ -476,7 +470,7 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
                         let a = fit(target, &log, &declared, true, 8)
                             .with_context(|| format!("{label}: {}", target.name()))?;
                         let o = &a.outcome;
-                        let (clean_rmse, clean_keys) = clean_of(target);
+                        let (clean_rmse, clean_keys) = (clean_rmse[i], &clean_keys[i]);
                         let classes: Vec<String> =
                             o.accepted.iter().map(|s| s.class.clone()).collect();
                         let also_clean: Vec<bool> = o

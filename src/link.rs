@@ -316,8 +316,49 @@ pub struct Received {
     /// The frame's sequence number, for the acknowledgement (0 when the
     /// frame was too damaged to carry one).
     pub seq: u8,
+    /// The frame's CRC (0 when the frame was too damaged to carry one):
+    /// with `seq`, what tells a resend from a new frame ([`Repeats`]).
+    pub crc: u16,
     /// The request to queue, or why not.
     pub outcome: Result<Request, Refused>,
+}
+
+/// At-most-once delivery over a line that loses frames.
+///
+/// The host resends a frame, byte for byte (same sequence number, same
+/// CRC), when its acknowledgement does not come back. If the frame was
+/// lost, the resend is the first copy the firmware sees; if only the
+/// acknowledgement was lost, the firmware has queued the request already
+/// and must acknowledge the copy without applying it again (a second
+/// `Program` would restart the sequence). The firmware remembers the last
+/// request it queued; a frame with the same sequence number and CRC is
+/// that request's resend. A refused frame is not remembered, so its resend
+/// is judged afresh (a `Busy` request is queued when there is room).
+///
+/// A host that connects anew starts with a heartbeat (`host-sim link`
+/// does): were it taken for a resend of the previous session's last frame
+/// (same sequence number and bytes), skipping it changes nothing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Repeats {
+    last: Option<(u8, u16)>,
+}
+
+impl Repeats {
+    /// Nothing queued yet.
+    pub const fn new() -> Self {
+        Self { last: None }
+    }
+
+    /// Whether `r` is a resend of the last request queued: acknowledge it,
+    /// do not queue it again.
+    pub fn is_repeat(&self, r: &Received) -> bool {
+        r.outcome.is_ok() && self.last == Some((r.seq, r.crc))
+    }
+
+    /// The request of the frame `seq` with CRC `crc` was queued.
+    pub fn queued(&mut self, seq: u8, crc: u16) {
+        self.last = Some((seq, crc));
+    }
 }
 
 /// Check an operator frame's COBS bytes (in place) down to the request it
@@ -330,17 +371,22 @@ pub fn receive(buf: &mut [u8], len: usize) -> Received {
         Err(e) => {
             return Received {
                 seq: 0,
+                crc: 0,
                 outcome: Err(Refused::Frame(e)),
             }
         }
     };
     let frame = &buf[..n];
     let seq = frame.get(1).copied().unwrap_or(0);
+    let crc = match frame {
+        [.., lo, hi] if n >= 4 => u16::from_le_bytes([*lo, *hi]),
+        _ => 0,
+    };
     let outcome = match decode_raw::<Down>(frame) {
         Err(e) => Err(Refused::Frame(e)),
         Ok((_, down)) => down.into_request().map_err(Refused::Invalid),
     };
-    Received { seq, outcome }
+    Received { seq, crc, outcome }
 }
 
 /// Processor-in-the-loop only: what the board would have read at one tick,
@@ -459,6 +505,30 @@ mod tests {
         let mut buf = frame.to_vec();
         let n = buf.len() - 1;
         receive(&mut buf, n)
+    }
+
+    /// A resend (same sequence number, same bytes) of the request last
+    /// queued is recognised; a new frame with the same sequence number, a
+    /// refused frame's resend and a resend after another request are not.
+    #[test]
+    fn repeats_recognise_only_a_resend_of_the_request_last_queued() {
+        let mut repeats = Repeats::new();
+        let program = wire(&Down::ClearFault, 3);
+        let first = received(&program);
+        assert!(!repeats.is_repeat(&first));
+        repeats.queued(first.seq, first.crc);
+        // Its acknowledgement was lost: the host sends the same bytes.
+        assert!(repeats.is_repeat(&received(&program)));
+        // Same sequence number, other content (a new session's frame).
+        assert!(!repeats.is_repeat(&received(&wire(&Down::Heartbeat, 3))));
+        // A refused frame is never a repeat, even with a remembered seq.
+        let zero = wire(&Down::SetDecimation(0), 4);
+        assert!(!repeats.is_repeat(&received(&zero)));
+        // After the next request is queued, the old frame is new again.
+        let next = received(&wire(&Down::SetDecimation(5), 4));
+        repeats.queued(next.seq, next.crc);
+        assert!(!repeats.is_repeat(&received(&program)));
+        assert!(repeats.is_repeat(&next));
     }
 
     #[test]

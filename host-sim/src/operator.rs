@@ -9,8 +9,13 @@
 //!
 //! Requests are stop-and-wait: one frame, then its acknowledgement (the
 //! firmware checks each one down to `validate()` before it answers), then
-//! the next. A refusal comes back with its reason; no answer within the
-//! timeout is an error naming the request.
+//! the next. A frame whose acknowledgement does not come back within
+//! [`Client::resend_after`] is sent again byte for byte, as is one the
+//! firmware found damaged or could not queue (`Busy`); the firmware
+//! acknowledges a resend of a request it already queued without applying
+//! it twice (`cable_joint::link::Repeats`). A refusal of the content comes
+//! back with its reason; no answer within [`Client::ack_timeout`] is an
+//! error naming the request and the copies sent.
 
 use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
@@ -58,6 +63,90 @@ impl Port for Tty {
     fn set_timeout(&mut self, _timeout: Duration) -> std::io::Result<()> {
         // `stty ... min 0 time 1`: a read returns after 0.1 s without data.
         Ok(())
+    }
+}
+
+/// A port whose line loses chosen acknowledgements on their way up (the
+/// `n`-th acknowledgement read, counted from 0): fault injection for the
+/// link's resend path and the firmware's `Repeats` (`host-sim pil`'s
+/// tests). Every other byte passes unchanged and in order.
+pub struct LosesAcks {
+    inner: Box<dyn Port>,
+    lost: Vec<usize>,
+    acks: usize,
+    /// The frame being read (its COBS bytes so far).
+    frame: Vec<u8>,
+    /// Bytes passed on and not yet read.
+    ready: VecDeque<u8>,
+}
+
+impl LosesAcks {
+    /// `inner`, losing the acknowledgements numbered in `lost`.
+    pub fn new(inner: Box<dyn Port>, lost: Vec<usize>) -> Self {
+        Self {
+            inner,
+            lost,
+            acks: 0,
+            frame: Vec::new(),
+            ready: VecDeque::new(),
+        }
+    }
+
+    /// A whole frame arrived (its delimiter included): pass it on unless it
+    /// is an acknowledgement to lose.
+    fn arrived(&mut self) {
+        let mut bytes = self.frame.clone();
+        let len = bytes.len() - 1;
+        let is_ack = matches!(link::decode::<Up>(&mut bytes, len), Ok((_, Up::Ack { .. })));
+        if is_ack {
+            self.acks += 1;
+            if self.lost.contains(&(self.acks - 1)) {
+                self.frame.clear();
+                return;
+            }
+        }
+        self.ready.extend(self.frame.drain(..));
+    }
+}
+
+impl Read for LosesAcks {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.ready.is_empty() {
+            let mut raw = [0u8; 512];
+            let n = self.inner.read(&mut raw)?;
+            if n == 0 {
+                return Ok(0);
+            }
+            for &b in &raw[..n] {
+                self.frame.push(b);
+                if b == 0 {
+                    self.arrived();
+                }
+            }
+            if self.ready.is_empty() {
+                return Err(ErrorKind::WouldBlock.into());
+            }
+        }
+        let n = buf.len().min(self.ready.len());
+        for (slot, b) in buf.iter_mut().zip(self.ready.drain(..n)) {
+            *slot = b;
+        }
+        Ok(n)
+    }
+}
+
+impl Write for LosesAcks {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.inner.write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+impl Port for LosesAcks {
+    fn set_timeout(&mut self, timeout: Duration) -> std::io::Result<()> {
+        self.inner.set_timeout(timeout)
     }
 }
 
@@ -113,7 +202,7 @@ pub fn refusal_text(r: Refusal) -> String {
              defmt log)"
                 .to_owned()
         }
-        Refusal::Busy => "the firmware's request queue was full: send it again".to_owned(),
+        Refusal::Busy => "the firmware's request queue was full".to_owned(),
     }
 }
 
@@ -128,9 +217,19 @@ pub struct Client {
     pending: Vec<Record>,
     /// Frames that failed to decode (damaged on the way).
     pub damaged: u32,
-    /// How long [`Client::request`] waits for its acknowledgement.
+    /// How long [`Client::request`] waits for its acknowledgement in all.
     pub ack_timeout: Duration,
+    /// How long it waits for one copy's acknowledgement before it sends
+    /// the frame again.
+    pub resend_after: Duration,
+    /// Frames sent again (no acknowledgement in time, damaged on the way,
+    /// or the firmware's queue full).
+    pub resent: u32,
 }
+
+/// Pause before a request the firmware could not queue is sent again (its
+/// queue of four drains one request per control tick).
+const BUSY_PAUSE: Duration = Duration::from_millis(10);
 
 /// One frame from the firmware.
 #[derive(Debug, Clone, PartialEq)]
@@ -158,47 +257,89 @@ impl Client {
             pending: Vec::new(),
             damaged: 0,
             ack_timeout: Duration::from_secs(5),
+            resend_after: Duration::from_millis(500),
+            resent: 0,
         })
     }
 
     /// Send `msg` (`what` names it in errors) as the next frame, without
     /// waiting for an answer; its sequence number.
     pub fn send<M: Serialize>(&mut self, msg: &M, what: &str) -> anyhow::Result<u8> {
+        let (seq, frame) = self.encode_next(msg, what)?;
+        self.write_frame(&frame, what)?;
+        Ok(seq)
+    }
+
+    /// `msg` as the next frame's bytes, with its sequence number.
+    fn encode_next<M: Serialize>(&mut self, msg: &M, what: &str) -> anyhow::Result<(u8, Vec<u8>)> {
         self.seq = self.seq.wrapping_add(1);
         let mut wire = [0u8; MAX_WIRE_LEN];
         let frame = link::encode(msg, self.seq, &mut wire)
             .map_err(|e| anyhow::anyhow!("encoding {what}: {e}"))?;
+        Ok((self.seq, frame.to_vec()))
+    }
+
+    fn write_frame(&mut self, frame: &[u8], what: &str) -> anyhow::Result<()> {
         self.port
             .write_all(frame)
             .with_context(|| format!("sending {what}"))?;
         self.port.flush()?;
-        Ok(self.seq)
+        Ok(())
     }
 
-    /// Send `msg` and wait for its acknowledgement; telemetry that arrives
-    /// meanwhile is kept for [`Client::take_telemetry`].
+    /// Send `msg` and wait for its acknowledgement, sending the same frame
+    /// again while none comes, the firmware found it damaged or its queue
+    /// was full; telemetry that arrives meanwhile is kept for
+    /// [`Client::take_telemetry`].
     pub fn request(&mut self, msg: &Down) -> anyhow::Result<()> {
-        let seq = self.send(msg, name(msg))?;
+        let what = name(msg);
+        let (seq, frame) = self.encode_next(msg, what)?;
         let deadline = Instant::now() + self.ack_timeout;
-        while Instant::now() < deadline {
-            match self.next_frame()? {
-                Some(Frame::Ack { seq: s, refused }) if s == seq => {
-                    return match refused {
-                        None => Ok(()),
-                        Some(r) => {
-                            bail!("the firmware refused {}: {}", name(msg), refusal_text(r))
-                        }
-                    };
+        let mut copies = 0u32;
+        let mut busy = false;
+        loop {
+            if copies > 0 {
+                self.resent += 1;
+            }
+            self.write_frame(&frame, what)?;
+            copies += 1;
+            match self.answer(seq, (Instant::now() + self.resend_after).min(deadline))? {
+                Some(None) => return Ok(()),
+                Some(Some(Refusal::Busy)) => {
+                    busy = true;
+                    std::thread::sleep(BUSY_PAUSE);
                 }
+                // Damaged on the way (COBS, too short, CRC): send it again.
+                Some(Some(Refusal::Frame(2..=4))) | None => {}
+                Some(Some(r)) => bail!("the firmware refused {what}: {}", refusal_text(r)),
+            }
+            if Instant::now() >= deadline {
+                let secs = self.ack_timeout.as_secs_f64();
+                if busy {
+                    bail!(
+                        "{what} was not applied: the firmware's request queue stayed full for \
+                         {secs:.1} s ({copies} copies sent)"
+                    );
+                }
+                bail!(
+                    "no answer from the firmware to {what} within {secs:.1} s ({copies} copies \
+                     sent; is it running, and the port right?)"
+                );
+            }
+        }
+    }
+
+    /// The acknowledgement of frame `seq` if one arrives before `until`
+    /// (`Some(refusal)`), keeping the telemetry that arrives meanwhile.
+    fn answer(&mut self, seq: u8, until: Instant) -> anyhow::Result<Option<Option<Refusal>>> {
+        while Instant::now() < until {
+            match self.next_frame()? {
+                Some(Frame::Ack { seq: s, refused }) if s == seq => return Ok(Some(refused)),
                 Some(Frame::Ack { .. }) | None => {}
                 Some(Frame::Telemetry(r)) => self.pending.push(r),
             }
         }
-        bail!(
-            "no answer from the firmware to {} within {:.1} s (is it running, and the port right?)",
-            name(msg),
-            self.ack_timeout.as_secs_f64()
-        )
+        Ok(None)
     }
 
     /// Read what has arrived (waiting up to the port's timeout once) and
@@ -284,20 +425,31 @@ pub fn name(msg: &Down) -> &'static str {
 mod tests {
     use super::*;
     use cable_joint::board::Request;
-    use cable_joint::link::{encode, receive};
+    use cable_joint::link::{encode, receive, Repeats};
     use cable_joint::telemetry::{StartRecord, FORMAT_VERSION, MAX_RECORD_LEN};
     use std::net::TcpListener;
 
+    /// What the line between host and stand-in firmware loses: the
+    /// frames (counted from 0 as they arrive, resends included) that never
+    /// arrive, and those whose acknowledgement never comes back.
+    #[derive(Clone, Copy, Default)]
+    struct Losses {
+        frames: &'static [usize],
+        acks: &'static [usize],
+    }
+
     /// A stand-in for the firmware's link tasks on a socket: every frame
-    /// goes through the core's `receive` (as the `link_frame` task does),
-    /// a telemetry record goes up before each acknowledgement, and a
-    /// decimation of 7 is answered "busy".
-    fn fake_firmware(listener: TcpListener) -> Vec<Request> {
+    /// goes through the core's `receive` and `Repeats` (as the `link_frame`
+    /// task does), a telemetry record goes up before each acknowledgement,
+    /// and a decimation of 7 is answered "busy". `losses` are dropped.
+    fn fake_firmware(listener: TcpListener, losses: Losses) -> Vec<Request> {
         let (mut s, _) = listener.accept().unwrap();
         let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
         let mut queued = Vec::new();
         let mut buf = [0u8; 256];
         let mut up_seq = 0u8;
+        let mut repeats = Repeats::new();
+        let mut arrived = 0usize;
         let mut send = |s: &mut TcpStream, msg: &Up| {
             let mut wire = [0u8; MAX_WIRE_LEN];
             s.write_all(encode(msg, up_seq, &mut wire).unwrap())
@@ -313,6 +465,10 @@ mod tests {
                 let Pushed::Frame(len) = reader.push(b) else {
                     continue;
                 };
+                arrived += 1;
+                if losses.frames.contains(&(arrived - 1)) {
+                    continue;
+                }
                 let r = receive(reader.frame(), len);
                 let mut bytes = [0u8; MAX_RECORD_LEN];
                 let record = Record::Start(StartRecord {
@@ -321,21 +477,21 @@ mod tests {
                     decimation: 1,
                 });
                 send(&mut s, &Up::Telemetry(record.encode(&mut bytes)));
+                let (seq, crc) = (r.seq, r.crc);
                 let refused = match r.outcome {
+                    Ok(_) if repeats.is_repeat(&r) => None,
                     Ok(Request::SetDecimation(7)) => Some(Refusal::Busy),
                     Ok(req) => {
                         queued.push(req);
+                        repeats.queued(seq, crc);
                         None
                     }
                     Err(e) => Some(e.refusal()),
                 };
-                send(
-                    &mut s,
-                    &Up::Ack {
-                        seq: r.seq,
-                        refused,
-                    },
-                );
+                if losses.acks.contains(&(arrived - 1)) {
+                    continue;
+                }
+                send(&mut s, &Up::Ack { seq, refused });
             }
         }
     }
@@ -344,8 +500,9 @@ mod tests {
     fn client_gets_acknowledgements_refusals_and_the_telemetry_between() {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let port = listener.local_addr().unwrap().port();
-        let firmware = std::thread::spawn(move || fake_firmware(listener));
+        let firmware = std::thread::spawn(move || fake_firmware(listener, Losses::default()));
         let mut c = Client::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap()).unwrap();
+        c.ack_timeout = Duration::from_secs(1);
         c.request(&Down::Heartbeat).unwrap();
         c.request(&Down::SetDecimation(10)).unwrap();
         // Refused on the way in, with the reason in words.
@@ -354,11 +511,17 @@ mod tests {
             e.contains("the telemetry rate") && e.contains("validation"),
             "{e}"
         );
+        // Busy is sent again until the deadline, then named.
         let e = c.request(&Down::SetDecimation(7)).unwrap_err().to_string();
-        assert!(e.contains("queue was full"), "{e}");
+        assert!(
+            e.contains("the telemetry rate was not applied") && e.contains("queue stayed full"),
+            "{e}"
+        );
+        let busy_copies = c.resent + 1;
+        assert!(busy_copies > 2, "{busy_copies}");
         c.request(&Down::ClearFault).unwrap();
-        // One record came up before each of the five answers.
-        assert_eq!(c.take_telemetry().len(), 5);
+        // One record came up before each answer.
+        assert_eq!(c.take_telemetry().len() as u32, 4 + busy_copies);
         assert_eq!(c.damaged, 0);
         drop(c);
         assert_eq!(
@@ -369,6 +532,73 @@ mod tests {
                 Request::ClearFault
             ]
         );
+    }
+
+    /// Over a line that loses a request frame and, later, an
+    /// acknowledgement, every request is applied exactly once and in
+    /// order: the lost frame is sent again, and the resend of the frame
+    /// whose acknowledgement was lost is acknowledged without being queued
+    /// twice.
+    #[test]
+    fn a_lost_frame_or_acknowledgement_is_resent_and_applied_once() {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listener.local_addr().unwrap().port();
+        // Arrivals: 0 heartbeat, 1 decimation (lost), 2 its resend,
+        // 3 fault clear (its acknowledgement lost), 4 its resend,
+        // 5 heartbeat.
+        let losses = Losses {
+            frames: &[1],
+            acks: &[3],
+        };
+        let firmware = std::thread::spawn(move || fake_firmware(listener, losses));
+        let mut c = Client::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap()).unwrap();
+        c.resend_after = Duration::from_millis(150);
+        for msg in [
+            Down::Heartbeat,
+            Down::SetDecimation(10),
+            Down::ClearFault,
+            Down::Heartbeat,
+        ] {
+            c.request(&msg).unwrap();
+        }
+        assert_eq!(c.resent, 2);
+        drop(c);
+        assert_eq!(
+            firmware.join().unwrap(),
+            [
+                Request::Heartbeat,
+                Request::SetDecimation(10),
+                Request::ClearFault,
+                Request::Heartbeat
+            ]
+        );
+    }
+
+    /// `LosesAcks` (the PIL's link fault) loses exactly the acknowledgements
+    /// it is told to, and the telemetry around them passes.
+    #[test]
+    fn loses_acks_drops_the_chosen_acknowledgements_only() {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listener.local_addr().unwrap().port();
+        let firmware = std::thread::spawn(move || fake_firmware(listener, Losses::default()));
+        let lossy = LosesAcks::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap(), vec![1]);
+        let mut c = Client::new(Box::new(lossy)).unwrap();
+        c.resend_after = Duration::from_millis(150);
+        for msg in [
+            Down::Heartbeat,
+            Down::SetDecimation(10),
+            Down::ClearFault,
+            Down::Heartbeat,
+        ] {
+            c.request(&msg).unwrap();
+        }
+        // Acknowledgement 1 (the decimation's) was lost and its frame sent
+        // again; the record before each of the five answers came through.
+        assert_eq!(c.resent, 1);
+        assert_eq!(c.take_telemetry().len(), 5);
+        assert_eq!(c.damaged, 0);
+        drop(c);
+        assert_eq!(firmware.join().unwrap().len(), 4);
     }
 
     #[test]
@@ -389,10 +619,12 @@ mod tests {
         let port = silent.local_addr().unwrap().port();
         let mut c = Client::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap()).unwrap();
         c.ack_timeout = Duration::from_millis(200);
+        c.resend_after = Duration::from_millis(50);
         let e = c.request(&Down::Heartbeat).unwrap_err().to_string();
         assert!(
-            e.contains("no answer from the firmware to the heartbeat"),
+            e.contains("no answer from the firmware to the heartbeat") && e.contains("copies sent"),
             "{e}"
         );
+        assert!(c.resent >= 1, "sent again before giving up");
     }
 }

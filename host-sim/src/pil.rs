@@ -30,7 +30,7 @@ use cable_joint::link::SensorFrame;
 use cable_joint::telemetry::{Record, TickRecord};
 
 use crate::ingest::{cycle_stats, CycleStats};
-use crate::operator::{down_for, Client, Frame};
+use crate::operator::{down_for, Client, Frame, LosesAcks};
 use crate::plant::PlantParams;
 use crate::trace::{
     record_on, record_with, Firmware, Inject, NoInjection, Progress, Recorded, Ticked, TraceOptions,
@@ -49,6 +49,10 @@ pub struct PilOptions {
     /// Longest wait for one tick's answer (QEMU's start included for the
     /// first).
     pub tick_timeout: Duration,
+    /// Acknowledgements on the run's own link that the line loses (the
+    /// `n`-th from 0; [`crate::operator::LosesAcks`]): the request is sent
+    /// again and must act once, at the same tick.
+    pub lost_acks: Vec<usize>,
 }
 
 /// The firmware binary on QEMU, driven tick by tick.
@@ -150,7 +154,12 @@ impl Pil {
         let link = match &link_listener {
             Some(l) => {
                 let s = accept(l, &mut child, "link port (USART2)", &opts.out_dir)?;
-                Some(Client::new(Box::new(s))?)
+                let port: Box<dyn crate::operator::Port> = if opts.lost_acks.is_empty() {
+                    Box::new(s)
+                } else {
+                    Box::new(LosesAcks::new(Box::new(s), opts.lost_acks.clone()))
+                };
+                Some(Client::new(port)?)
             }
             None => None,
         };

@@ -135,7 +135,9 @@ mod app {
     use cable_joint::board::{
         on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine, Program, Request,
     };
-    use cable_joint::link::{receive, FrameReader, Pushed, Refusal, Refused, Up, MAX_WIRE_LEN};
+    use cable_joint::link::{
+        receive, FrameReader, Pushed, Refusal, Refused, Repeats, Up, MAX_WIRE_LEN,
+    };
     use cable_joint::telemetry::Record;
     use core::sync::atomic::Ordering;
     use heapless::spsc::{Consumer, Producer, Queue};
@@ -379,17 +381,32 @@ mod app {
     /// content; a configuration is validated and its filters designed
     /// here), queued for the control task, which applies one per tick, and
     /// answered with an acknowledgement that names a refusal. No deadline.
-    #[task(priority = 1, shared = [link_tx], local = [requests_tx])]
+    #[task(priority = 1, shared = [link_tx], local = [requests_tx, repeats: Repeats = Repeats::new()])]
     async fn link_frame(mut cx: link_frame::Context, mut frame: Vec<u8, MAX_WIRE_LEN>) {
         let n = frame.len();
         let received = receive(&mut frame, n);
+        let (seq, crc) = (received.seq, received.crc);
         let refused = match received.outcome {
+            Ok(_) if cx.local.repeats.is_repeat(&received) => {
+                // Its acknowledgement was lost: acknowledge, apply once.
+                defmt::info!(
+                    "link: resend of frame {=u8} acknowledged, not applied again",
+                    seq
+                );
+                None
+            }
             Ok(request) => {
                 LINK_UP.store(true, Ordering::Relaxed);
-                cx.local.requests_tx.enqueue(request).err().map(|_| {
-                    defmt::warn!("request queue full: request refused");
-                    Refusal::Busy
-                })
+                match cx.local.requests_tx.enqueue(request) {
+                    Ok(()) => {
+                        cx.local.repeats.queued(seq, crc);
+                        None
+                    }
+                    Err(_) => {
+                        defmt::warn!("request queue full: request refused");
+                        Some(Refusal::Busy)
+                    }
+                }
             }
             Err(Refused::Invalid(e)) => {
                 defmt::warn!(
@@ -404,10 +421,7 @@ mod app {
                 Some(Refusal::Frame(e.code()))
             }
         };
-        let ack = Up::Ack {
-            seq: received.seq,
-            refused,
-        };
+        let ack = Up::Ack { seq, refused };
         cx.shared.link_tx.lock(|link| link.send(&ack));
     }
 

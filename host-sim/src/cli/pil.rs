@@ -46,6 +46,7 @@ pub fn run(args: PilArgs) -> anyhow::Result<()> {
         out_dir: args.out.clone(),
         link_port: args.link_port,
         tick_timeout: Duration::from_secs_f64(args.tick_timeout_s),
+        lost_acks: Vec::new(),
     };
     let config = opts.config();
     let mut watch = Watch::new(

@@ -95,11 +95,40 @@ impl Size {
     }
 }
 
+/// The plant effects the programme switches on, one per field of
+/// [`crate::plant::Effects`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// Wire-rope creep ([`Creep`]).
+    Creep,
+    /// A hardening return spring ([`SpringHardening`]).
+    Spring,
+    /// Presliding friction ([`Presliding`]).
+    Presliding,
+    /// Winding heating ([`Thermal`]).
+    Thermal,
+    /// Current-sensor offset drift ([`OffsetDrift`]).
+    Drift,
+}
+
+impl Kind {
+    /// Its name, as `simulate --effect` takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Creep => "creep",
+            Kind::Spring => "spring",
+            Kind::Presliding => "presliding",
+            Kind::Thermal => "thermal",
+            Kind::Drift => "drift",
+        }
+    }
+}
+
 /// An effect the estimators' models lack.
 #[derive(Clone, Copy, Debug)]
 pub struct Effect {
-    /// Its name (as `simulate --effect` takes it).
-    pub name: &'static str,
+    /// Which plant effect.
+    pub kind: Kind,
     /// The model it moves.
     pub target: Target,
     /// The family a term explaining it belongs to
@@ -114,35 +143,35 @@ pub struct Effect {
 /// The five effects the plant can add.
 pub const EFFECTS: [Effect; 5] = [
     Effect {
-        name: "creep",
+        kind: Kind::Creep,
         target: Target::Jae,
         class: "creep / relaxation",
         datasheet: "steel wire rope: strand bedding, 10 % of the elastic stretch, 30 s",
         upper: "polymer-core or fibre rope: 30 % of the elastic stretch, 10 s",
     },
     Effect {
-        name: "spring",
+        kind: Kind::Spring,
         target: Target::Jae,
         class: "stiffness",
         datasheet: "cylindrical coil spring: k3 = 3.6e6 N/m³, 5 % extra force at 3 mm",
         upper: "progressive (conical or variable-pitch) spring: k3 = 1.8e7 N/m³, 25 % at 3 mm",
     },
     Effect {
-        name: "presliding",
+        kind: Kind::Presliding,
         target: Target::Tension,
         class: "hysteresis",
         datasheet: "rolling guides 20 µm, pin 3 mrad (LuGre)",
         upper: "rolling guides 50 µm (the upper end of 10-50 µm), a worn pin 10 mrad",
     },
     Effect {
-        name: "thermal",
+        kind: Kind::Thermal,
         target: Target::Tension,
         class: "thermal",
         datasheet: "25 mm motor: 2.3 Ω, 12.5 s winding, 600 s housing, K_m -0.4 %/K",
         upper: "16 mm motor: 7 Ω, 6 s winding, 30 K/W to ambient, K_m -0.4 %/K",
     },
     Effect {
-        name: "drift",
+        kind: Kind::Drift,
         target: Target::Tension,
         class: "drift",
         datasheet: "current-sensor offset 0.1 mA/s ramp, 0.2 mA/√s walk",
@@ -151,12 +180,17 @@ pub const EFFECTS: [Effect; 5] = [
 ];
 
 impl Effect {
+    /// Its name, as `simulate --effect` takes it.
+    pub fn name(&self) -> &'static str {
+        self.kind.name()
+    }
+
     /// Switch this effect on in `p` at `size`.
     pub fn apply(&self, p: &mut PlantParams, size: Size) {
         let e = &mut p.effects;
         let upper = size == Size::Upper;
-        match self.name {
-            "creep" => {
+        match self.kind {
+            Kind::Creep => {
                 let mut c = Creep::default();
                 if upper {
                     c.ratio = 0.3;
@@ -164,14 +198,14 @@ impl Effect {
                 }
                 e.creep = Some(c);
             }
-            "spring" => {
+            Kind::Spring => {
                 let mut s = SpringHardening::default();
                 if upper {
                     s.cubic_n_m3 = 1.8e7;
                 }
                 e.spring_hardening = Some(s);
             }
-            "presliding" => {
+            Kind::Presliding => {
                 let mut s = Presliding::default();
                 if upper {
                     s.slider_presliding_m = 50e-6;
@@ -179,7 +213,7 @@ impl Effect {
                 }
                 e.presliding = Some(s);
             }
-            "thermal" => {
+            Kind::Thermal => {
                 let mut t = Thermal::default();
                 if upper {
                     t.resistance_ohm = 7.0;
@@ -188,7 +222,7 @@ impl Effect {
                 }
                 e.thermal = Some(t);
             }
-            _ => {
+            Kind::Drift => {
                 let mut d = OffsetDrift::default();
                 if upper {
                     d.rate_a_s = 5e-4;
@@ -455,7 +489,7 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
                     for e in case {
                         e.apply(&mut plant, size);
                     }
-                    let names: Vec<&'static str> = case.iter().map(|e| e.name).collect();
+                    let names: Vec<&'static str> = case.iter().map(|e| e.name()).collect();
                     let label = format!("{tag}, {} {}", names.join(" + "), size.name());
                     let log = simulate(plant, config, seed).with_context(|| label.clone())?;
                     for (i, target) in TARGETS.into_iter().enumerate() {
@@ -600,7 +634,7 @@ pub fn markdown(p: &Programme) -> String {
         let _ = writeln!(
             s,
             "| {} | {} | {} | {} | {} |",
-            e.name,
+            e.name(),
             e.target.name(),
             e.class,
             e.datasheet,
@@ -781,7 +815,7 @@ mod tests {
         assert_eq!(c.len(), 5 + 10);
         let mut names: Vec<String> = c
             .iter()
-            .map(|k| k.iter().map(|e| e.name).collect::<Vec<_>>().join("+"))
+            .map(|k| k.iter().map(|e| e.name()).collect::<Vec<_>>().join("+"))
             .collect();
         names.sort();
         names.dedup();
@@ -792,9 +826,9 @@ mod tests {
             e.apply(&mut d, Size::Datasheet);
             let mut u = PlantParams::default();
             e.apply(&mut u, Size::Upper);
-            assert_eq!(d.effects.enabled(), vec![e.name], "{}", e.name);
-            assert_eq!(u.effects.enabled(), vec![e.name], "{}", e.name);
-            assert_ne!(d, u, "{}: the upper size differs", e.name);
+            assert_eq!(d.effects.enabled(), vec![e.name()], "{}", e.name());
+            assert_eq!(u.effects.enabled(), vec![e.name()], "{}", e.name());
+            assert_ne!(d, u, "{}: the upper size differs", e.name());
         }
     }
 }

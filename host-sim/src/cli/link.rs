@@ -125,6 +125,8 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         .map(|name| schedule(name, args.duration_scale))
         .transpose()?;
     let mut client = Client::new(open(&args.port)?)?;
+    // First, always: a frame the firmware could take for a resend of the
+    // last session's last request (link::Repeats) is then a heartbeat.
     client.request(&Down::Heartbeat)?;
     eprintln!("connected to {}", args.port);
     if args.clear_fault {
@@ -274,8 +276,8 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         .filter(|r| matches!(r, Record::Tick(_)))
         .count();
     eprintln!(
-        "received {ticks} tick records ({} damaged frames)",
-        client.damaged
+        "received {ticks} tick records ({} damaged frames, {} requests sent again)",
+        client.damaged, client.resent
     );
     if args.record.is_some() {
         eprintln!("{written}");

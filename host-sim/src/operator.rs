@@ -496,12 +496,33 @@ mod tests {
         }
     }
 
-    #[test]
-    fn client_gets_acknowledgements_refusals_and_the_telemetry_between() {
+    /// A stand-in firmware on a local port: the port's spec and the thread
+    /// that returns what it queued.
+    fn stand_in(losses: Losses) -> (String, std::thread::JoinHandle<Vec<Request>>) {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let port = listener.local_addr().unwrap().port();
-        let firmware = std::thread::spawn(move || fake_firmware(listener, Losses::default()));
-        let mut c = Client::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap()).unwrap();
+        let firmware = std::thread::spawn(move || fake_firmware(listener, losses));
+        (format!("tcp:127.0.0.1:{port}"), firmware)
+    }
+
+    /// The four requests of the loss tests, each acknowledged.
+    const FOUR: [Request; 4] = [
+        Request::Heartbeat,
+        Request::SetDecimation(10),
+        Request::ClearFault,
+        Request::Heartbeat,
+    ];
+
+    fn send_four(c: &mut Client) {
+        for r in &FOUR {
+            c.request(&down_for(r).unwrap()).unwrap();
+        }
+    }
+
+    #[test]
+    fn client_gets_acknowledgements_refusals_and_the_telemetry_between() {
+        let (spec, firmware) = stand_in(Losses::default());
+        let mut c = Client::new(open(&spec).unwrap()).unwrap();
         c.ack_timeout = Duration::from_secs(1);
         c.request(&Down::Heartbeat).unwrap();
         c.request(&Down::SetDecimation(10)).unwrap();
@@ -541,64 +562,37 @@ mod tests {
     /// twice.
     #[test]
     fn a_lost_frame_or_acknowledgement_is_resent_and_applied_once() {
-        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-        let port = listener.local_addr().unwrap().port();
         // Arrivals: 0 heartbeat, 1 decimation (lost), 2 its resend,
         // 3 fault clear (its acknowledgement lost), 4 its resend,
         // 5 heartbeat.
-        let losses = Losses {
+        let (spec, firmware) = stand_in(Losses {
             frames: &[1],
             acks: &[3],
-        };
-        let firmware = std::thread::spawn(move || fake_firmware(listener, losses));
-        let mut c = Client::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap()).unwrap();
+        });
+        let mut c = Client::new(open(&spec).unwrap()).unwrap();
         c.resend_after = Duration::from_millis(150);
-        for msg in [
-            Down::Heartbeat,
-            Down::SetDecimation(10),
-            Down::ClearFault,
-            Down::Heartbeat,
-        ] {
-            c.request(&msg).unwrap();
-        }
+        send_four(&mut c);
         assert_eq!(c.resent, 2);
         drop(c);
-        assert_eq!(
-            firmware.join().unwrap(),
-            [
-                Request::Heartbeat,
-                Request::SetDecimation(10),
-                Request::ClearFault,
-                Request::Heartbeat
-            ]
-        );
+        assert_eq!(firmware.join().unwrap(), FOUR);
     }
 
     /// `LosesAcks` (the PIL's link fault) loses exactly the acknowledgements
     /// it is told to, and the telemetry around them passes.
     #[test]
     fn loses_acks_drops_the_chosen_acknowledgements_only() {
-        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-        let port = listener.local_addr().unwrap().port();
-        let firmware = std::thread::spawn(move || fake_firmware(listener, Losses::default()));
-        let lossy = LosesAcks::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap(), vec![1]);
+        let (spec, firmware) = stand_in(Losses::default());
+        let lossy = LosesAcks::new(open(&spec).unwrap(), vec![1]);
         let mut c = Client::new(Box::new(lossy)).unwrap();
         c.resend_after = Duration::from_millis(150);
-        for msg in [
-            Down::Heartbeat,
-            Down::SetDecimation(10),
-            Down::ClearFault,
-            Down::Heartbeat,
-        ] {
-            c.request(&msg).unwrap();
-        }
+        send_four(&mut c);
         // Acknowledgement 1 (the decimation's) was lost and its frame sent
         // again; the record before each of the five answers came through.
         assert_eq!(c.resent, 1);
         assert_eq!(c.take_telemetry().len(), 5);
         assert_eq!(c.damaged, 0);
         drop(c);
-        assert_eq!(firmware.join().unwrap().len(), 4);
+        assert_eq!(firmware.join().unwrap(), FOUR);
     }
 
     #[test]

@@ -113,6 +113,30 @@ pub enum Refusal {
     Busy,
 }
 
+impl Refusal {
+    /// Whether the same frame sent again can be accepted: it arrived
+    /// damaged (COBS, too short, CRC: noise on the line), or the queue was
+    /// full. A frame too long, of another version or with a body this
+    /// firmware does not read, and content that fails validation, are
+    /// refused again whatever the line does.
+    pub fn worth_resending(self) -> bool {
+        match self {
+            Refusal::Frame(code) => {
+                // (A CRC error's code does not depend on the two CRCs.)
+                let crc = LinkError::Crc {
+                    found: 0,
+                    computed: 0,
+                };
+                [LinkError::Cobs, LinkError::TooShort, crc]
+                    .iter()
+                    .any(|e| e.code() == code)
+            }
+            Refusal::Invalid => false,
+            Refusal::Busy => true,
+        }
+    }
+}
+
 /// Why bytes are not a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LinkError {
@@ -505,6 +529,23 @@ mod tests {
         let mut buf = frame.to_vec();
         let n = buf.len() - 1;
         receive(&mut buf, n)
+    }
+
+    /// Only noise on the line and a full queue are worth a resend.
+    #[test]
+    fn only_damage_and_a_full_queue_are_worth_resending() {
+        let crc = LinkError::Crc {
+            found: 1,
+            computed: 2,
+        };
+        for e in [LinkError::Cobs, LinkError::TooShort, crc] {
+            assert!(Refused::Frame(e).refusal().worth_resending(), "{e:?}");
+        }
+        for e in [LinkError::TooLong, LinkError::Version(2), LinkError::Body] {
+            assert!(!Refused::Frame(e).refusal().worth_resending(), "{e:?}");
+        }
+        assert!(Refusal::Busy.worth_resending());
+        assert!(!Refusal::Invalid.worth_resending());
     }
 
     /// A resend (same sequence number, same bytes) of the request last

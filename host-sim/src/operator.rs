@@ -69,13 +69,12 @@ impl Port for Tty {
 /// A port whose line loses chosen acknowledgements on their way up (the
 /// `n`-th acknowledgement read, counted from 0): fault injection for the
 /// link's resend path and the firmware's `Repeats` (`host-sim pil`'s
-/// tests). Every other byte passes unchanged and in order.
+/// tests). Every other frame passes unchanged and in order.
 pub struct LosesAcks {
     inner: Box<dyn Port>,
     lost: Vec<usize>,
     acks: usize,
-    /// The frame being read (its COBS bytes so far).
-    frame: Vec<u8>,
+    reader: FrameReader<MAX_WIRE_LEN>,
     /// Bytes passed on and not yet read.
     ready: VecDeque<u8>,
 }
@@ -87,25 +86,23 @@ impl LosesAcks {
             inner,
             lost,
             acks: 0,
-            frame: Vec::new(),
+            reader: FrameReader::new(),
             ready: VecDeque::new(),
         }
     }
 
-    /// A whole frame arrived (its delimiter included): pass it on unless it
-    /// is an acknowledgement to lose.
-    fn arrived(&mut self) {
-        let mut bytes = self.frame.clone();
-        let len = bytes.len() - 1;
-        let is_ack = matches!(link::decode::<Up>(&mut bytes, len), Ok((_, Up::Ack { .. })));
-        if is_ack {
+    /// The frame of `len` COBS bytes in the reader arrived: pass it on
+    /// unless it is an acknowledgement to lose.
+    fn arrived(&mut self, len: usize) {
+        let bytes = self.reader.frame()[..len].to_vec();
+        if let Ok((_, Up::Ack { .. })) = link::decode::<Up>(self.reader.frame(), len) {
             self.acks += 1;
             if self.lost.contains(&(self.acks - 1)) {
-                self.frame.clear();
                 return;
             }
         }
-        self.ready.extend(self.frame.drain(..));
+        self.ready.extend(bytes);
+        self.ready.push_back(0);
     }
 }
 
@@ -118,9 +115,8 @@ impl Read for LosesAcks {
                 return Ok(0);
             }
             for &b in &raw[..n] {
-                self.frame.push(b);
-                if b == 0 {
-                    self.arrived();
+                if let Pushed::Frame(len) = self.reader.push(b) {
+                    self.arrived(len);
                 }
             }
             if self.ready.is_empty() {
@@ -305,13 +301,15 @@ impl Client {
             copies += 1;
             match self.answer(seq, (Instant::now() + self.resend_after).min(deadline))? {
                 Some(None) => return Ok(()),
+                Some(Some(r)) if !r.worth_resending() => {
+                    bail!("the firmware refused {what}: {}", refusal_text(r))
+                }
                 Some(Some(Refusal::Busy)) => {
                     busy = true;
                     std::thread::sleep(BUSY_PAUSE);
                 }
-                // Damaged on the way (COBS, too short, CRC): send it again.
-                Some(Some(Refusal::Frame(2..=4))) | None => {}
-                Some(Some(r)) => bail!("the firmware refused {what}: {}", refusal_text(r)),
+                // Damaged on the way, or no answer: send it again.
+                Some(Some(_)) | None => {}
             }
             if Instant::now() >= deadline {
                 let secs = self.ack_timeout.as_secs_f64();

@@ -13,7 +13,7 @@
 
 use cable_joint::controller::{Command, Mode, RawSample};
 use cable_joint::effects::{EffectKind, Term};
-use cable_joint::trajectory::Trajectory;
+use cable_joint::trajectory::{Trajectory, HARMONICS};
 use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount};
 use cable_joint::{Config, Controller, Fault};
 use proptest::prelude::*;
@@ -257,6 +257,22 @@ fn samples() -> impl Strategy<Value = Vec<RawSample>> {
     })
 }
 
+/// A Fourier excitation whose fifth harmonic makes it start at rest.
+fn fourier_at_rest(offset_rad: f32, base_freq_hz: f32, s: [f32; 4], c: [f32; 4]) -> Trajectory {
+    let (mut sin_rad, mut cos_rad) = ([0.0; HARMONICS], [0.0; HARMONICS]);
+    sin_rad[..4].copy_from_slice(&s);
+    cos_rad[..4].copy_from_slice(&c);
+    let k = |i: usize| (i + 1) as f32;
+    sin_rad[4] = -(0..4).map(|i| k(i) * s[i]).sum::<f32>() / 5.0;
+    cos_rad[4] = -(0..4).map(|i| k(i) * k(i) * c[i]).sum::<f32>() / 25.0;
+    Trajectory::Fourier {
+        offset_rad,
+        base_freq_hz,
+        sin_rad,
+        cos_rad,
+    }
+}
+
 fn command() -> impl Strategy<Value = Command> {
     let mode = prop_oneof![
         Just(Mode::Idle),
@@ -281,6 +297,13 @@ fn command() -> impl Strategy<Value = Command> {
             amplitude_rad: a,
             base_freq_hz: f,
         }),
+        (
+            -1.0f32..1.0,
+            0.01f32..10.0,
+            [-0.3f32..0.3, -0.3f32..0.3, -0.3f32..0.3, -0.3f32..0.3],
+            [-0.3f32..0.3, -0.3f32..0.3, -0.3f32..0.3, -0.3f32..0.3],
+        )
+            .prop_map(|(o, f, s, c)| fourier_at_rest(o, f, s, c)),
     ];
     (mode, trajectory).prop_map(|(mode, trajectory)| Command { mode, trajectory })
 }

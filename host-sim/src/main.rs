@@ -44,6 +44,8 @@ enum Command {
     Simulate(host_sim::cli::simulate::SimulateArgs),
     /// Tool payload identification and tool-end wrench estimation (KUKA wrist data).
     Payload(host_sim::cli::payload::PayloadArgs),
+    /// Design an identification excitation (Fourier series, least condition number) for `--scenario excite`.
+    Excite(host_sim::cli::excite::ExciteArgs),
     /// Identify B_m, the JAE and the tension models from logs; write the configuration.
     Identify(host_sim::cli::identify::IdentifyArgs),
     /// Replay a log (any rate) through the core; write every estimate and the force bound.
@@ -67,6 +69,7 @@ fn main() -> ExitCode {
         Some(Command::Link(args)) => host_sim::cli::link::run(args),
         Some(Command::Simulate(a)) => host_sim::cli::simulate::run(a),
         Some(Command::Payload(a)) => host_sim::cli::payload::run(a),
+        Some(Command::Excite(a)) => host_sim::cli::excite::run(a),
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
         Some(Command::Residual(a)) => host_sim::cli::residual::run(a),
         Some(Command::Undeclared(a)) => host_sim::cli::undeclared::run(a),

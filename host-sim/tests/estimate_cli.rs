@@ -19,7 +19,7 @@ fn loading_log_1khz() -> Log {
         angle_deg: Some(0.0),
         mass_g: Some(100.0),
         direction: Some(Direction::Pos),
-        tip_inertia: false,
+        ..ScenarioOptions::default()
     };
     let mut rec = LogRecorder::new(true);
     let s = scenario::run(

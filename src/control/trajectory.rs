@@ -1,6 +1,7 @@
-//! Joint-angle reference generator: holds, sines, smooth point-to-point moves
-//! and the seed's "complex trajectory" (Fig. 13), evaluated at a time since the
-//! command started. Pure functions of time: no state, no allocation.
+//! Joint-angle reference generator: holds, sines, smooth point-to-point moves,
+//! the seed's "complex trajectory" (Fig. 13) and seed 001's Fourier-series
+//! excitation (Eq. 9), evaluated at a time since the command started. Pure
+//! functions of time: no state, no allocation.
 
 use crate::math::{self, PI};
 
@@ -41,7 +42,30 @@ pub enum Trajectory {
         /// Base frequency, Hz (components at 1, 2.3 and 3.7 times it).
         base_freq_hz: f32,
     },
+    /// An identification excitation (seed 001, Eq. 9): a Fourier series of
+    /// [`HARMONICS`] harmonics of `base_freq_hz`, written so that it starts
+    /// at `offset_rad`,
+    /// `theta(t) = offset + sum_k [ sin_k sin(k w t) + cos_k (cos(k w t) - 1) ]`
+    /// with `w = 2 pi base_freq_hz`. [`Trajectory::validate`] asks that it
+    /// also start at rest (`sum_k k sin_k = 0`, zero velocity, and
+    /// `sum_k k^2 cos_k = 0`, zero acceleration), so it is periodic and ends
+    /// at rest after any whole number of periods: seed 001 appends a
+    /// polynomial for the same purpose. `host-sim excite` designs the
+    /// coefficients.
+    Fourier {
+        /// Start (and mean-free centre offset), rad.
+        offset_rad: f32,
+        /// Fundamental frequency, Hz.
+        base_freq_hz: f32,
+        /// Sine coefficients of harmonics 1..=HARMONICS, rad.
+        sin_rad: [f32; HARMONICS],
+        /// Cosine coefficients of harmonics 1..=HARMONICS, rad.
+        cos_rad: [f32; HARMONICS],
+    },
 }
+
+/// Harmonics of [`Trajectory::Fourier`] (seed 001 uses N = 5).
+pub const HARMONICS: usize = 5;
 
 /// Reference at one instant.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -58,7 +82,8 @@ impl Trajectory {
     /// Check an operator's trajectory before it reaches the control path:
     /// every value finite, angles within ±10 rad (the widest range homing
     /// uses), frequencies within 0 < f <= 100 Hz (far above the joint's
-    /// bandwidth), durations within 0..=1e5 s. Returns what is wrong.
+    /// bandwidth), durations within 0..=1e5 s, a Fourier series starting at
+    /// rest. Returns what is wrong.
     pub fn validate(&self) -> Result<(), &'static str> {
         let angle = |a: f32| a.is_finite() && a.abs() <= 10.0;
         let freq = |f: f32| f.is_finite() && f > 0.0 && f <= 100.0;
@@ -83,6 +108,21 @@ impl Trajectory {
                 amplitude_rad,
                 base_freq_hz,
             } => angle(amplitude_rad) && freq(base_freq_hz),
+            Trajectory::Fourier {
+                offset_rad,
+                base_freq_hz,
+                sin_rad,
+                cos_rad,
+            } => {
+                let coefficients = sin_rad.iter().chain(cos_rad.iter());
+                let fine = angle(offset_rad)
+                    && freq(base_freq_hz)
+                    && coefficients.clone().all(|&c| angle(c));
+                if fine && !fourier_starts_at_rest(&sin_rad, &cos_rad) {
+                    return Err("a Fourier series must start at rest: sum k sin_k = 0 and sum k^2 cos_k = 0");
+                }
+                fine
+            }
         };
         if ok {
             Ok(())
@@ -156,8 +196,51 @@ impl Trajectory {
                     vel_rad_s: amplitude_rad * (f * v + df * a),
                 }
             }
+            Trajectory::Fourier {
+                offset_rad,
+                base_freq_hz,
+                sin_rad,
+                cos_rad,
+            } => {
+                // Phase within the period, so that the argument stays small
+                // however long the run (the cast saturates, never panics).
+                let cycles = t_s * base_freq_hz;
+                let phase = 2.0 * PI * (cycles - (cycles as u32) as f32);
+                let w = 2.0 * PI * base_freq_hz;
+                let (s1, c1) = (math::sin(phase), math::cos(phase));
+                // sin/cos of k * phase by the angle-sum recurrence: two
+                // transcendentals per tick instead of ten.
+                let (mut sk, mut ck) = (s1, c1);
+                let (mut a, mut v) = (0.0, 0.0);
+                for (k, (&sa, &ca)) in sin_rad.iter().zip(cos_rad.iter()).enumerate() {
+                    let kw = (k + 1) as f32 * w;
+                    a += sa * sk + ca * (ck - 1.0);
+                    v += kw * (sa * ck - ca * sk);
+                    (sk, ck) = (sk * c1 + ck * s1, ck * c1 - sk * s1);
+                }
+                Reference {
+                    angle_rad: offset_rad + a,
+                    vel_rad_s: v,
+                }
+            }
         }
     }
+}
+
+/// Whether a Fourier series of these coefficients starts at rest: zero
+/// velocity (`sum k sin_k = 0`) and zero acceleration (`sum k^2 cos_k = 0`),
+/// to 1e-4 of the sums of magnitudes (TOML's decimal round trip and `f32`
+/// rounding stay far below it).
+fn fourier_starts_at_rest(sin_rad: &[f32; HARMONICS], cos_rad: &[f32; HARMONICS]) -> bool {
+    let (mut vel, mut vel_scale, mut acc, mut acc_scale) = (0.0, 0.0, 0.0, 0.0);
+    for (k, (&sa, &ca)) in sin_rad.iter().zip(cos_rad.iter()).enumerate() {
+        let kf = (k + 1) as f32;
+        vel += kf * sa;
+        vel_scale += kf * math::abs(sa);
+        acc += kf * kf * ca;
+        acc_scale += kf * kf * math::abs(ca);
+    }
+    math::abs(vel) <= 1e-4 * vel_scale + 1e-9 && math::abs(acc) <= 1e-4 * acc_scale + 1e-9
 }
 
 #[cfg(test)]
@@ -186,6 +269,7 @@ mod tests {
                 amplitude_rad: 0.6,
                 base_freq_hz: 0.2,
             },
+            FOURIER,
         ];
         for tr in &cases {
             for k in 1..40 {
@@ -228,5 +312,85 @@ mod tests {
             .map(|k| tr.at(k as f32 * 0.005).angle_rad.abs())
             .fold(0.0, f32::max);
         assert!(peak <= 0.5 + 1e-6 && peak > 0.3, "peak {peak}");
+    }
+
+    /// Starts at rest: sum k sin_k = 0.1 - 0.2 + 0.3 - 0.2 + 0 = 0 and
+    /// sum k^2 cos_k = 0.2 - 0.2 + 0 + 0 + 0 = 0 (up to rounding).
+    const FOURIER: Trajectory = Trajectory::Fourier {
+        offset_rad: 0.2,
+        base_freq_hz: 0.3,
+        sin_rad: [0.1, -0.1, 0.1, -0.05, 0.0],
+        cos_rad: [0.2, -0.05, 0.0, 0.0, 0.0],
+    };
+
+    #[test]
+    fn fourier_starts_at_its_offset_at_rest_and_repeats_every_period() {
+        assert_eq!(FOURIER.validate(), Ok(()));
+        let start = FOURIER.at(0.0);
+        assert_eq!(start.angle_rad, 0.2);
+        assert!(start.vel_rad_s.abs() < 1e-6, "{start:?}");
+        let period_s = 1.0 / 0.3;
+        for k in 0..50 {
+            let t = k as f32 * 0.071;
+            let (a, b) = (FOURIER.at(t), FOURIER.at(t + 3.0 * period_s));
+            assert!(
+                (a.angle_rad - b.angle_rad).abs() < 1e-5,
+                "{t}: {a:?} vs {b:?}"
+            );
+            assert!(
+                (a.vel_rad_s - b.vel_rad_s).abs() < 1e-4,
+                "{t}: {a:?} vs {b:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn fourier_recurrence_matches_the_series_written_out() {
+        let Trajectory::Fourier {
+            offset_rad,
+            base_freq_hz,
+            sin_rad,
+            cos_rad,
+        } = FOURIER
+        else {
+            unreachable!()
+        };
+        for k in 0..200 {
+            let t = k as f64 * 0.0173;
+            let w = 2.0 * core::f64::consts::PI * f64::from(base_freq_hz);
+            let mut want = f64::from(offset_rad);
+            for h in 0..HARMONICS {
+                let x = (h + 1) as f64 * w * t;
+                want += f64::from(sin_rad[h]) * libm::sin(x)
+                    + f64::from(cos_rad[h]) * (libm::cos(x) - 1.0);
+            }
+            let got = f64::from(FOURIER.at(t as f32).angle_rad);
+            assert!((got - want).abs() < 2e-6, "t {t}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn validate_refuses_a_fourier_series_that_does_not_start_at_rest() {
+        let moving = Trajectory::Fourier {
+            offset_rad: 0.0,
+            base_freq_hz: 0.2,
+            sin_rad: [0.1, 0.0, 0.0, 0.0, 0.0],
+            cos_rad: [0.0; HARMONICS],
+        };
+        assert!(moving.validate().unwrap_err().contains("start at rest"));
+        let jerking = Trajectory::Fourier {
+            offset_rad: 0.0,
+            base_freq_hz: 0.2,
+            sin_rad: [0.0; HARMONICS],
+            cos_rad: [0.1, 0.0, 0.0, 0.0, 0.0],
+        };
+        assert!(jerking.validate().is_err());
+        let huge = Trajectory::Fourier {
+            offset_rad: 0.0,
+            base_freq_hz: 0.2,
+            sin_rad: [20.0, -10.0, 0.0, 0.0, 0.0],
+            cos_rad: [0.0; HARMONICS],
+        };
+        assert!(huge.validate().unwrap_err().contains("10 rad"));
     }
 }

@@ -19,6 +19,7 @@ use cable_joint::telemetry::Record;
 use cable_joint::trajectory::Trajectory;
 
 use crate::cli;
+use crate::ident::excite::{self, Design};
 use crate::ingest::{to_log, LogOptions};
 use crate::live::{Live, Screen, ViewArg};
 use crate::operator::{open, Client};
@@ -50,6 +51,10 @@ pub struct LinkArgs {
     /// operator's to apply on the rig.
     #[arg(long)]
     pub scenario: Option<String>,
+    /// `--scenario excite`: run this designed series (`host-sim excite
+    /// --out`; default: the design for `jae-ident`'s envelope).
+    #[arg(long)]
+    pub excitation: Option<PathBuf>,
     /// Scale of every segment of `--scenario` (1 = the full programme; the
     /// same scale as `host-sim simulate --duration-scale`).
     #[arg(long, default_value_t = 1.0, value_parser = cli::f64_above(0.0, 1e3))]
@@ -84,9 +89,14 @@ struct Schedule {
 
 /// A scenario's commands at their firmware times, every segment's length
 /// scaled by `duration_scale`.
-fn schedule(name: &str, duration_scale: f64) -> anyhow::Result<Schedule> {
+fn schedule(
+    name: &str,
+    duration_scale: f64,
+    excitation: Option<Design>,
+) -> anyhow::Result<Schedule> {
     let opts = ScenarioOptions {
         duration_scale,
+        excitation,
         ..ScenarioOptions::default()
     };
     let p = plan(name, &opts)?;
@@ -119,10 +129,11 @@ fn schedule(name: &str, duration_scale: f64) -> anyhow::Result<Schedule> {
 /// `host-sim link`.
 pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
+    let excitation = args.excitation.as_deref().map(excite::load).transpose()?;
     let scenario = args
         .scenario
         .as_deref()
-        .map(|name| schedule(name, args.duration_scale))
+        .map(|name| schedule(name, args.duration_scale, excitation))
         .transpose()?;
     let mut client = Client::new(open(&args.port)?)?;
     // First, always: a frame the firmware could take for a resend of the

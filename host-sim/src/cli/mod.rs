@@ -16,6 +16,7 @@
 //! command line (a library caller filling an argument structure).
 
 pub mod estimate;
+pub mod excite;
 pub mod identify;
 pub mod import;
 pub mod ingest;

@@ -95,6 +95,10 @@ pub struct SimulateArgs {
     /// Use cascade gains that work on the default plant.
     #[arg(long)]
     pub tuned_gains: bool,
+    /// `excite`: run this designed series (`host-sim excite --out`; default:
+    /// the design for `jae-ident`'s envelope).
+    #[arg(long)]
+    pub excitation: Option<PathBuf>,
     /// List the scenarios and exit.
     #[arg(long)]
     pub list: bool,
@@ -106,8 +110,13 @@ pub struct SimulateArgs {
 impl SimulateArgs {
     /// The run these arguments ask for, of scenario `name` (the library
     /// takes plain options).
-    pub fn options(&self, name: &str) -> SimulateOptions {
-        SimulateOptions {
+    pub fn options(&self, name: &str) -> anyhow::Result<SimulateOptions> {
+        let excitation = self
+            .excitation
+            .as_deref()
+            .map(crate::ident::excite::load)
+            .transpose()?;
+        Ok(SimulateOptions {
             scenario: name.to_owned(),
             seed: self.seed,
             duration: self.duration,
@@ -119,7 +128,8 @@ impl SimulateArgs {
             oracle: self.oracle,
             tuned_gains: self.tuned_gains,
             raw_trace: self.raw_out.is_some(),
-        }
+            excitation,
+        })
     }
 }
 
@@ -161,7 +171,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
-    let sim = simulate(plant, config, &args.options(name))?;
+    let sim = simulate(plant, config, &args.options(name)?)?;
     let summary = sim.summary;
     // The log and the raw trace are written together, or neither is.
     let mut outputs = Outputs::new();

@@ -80,6 +80,7 @@
 
 mod bm;
 mod design;
+pub mod excite;
 mod jae;
 mod joint;
 mod options;

@@ -266,7 +266,7 @@ pub fn loading_case(
         angle_deg: Some(angle_deg),
         mass_g: Some(mass_g),
         direction: Some(direction),
-        tip_inertia: false,
+        ..ScenarioOptions::default()
     };
     let mut rec = CaseRec {
         source,

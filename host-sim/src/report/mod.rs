@@ -40,6 +40,7 @@
 //! `--seed` and the run's name); the clean and the effects programmes run on
 //! two threads.
 
+pub mod excitation;
 pub mod experiments;
 pub mod figures;
 pub mod goals;
@@ -137,6 +138,9 @@ pub struct Report {
     pub figures: Vec<Written>,
     /// The force estimate on plant variants.
     pub variants: Vec<variants::VariantResult>,
+    /// The designed excitations against `jae-ident` on the plant variants
+    /// (`Err`: why the section could not run).
+    pub excitation: Result<excitation::ExcitationSection, String>,
     /// The figures, staged: [`write()`] commits them with the report, so a
     /// run that fails leaves the output directory as it was.
     pub staged: Outputs,
@@ -313,6 +317,8 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
     } = clean;
     progress.line("report", "force estimate on plant variants");
     let variant_results = variants::run_all(&s);
+    progress.line("report", "designed excitations on plant variants");
+    let excitation = excitation::run_all(&s).map_err(|e| format!("{e:#}"));
     if let Some(fx) = &fx {
         progress.line("report", "step 7 figures");
         figs.extend(figures::accuracy_figure(
@@ -348,6 +354,7 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         effects: fx,
         figures: figs,
         variants: variant_results,
+        excitation,
         staged,
     })
 }
@@ -405,6 +412,18 @@ pub fn write(r: &mut Report) -> Result<String> {
         for (g, _) in goals.iter().filter(|(_, ok)| !*ok) {
             text.push_str(&format!("      NOT met: {g}\n"));
         }
+    }
+    text.push_str("\nDesigned excitations against jae-ident (JAE fit)\n");
+    match &r.excitation {
+        Ok(x) => {
+            for (g, ok) in excitation::goal_lines(x) {
+                text.push_str(&format!(
+                    "  {} {g}\n",
+                    if ok { "met    " } else { "NOT met" }
+                ));
+            }
+        }
+        Err(e) => text.push_str(&format!("  could not run: {e}\n")),
     }
     text.push('\n');
     text.push_str(&seed::terminal_table(&rows));

@@ -126,6 +126,10 @@ fn comparison_json(rows: &[Row]) -> Vec<Value> {
 pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
     let mut out = json!({
         "force_variants": serde_json::to_value(&r.variants).unwrap_or(Value::Null),
+        "excitation": match &r.excitation {
+            Ok(x) => serde_json::to_value(x).unwrap_or(Value::Null),
+            Err(e) => json!({"error": e}),
+        },
         "schema": 1,
         "seed": r.options.seed,
         "duration_scale": r.options.duration_scale,

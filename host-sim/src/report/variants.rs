@@ -445,7 +445,7 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                     angle_deg: Some(a),
                     mass_g: Some(m),
                     direction: Some(d),
-                    tip_inertia: false,
+                    ..ScenarioOptions::default()
                 };
                 let mut rec = CaseRec {
                     moved: a != 0.0,

@@ -35,12 +35,14 @@ mod simulate;
 
 use cable_joint::{Config, Fault};
 
+use crate::ident::excite::Design;
 use crate::plant::PlantParams;
 use crate::sim::{AngleErrors, Recorder, Sim, TickRecord};
 use crate::stats::Summary;
 
 pub use plan::{
-    plan, Plan, ScenarioInfo, Segment, LOADING_ANGLES_DEG, LOADING_MASSES_G, SCENARIOS,
+    default_excitation, plan, Plan, ScenarioInfo, Segment, LOADING_ANGLES_DEG, LOADING_MASSES_G,
+    SCENARIOS,
 };
 pub use simulate::{simulate, SimulateOptions, Simulation};
 
@@ -126,6 +128,9 @@ pub struct ScenarioOptions {
     /// force. On, the 250 g weight puts the loaded joint mode near 60 rad/s,
     /// below the JAE position loop's crossover (a stress case).
     pub tip_inertia: bool,
+    /// `excite` only: run this designed series (`None`:
+    /// [`default_excitation`]).
+    pub excitation: Option<Design>,
 }
 
 impl Default for ScenarioOptions {
@@ -136,6 +141,7 @@ impl Default for ScenarioOptions {
             mass_g: None,
             direction: None,
             tip_inertia: false,
+            excitation: None,
         }
     }
 }

@@ -4,11 +4,13 @@
 //! segments on a [`Sim`].
 
 use std::f64::consts::PI;
+use std::sync::OnceLock;
 
 use cable_joint::trajectory::Trajectory;
 use cable_joint::{Command, Mode};
 
 use super::{Direction, Phase, ScenarioOptions, G_M_S2};
+use crate::ident::excite::{self, Design, DesignOptions, Objective};
 use crate::plant::PlantParams;
 use crate::sim::{ForceProfile, Recorder, Sim};
 
@@ -46,6 +48,20 @@ impl Plan {
     /// Total duration, s.
     pub fn duration_s(&self) -> f64 {
         self.segments.iter().map(|s| s.duration_s).sum()
+    }
+
+    /// Each command's trajectory and how long it is in force, s (a segment
+    /// without a command extends the one before).
+    pub fn references(&self) -> Vec<(Trajectory, f64)> {
+        let mut out: Vec<(Trajectory, f64)> = Vec::new();
+        for seg in &self.segments {
+            match (seg.command, out.last_mut()) {
+                (Some(c), _) => out.push((c.trajectory, seg.duration_s)),
+                (None, Some(last)) => last.1 += seg.duration_s,
+                (None, None) => {}
+            }
+        }
+        out
     }
 
     /// Adjust the plant parameters for this scenario: the motor decoupled
@@ -86,7 +102,7 @@ pub struct ScenarioInfo {
 }
 
 /// Every scenario.
-pub const SCENARIOS: [ScenarioInfo; 7] = [
+pub const SCENARIOS: [ScenarioInfo; 8] = [
     ScenarioInfo {
         name: "bm-noload",
         seed: 101,
@@ -121,6 +137,11 @@ pub const SCENARIOS: [ScenarioInfo; 7] = [
         name: "loading",
         seed: 107,
         description: "held at 0°, 30°, -40°; 30/50/100/200/250 g at the tip, both directions (seed Fig. 20-26)",
+    },
+    ScenarioInfo {
+        name: "excite",
+        seed: 108,
+        description: "jae-ident's set-up and length with a Fourier series designed for conditioning (seed 001 Sect. 2.3; `host-sim excite`)",
     },
 ];
 
@@ -212,6 +233,30 @@ fn complex(amplitude_deg: f64, base_freq_hz: f32) -> Trajectory {
     }
 }
 
+/// The excitation `excite` runs unless told otherwise: designed
+/// ([`excite::design`]) for `jae-ident`'s envelope and length less its 2 s of
+/// hold and return, once per process.
+pub fn default_excitation() -> anyhow::Result<&'static Design> {
+    static DESIGN: OnceLock<Result<Design, String>> = OnceLock::new();
+    DESIGN
+        .get_or_init(|| {
+            let hand_made =
+                plan("jae-ident", &ScenarioOptions::default()).map_err(|e| e.to_string())?;
+            let references = hand_made.references();
+            let limits = excite::envelope(&references, excite::PREDICTION_RATE_HZ);
+            let duration_s = hand_made.duration_s() - 2.0;
+            let opts = DesignOptions {
+                objective: Objective::Sigma {
+                    reference: excite::std_per_row(&references, excite::PREDICTION_RATE_HZ),
+                },
+                ..DesignOptions::for_run(duration_s, limits)
+            };
+            excite::design_over_frequencies(&opts, duration_s).map_err(|e| e.to_string())
+        })
+        .as_ref()
+        .map_err(|e| anyhow::anyhow!("designing the default excitation: {e}"))
+}
+
 /// Build a scenario's plan: one `match` arm per scenario, each a short list
 /// of segments, read best side by side (`loading`'s is the function `loading`).
 pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
@@ -275,6 +320,17 @@ pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
             b.track(jc, complex(30.0, 0.2), 20.0);
         }
         "loading" => loading(&mut b, opts)?,
+        "excite" => {
+            // jae-ident's set-up (motor closed loop, joint open loop) and
+            // length: 1 s hold, the series, 1 s back to 0.
+            let design = match opts.excitation {
+                Some(d) => d,
+                None => *default_excitation()?,
+            };
+            b.hold(Phase::Hold, mp, 1.0);
+            b.track(mp, design.trajectory, design.duration_s);
+            b.move_to(mp, 0.0, 1.0);
+        }
         _ => unreachable!("catalogue and match agree"),
     }
     Ok(Plan {
@@ -348,4 +404,33 @@ fn loading(b: &mut Builder, opts: &ScenarioOptions) -> anyhow::Result<()> {
         b.hold(Phase::Adjust, jc, 0.5);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excite_lasts_as_long_as_jae_ident_and_starts_and_ends_at_rest_at_zero() {
+        let opts = ScenarioOptions::default();
+        let (hand, designed) = (
+            plan("jae-ident", &opts).unwrap(),
+            plan("excite", &opts).unwrap(),
+        );
+        assert!((hand.duration_s() - designed.duration_s()).abs() < 1e-9);
+        let refs = designed.references();
+        let (series, len) = refs[1];
+        assert!(matches!(series, Trajectory::Fourier { .. }));
+        let (start, end) = (series.at(0.0), series.at(len as f32));
+        assert!(
+            start.angle_rad == 0.0 && start.vel_rad_s.abs() < 1e-6,
+            "{start:?}"
+        );
+        assert!(
+            end.angle_rad.abs() < 1e-3 && end.vel_rad_s.abs() < 1e-3,
+            "{end:?}"
+        );
+        let back = refs[2].0.at(refs[2].1 as f32);
+        assert_eq!(back.angle_rad, 0.0);
+    }
 }

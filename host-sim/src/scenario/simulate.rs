@@ -7,6 +7,7 @@ use anyhow::Result;
 use cable_joint::Config;
 
 use super::{oracle_config, plan, run, tuned_gains, Direction, RunSummary, ScenarioOptions};
+use crate::ident::excite::Design;
 use crate::plant::PlantParams;
 use crate::sim::{check_ticks, LogRecorder, RawTrace};
 
@@ -40,6 +41,8 @@ pub struct SimulateOptions {
     pub tuned_gains: bool,
     /// Also record the raw trace ([`RawTrace`]).
     pub raw_trace: bool,
+    /// `excite`: the designed series ([`ScenarioOptions::excitation`]).
+    pub excitation: Option<Design>,
 }
 
 impl SimulateOptions {
@@ -55,6 +58,7 @@ impl SimulateOptions {
             mass_g: self.mass_g,
             direction: self.direction,
             tip_inertia: self.tip_inertia,
+            excitation: self.excitation,
             ..ScenarioOptions::default()
         };
         if let Some(s) = self.duration_scale {

@@ -32,6 +32,12 @@ pub fn markdown(r: &Report, rows: &[Row]) -> String {
     if let Some(fx) = &r.effects {
         step7::md_step_7(&mut o, r, fx);
     }
+    match &r.excitation {
+        Ok(x) => o.push_str(&super::excitation::markdown(x)),
+        Err(e) => {
+            let _ = writeln!(o, "## Optimized excitation\n\nCould not run: {e}\n");
+        }
+    }
     md_definitions(&mut o);
     o
 }

@@ -1,0 +1,177 @@
+//! `host-sim excite`: design an identification excitation (seed 001 Sect.
+//! 2.3, [`crate::ident::excite`]) for the envelope and length of a hand-made
+//! run, and write it for `--scenario excite`.
+//!
+//! ```text
+//! host-sim excite --out excitation.toml
+//! host-sim simulate --scenario excite --excitation excitation.toml --out excite.csv
+//! host-sim link --port /dev/ttyACM0 --scenario excite --excitation excitation.toml --magnetic --record excite.csv
+//! ```
+
+use std::path::PathBuf;
+
+use anyhow::{ensure, Context};
+
+use crate::cli;
+use crate::ident::excite::{self, DesignOptions, Envelope, Objective, PREDICTION_RATE_HZ};
+use crate::output::write_atomic;
+use crate::scenario::{plan, ScenarioOptions};
+
+/// Arguments of `host-sim excite`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ExciteArgs {
+    /// The hand-made run the excitation replaces: its reference's envelope
+    /// gives the limits and its length less 2 s (hold and return) the
+    /// series' length, unless set below.
+    #[arg(long, default_value = "jae-ident")]
+    pub like: String,
+    /// Fundamental frequency, Hz (seed 001: 0.1 Hz; default: the best of
+    /// 0.05 to 0.5 Hz rounded to whole periods).
+    #[arg(long, value_parser = cli::f64_above(0.0, 10.0))]
+    pub base_freq_hz: Option<f64>,
+    /// What the search minimises: `sigma`, the largest predicted standard
+    /// deviation of the q'', q' and q parameters relative to `--like`'s, or
+    /// `condition`, seed 001's condition number.
+    #[arg(long, value_enum, default_value_t = ObjectiveArg::Sigma)]
+    pub objective: ObjectiveArg,
+    /// Length of the series, s (rounded down to whole periods).
+    #[arg(long, value_parser = cli::f64_above(0.0, 1e5))]
+    pub duration_s: Option<f64>,
+    /// Angle limit from the start angle, degrees.
+    #[arg(long, value_parser = cli::f64_above(0.0, 180.0))]
+    pub max_angle_deg: Option<f64>,
+    /// Velocity limit, degrees/s.
+    #[arg(long, value_parser = cli::f64_above(0.0, 1e5))]
+    pub max_vel_deg_s: Option<f64>,
+    /// Acceleration limit, degrees/s².
+    #[arg(long, value_parser = cli::f64_above(0.0, 1e7))]
+    pub max_acc_deg_s2: Option<f64>,
+    /// Random starts of the search (per base frequency).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub restarts: u32,
+    /// Seed of the random starts.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The designed excitation (TOML).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `--objective` ([`excite::Objective`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ObjectiveArg {
+    /// Largest predicted standard-deviation ratio to `--like`'s run.
+    Sigma,
+    /// Seed 001's condition number.
+    Condition,
+}
+
+fn show(e: &Envelope) -> String {
+    format!(
+        "|angle| {:.1}°, |velocity| {:.1}°/s, |acceleration| {:.1}°/s²",
+        e.angle_rad.to_degrees(),
+        e.vel_rad_s.to_degrees(),
+        e.acc_rad_s2.to_degrees()
+    )
+}
+
+/// Run the subcommand.
+pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
+    ensure!(
+        args.like != "excite",
+        "--like names the hand-made run the excitation replaces, not `excite` itself"
+    );
+    let hand_made = plan(&args.like, &ScenarioOptions::default())?;
+    let references = hand_made.references();
+    let measured = excite::envelope(&references, PREDICTION_RATE_HZ);
+    let limits = Envelope {
+        angle_rad: args
+            .max_angle_deg
+            .map_or(measured.angle_rad, f64::to_radians),
+        vel_rad_s: args
+            .max_vel_deg_s
+            .map_or(measured.vel_rad_s, f64::to_radians),
+        acc_rad_s2: args
+            .max_acc_deg_s2
+            .map_or(measured.acc_rad_s2, f64::to_radians),
+    };
+    let duration_s = args.duration_s.unwrap_or(hand_made.duration_s() - 2.0);
+    let objective = match args.objective {
+        ObjectiveArg::Condition => Objective::Condition,
+        ObjectiveArg::Sigma => Objective::Sigma {
+            reference: excite::std_per_row(&references, PREDICTION_RATE_HZ),
+        },
+    };
+    let opts = DesignOptions {
+        objective,
+        restarts: args.restarts,
+        seed: args.seed,
+        ..DesignOptions::for_run(duration_s, limits)
+    };
+    let before = excite::condition(&references, PREDICTION_RATE_HZ);
+    println!(
+        "{}: {:.1} s, {}; predicted condition number {before:.1}",
+        args.like,
+        hand_made.duration_s(),
+        show(&measured)
+    );
+    eprintln!(
+        "searching: {} starts of Nelder-Mead over {} coefficients{} ...",
+        opts.restarts,
+        2 * cable_joint::trajectory::HARMONICS,
+        if args.base_freq_hz.is_none() {
+            ", at each base frequency"
+        } else {
+            ""
+        }
+    );
+    let design = match args.base_freq_hz {
+        Some(f) => {
+            let periods = ((duration_s * f).floor() as u32).max(1);
+            excite::design(&DesignOptions {
+                base_freq_hz: f,
+                periods,
+                ..opts
+            })?
+        }
+        None => excite::design_over_frequencies(&opts, duration_s)?,
+    };
+    let run = plan(
+        "excite",
+        &ScenarioOptions {
+            excitation: Some(design),
+            ..ScenarioOptions::default()
+        },
+    )?;
+    let after = excite::condition(&run.references(), PREDICTION_RATE_HZ);
+    println!(
+        "excite: {:.1} s ({:.1} s of {:.3} Hz, 1 s hold, 1 s return), {}; predicted condition number {after:.1} ({:.2}x {}), {} evaluations",
+        run.duration_s(),
+        design.duration_s,
+        design.trajectory_base_freq_hz(),
+        show(&design.envelope),
+        after / before,
+        args.like,
+        design.evaluations
+    );
+    let (a, b) = (
+        excite::unit_std(&references, PREDICTION_RATE_HZ),
+        excite::unit_std(&run.references(), PREDICTION_RATE_HZ),
+    );
+    let ratios: Vec<String> = a
+        .iter()
+        .zip(b.iter())
+        .map(|(a, b)| format!("{:.2}", b / a))
+        .collect();
+    println!(
+        "predicted std ratio per column [q'', q', sgn, q, 1]: {}",
+        ratios.join(" ")
+    );
+    write_atomic(&args.out, excite::to_toml(&design)?.as_bytes())
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    println!(
+        "wrote {}: `host-sim simulate --scenario excite --excitation {0} --out run.csv`, on the rig `host-sim link ... --scenario excite --excitation {0} --magnetic --record run.csv`",
+        args.out.display()
+    );
+    Ok(())
+}

@@ -622,16 +622,18 @@ mod tests {
         }
     }
 
+    /// Limits of the small designs the tests make.
+    const LIMITS: Envelope = Envelope {
+        angle_rad: 0.5,
+        vel_rad_s: 1.5,
+        acc_rad_s2: 4.0,
+    };
+
     #[test]
     fn the_design_beats_its_random_starts_and_keeps_every_limit() {
-        let limits = Envelope {
-            angle_rad: 0.5,
-            vel_rad_s: 1.5,
-            acc_rad_s2: 4.0,
-        };
         let opts = DesignOptions {
             restarts: 3,
-            ..DesignOptions::for_run(20.0, limits)
+            ..DesignOptions::for_run(20.0, LIMITS)
         };
         let d = design(&opts).unwrap();
         assert_eq!(d.duration_s, 20.0);
@@ -657,14 +659,9 @@ mod tests {
 
     #[test]
     fn a_design_survives_its_file_and_a_bad_file_is_refused_by_name() {
-        let limits = Envelope {
-            angle_rad: 0.5,
-            vel_rad_s: 1.5,
-            acc_rad_s2: 4.0,
-        };
         let opts = DesignOptions {
             restarts: 1,
-            ..DesignOptions::for_run(10.0, limits)
+            ..DesignOptions::for_run(10.0, LIMITS)
         };
         let d = design(&opts).unwrap();
         let dir = tempfile::tempdir().unwrap();

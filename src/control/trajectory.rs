@@ -53,7 +53,7 @@ pub enum Trajectory {
     /// polynomial for the same purpose. `host-sim excite` designs the
     /// coefficients.
     Fourier {
-        /// Start (and mean-free centre offset), rad.
+        /// Start angle, rad.
         offset_rad: f32,
         /// Fundamental frequency, Hz.
         base_freq_hz: f32,
@@ -114,10 +114,9 @@ impl Trajectory {
                 sin_rad,
                 cos_rad,
             } => {
-                let coefficients = sin_rad.iter().chain(cos_rad.iter());
                 let fine = angle(offset_rad)
                     && freq(base_freq_hz)
-                    && coefficients.clone().all(|&c| angle(c));
+                    && sin_rad.iter().chain(&cos_rad).all(|&c| angle(c));
                 if fine && !fourier_starts_at_rest(&sin_rad, &cos_rad) {
                     return Err("a Fourier series must start at rest: sum k sin_k = 0 and sum k^2 cos_k = 0");
                 }

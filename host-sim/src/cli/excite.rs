@@ -13,9 +13,9 @@ use std::path::PathBuf;
 use anyhow::{ensure, Context};
 
 use crate::cli;
-use crate::ident::excite::{self, DesignOptions, Envelope, Objective, PREDICTION_RATE_HZ};
+use crate::ident::excite::{self, Criterion, DesignOptions, Envelope, PREDICTION_RATE_HZ};
 use crate::output::write_atomic;
-use crate::scenario::{plan, ScenarioOptions};
+use crate::scenario::{excitation_replacing, plan, ScenarioOptions};
 
 /// Arguments of `host-sim excite`.
 #[derive(clap::Args, Debug, Clone)]
@@ -83,30 +83,28 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     );
     let hand_made = plan(&args.like, &ScenarioOptions::default())?;
     let references = hand_made.references();
-    let measured = excite::envelope(&references, PREDICTION_RATE_HZ);
-    let limits = Envelope {
-        angle_rad: args
-            .max_angle_deg
-            .map_or(measured.angle_rad, f64::to_radians),
-        vel_rad_s: args
-            .max_vel_deg_s
-            .map_or(measured.vel_rad_s, f64::to_radians),
-        acc_rad_s2: args
-            .max_acc_deg_s2
-            .map_or(measured.acc_rad_s2, f64::to_radians),
+    let criterion = match args.objective {
+        ObjectiveArg::Condition => Criterion::Condition,
+        ObjectiveArg::Sigma => Criterion::Sigma,
     };
-    let duration_s = args.duration_s.unwrap_or(hand_made.duration_s() - 2.0);
-    let objective = match args.objective {
-        ObjectiveArg::Condition => Objective::Condition,
-        ObjectiveArg::Sigma => Objective::Sigma {
-            reference: excite::std_per_row(&references, PREDICTION_RATE_HZ),
-        },
-    };
+    let (replacing, series_s) = excitation_replacing(&hand_made, criterion);
+    let measured = replacing.limits;
+    let duration_s = args.duration_s.unwrap_or(series_s);
     let opts = DesignOptions {
-        objective,
+        limits: Envelope {
+            angle_rad: args
+                .max_angle_deg
+                .map_or(measured.angle_rad, f64::to_radians),
+            vel_rad_s: args
+                .max_vel_deg_s
+                .map_or(measured.vel_rad_s, f64::to_radians),
+            acc_rad_s2: args
+                .max_acc_deg_s2
+                .map_or(measured.acc_rad_s2, f64::to_radians),
+        },
         restarts: args.restarts,
         seed: args.seed,
-        ..DesignOptions::for_run(duration_s, limits)
+        ..replacing
     };
     let before = excite::condition(&references, PREDICTION_RATE_HZ);
     println!(
@@ -143,7 +141,8 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
             ..ScenarioOptions::default()
         },
     )?;
-    let after = excite::condition(&run.references(), PREDICTION_RATE_HZ);
+    let run_references = run.references();
+    let after = excite::condition(&run_references, PREDICTION_RATE_HZ);
     println!(
         "excite: {:.1} s ({:.1} s of {:.3} Hz, 1 s hold, 1 s return), {}; predicted condition number {after:.1} ({:.2}x {}), {} evaluations",
         run.duration_s(),
@@ -156,7 +155,7 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     );
     let (a, b) = (
         excite::unit_std(&references, PREDICTION_RATE_HZ),
-        excite::unit_std(&run.references(), PREDICTION_RATE_HZ),
+        excite::unit_std(&run_references, PREDICTION_RATE_HZ),
     );
     let ratios: Vec<String> = a
         .iter()

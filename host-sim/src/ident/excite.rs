@@ -106,9 +106,10 @@ fn samples(segments: &[(Trajectory, f64)], rate_hz: f64) -> Vec<Sample> {
             let after = (f64::from(t) + ACC_STEP_S) as f32;
             let before = (f64::from(t) - ACC_STEP_S).max(0.0) as f32;
             let vel = |t: f32| f64::from(tr.at(t).vel_rad_s);
+            let now = tr.at(t);
             out.push(Sample {
-                angle_rad: f64::from(tr.at(t).angle_rad),
-                vel_rad_s: vel(t),
+                angle_rad: f64::from(now.angle_rad),
+                vel_rad_s: f64::from(now.vel_rad_s),
                 acc_rad_s2: (vel(after) - vel(before)) / f64::from(after - before),
             });
         }
@@ -210,6 +211,15 @@ pub enum Objective {
     },
 }
 
+/// Which [`Objective`] to design for, before the reference run is known.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Criterion {
+    /// [`Objective::Sigma`] against the run the excitation replaces.
+    Sigma,
+    /// [`Objective::Condition`].
+    Condition,
+}
+
 /// [`unit_std`] times the square root of the rows: the standard deviation
 /// per row, so that runs of one length and rate compare directly.
 pub fn std_per_row(segments: &[(Trajectory, f64)], rate_hz: f64) -> [f64; COLUMNS] {
@@ -252,6 +262,28 @@ impl DesignOptions {
             objective: Objective::Condition,
             restarts: 4,
             seed: 1,
+        }
+    }
+
+    /// The design of a series of `series_s` that replaces the run
+    /// `references`: that run's envelope as the limits and, for
+    /// [`Criterion::Sigma`], its predicted standard deviations as the
+    /// reference.
+    pub fn replacing(
+        references: &[(Trajectory, f64)],
+        series_s: f64,
+        criterion: Criterion,
+    ) -> Self {
+        let limits = envelope(references, PREDICTION_RATE_HZ);
+        let objective = match criterion {
+            Criterion::Condition => Objective::Condition,
+            Criterion::Sigma => Objective::Sigma {
+                reference: std_per_row(references, PREDICTION_RATE_HZ),
+            },
+        };
+        Self {
+            objective,
+            ..Self::for_run(series_s, limits)
         }
     }
 

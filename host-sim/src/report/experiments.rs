@@ -112,7 +112,8 @@ pub fn tracking(
     })
 }
 
-/// Run a scenario and keep its full CSV log (for the identifications).
+/// Run a scenario and keep its full CSV log (for the identifications), and
+/// the fault it latched.
 pub fn logged(
     name: &str,
     plant: &PlantParams,
@@ -124,8 +125,19 @@ pub fn logged(
         duration_scale: scale,
         ..ScenarioOptions::default()
     };
+    logged_with(name, plant, config, seed, &opts)
+}
+
+/// [`logged`] with every scenario option.
+pub fn logged_with(
+    name: &str,
+    plant: &PlantParams,
+    config: &Config,
+    seed: u64,
+    opts: &ScenarioOptions,
+) -> anyhow::Result<(Log, Option<String>)> {
     let mut rec = LogRecorder::new(true);
-    let s = scenario::run(name, *plant, *config, Some(seed), &opts, &mut rec)?;
+    let s = scenario::run(name, *plant, *config, Some(seed), opts, &mut rec)?;
     let fault = s.fault.map(|f| f.to_string());
     Ok((rec.to_log()?, fault))
 }

@@ -41,8 +41,8 @@ use crate::sim::{AngleErrors, Recorder, Sim, TickRecord};
 use crate::stats::Summary;
 
 pub use plan::{
-    default_excitation, plan, Plan, ScenarioInfo, Segment, LOADING_ANGLES_DEG, LOADING_MASSES_G,
-    SCENARIOS,
+    default_excitation, excitation_replacing, plan, Plan, ScenarioInfo, Segment,
+    LOADING_ANGLES_DEG, LOADING_MASSES_G, SCENARIOS,
 };
 pub use simulate::{simulate, SimulateOptions, Simulation};
 
@@ -129,7 +129,7 @@ pub struct ScenarioOptions {
     /// below the JAE position loop's crossover (a stress case).
     pub tip_inertia: bool,
     /// `excite` only: run this designed series (`None`:
-    /// [`default_excitation`]).
+    /// [`default_excitation`] by least `%sigma`).
     pub excitation: Option<Design>,
 }
 

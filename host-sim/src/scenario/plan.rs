@@ -10,7 +10,7 @@ use cable_joint::trajectory::Trajectory;
 use cable_joint::{Command, Mode};
 
 use super::{Direction, Phase, ScenarioOptions, G_M_S2};
-use crate::ident::excite::{self, Design, DesignOptions, Objective};
+use crate::ident::excite::{self, Criterion, Design, DesignOptions};
 use crate::plant::PlantParams;
 use crate::sim::{ForceProfile, Recorder, Sim};
 
@@ -233,28 +233,36 @@ fn complex(amplitude_deg: f64, base_freq_hz: f32) -> Trajectory {
     }
 }
 
-/// The excitation `excite` runs unless told otherwise: designed
-/// ([`excite::design`]) for `jae-ident`'s envelope and length less its 2 s of
-/// hold and return, once per process.
-pub fn default_excitation() -> anyhow::Result<&'static Design> {
-    static DESIGN: OnceLock<Result<Design, String>> = OnceLock::new();
-    DESIGN
-        .get_or_init(|| {
-            let hand_made =
-                plan("jae-ident", &ScenarioOptions::default()).map_err(|e| e.to_string())?;
-            let references = hand_made.references();
-            let limits = excite::envelope(&references, excite::PREDICTION_RATE_HZ);
-            let duration_s = hand_made.duration_s() - 2.0;
-            let opts = DesignOptions {
-                objective: Objective::Sigma {
-                    reference: excite::std_per_row(&references, excite::PREDICTION_RATE_HZ),
-                },
-                ..DesignOptions::for_run(duration_s, limits)
-            };
-            excite::design_over_frequencies(&opts, duration_s).map_err(|e| e.to_string())
-        })
-        .as_ref()
-        .map_err(|e| anyhow::anyhow!("designing the default excitation: {e}"))
+/// `excite`'s hold before the series and its return to 0 after it, s each.
+const EXCITE_SETTLE_S: f64 = 1.0;
+
+/// The design options of an `excite` run as long as `hand_made` and within
+/// its reference's limits, and the series' length (`hand_made`'s less
+/// `excite`'s hold and return), s.
+pub fn excitation_replacing(hand_made: &Plan, criterion: Criterion) -> (DesignOptions, f64) {
+    let series_s = hand_made.duration_s() - 2.0 * EXCITE_SETTLE_S;
+    let opts = DesignOptions::replacing(&hand_made.references(), series_s, criterion);
+    (opts, series_s)
+}
+
+/// The design `excite` runs unless told otherwise, for `jae-ident` by
+/// `criterion` ([`excite::design_over_frequencies`]), once per process and
+/// criterion.
+pub fn default_excitation(criterion: Criterion) -> anyhow::Result<&'static Design> {
+    static SIGMA: OnceLock<Result<Design, String>> = OnceLock::new();
+    static CONDITION: OnceLock<Result<Design, String>> = OnceLock::new();
+    let cell = match criterion {
+        Criterion::Sigma => &SIGMA,
+        Criterion::Condition => &CONDITION,
+    };
+    cell.get_or_init(|| {
+        let hand_made =
+            plan("jae-ident", &ScenarioOptions::default()).map_err(|e| e.to_string())?;
+        let (opts, series_s) = excitation_replacing(&hand_made, criterion);
+        excite::design_over_frequencies(&opts, series_s).map_err(|e| e.to_string())
+    })
+    .as_ref()
+    .map_err(|e| anyhow::anyhow!("designing the default excitation ({criterion:?}): {e}"))
 }
 
 /// Build a scenario's plan: one `match` arm per scenario, each a short list
@@ -325,11 +333,11 @@ pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
             // length: 1 s hold, the series, 1 s back to 0.
             let design = match opts.excitation {
                 Some(d) => d,
-                None => *default_excitation()?,
+                None => *default_excitation(Criterion::Sigma)?,
             };
-            b.hold(Phase::Hold, mp, 1.0);
+            b.hold(Phase::Hold, mp, EXCITE_SETTLE_S);
             b.track(mp, design.trajectory, design.duration_s);
-            b.move_to(mp, 0.0, 1.0);
+            b.move_to(mp, 0.0, EXCITE_SETTLE_S);
         }
         _ => unreachable!("catalogue and match agree"),
     }

@@ -14,7 +14,8 @@
 //!   configuration and its `validate()`), [`fault`] (stable fault codes),
 //!   [`units`] (raw codes to SI), [`math`] (every transcendental function),
 //!   [`telemetry`] (the defmt record and its parser), `link` (the host
-//!   link's wire format, feature `link`).
+//!   link's wire format, feature `link`), [`rtt`] (the firmware's RTT
+//!   block as a probe sees it, and the ring arithmetic both ends share).
 //! * [`board`]: the firmware's logic behind embedded-hal traits.
 //!
 //! The modules of [`control`] and [`ident`] are also re-exported at the root
@@ -35,6 +36,7 @@ pub mod ident;
 #[cfg(feature = "link")]
 pub mod link;
 pub mod math;
+pub mod rtt;
 pub mod telemetry;
 pub mod units;
 

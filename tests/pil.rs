@@ -28,11 +28,8 @@ fn pil_options(name: &str) -> PilOptions {
         .map(PathBuf::from)
         .expect("set CABLE_JOINT_PIL_ELF to the PIL firmware (cargo fw-pil)");
     PilOptions {
-        elf,
-        out_dir: PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name),
-        link_port: None,
         tick_timeout: Duration::from_secs(30),
-        lost_acks: Vec::new(),
+        ..PilOptions::new(elf, PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name))
     }
 }
 
@@ -132,13 +129,9 @@ fn pil_closed_loop_tracks_holds_and_faults_as_the_host_run_bit_for_bit() {
     }
 }
 
-/// The line also loses the acknowledgement of the new set point: the host
-/// sends the frame again, and the firmware acknowledges the resend without
-/// queuing the command twice (applied twice, the trajectory would restart
-/// a tick later and the decimation act a tick late: not bit for bit).
-#[test]
-#[ignore = "needs QEMU and the PIL firmware: .ci/qemu.sh"]
-fn pil_requests_over_the_link_act_at_the_same_tick_as_on_the_host() {
+/// The operator's run over `pil`'s link port, checked bit for bit against
+/// the host run, and the new set point reached.
+fn operator_run(pil: &PilOptions) {
     let opts = TraceOptions {
         duration_s: 3.0,
         drive_fault_at_s: -1.0,
@@ -147,10 +140,7 @@ fn pil_requests_over_the_link_act_at_the_same_tick_as_on_the_host() {
     let cmp = compare_with(
         PlantParams::default(),
         &opts,
-        &PilOptions {
-            lost_acks: vec![0],
-            ..pil_options("pil-operator")
-        },
+        pil,
         &|| Box::new(Operator),
         &mut |_, _, _| Ok(()),
     )
@@ -165,4 +155,30 @@ fn pil_requests_over_the_link_act_at_the_same_tick_as_on_the_host() {
     );
     let end = cmp.pil.outcomes.last().unwrap().record;
     assert!((end.theta_ref_rad.to_degrees() - 20.0).abs() < 1e-3);
+}
+
+/// The line also loses the acknowledgement of the new set point: the host
+/// sends the frame again, and the firmware acknowledges the resend without
+/// queuing the command twice (applied twice, the trajectory would restart
+/// a tick later and the decimation act a tick late: not bit for bit).
+#[test]
+#[ignore = "needs QEMU and the PIL firmware: .ci/qemu.sh"]
+fn pil_requests_over_the_link_act_at_the_same_tick_as_on_the_host() {
+    operator_run(&PilOptions {
+        lost_acks: vec![0],
+        ..pil_options("pil-operator")
+    });
+}
+
+/// The same requests over the link's other port, RTT channel 1, which the
+/// firmware's idle loop polls (QEMU's GDB stub standing in for the probe),
+/// an acknowledgement lost there too: the same ticks, bit for bit.
+#[test]
+#[ignore = "needs QEMU and the PIL firmware: .ci/qemu.sh"]
+fn pil_requests_over_rtt_act_at_the_same_tick_as_on_the_host() {
+    operator_run(&PilOptions {
+        rtt: true,
+        lost_acks: vec![0],
+        ..pil_options("pil-operator-rtt")
+    });
 }

@@ -3,6 +3,7 @@
 pub mod cli;
 pub mod derive;
 pub mod estimate;
+pub mod gdb_rtt;
 pub mod ident;
 pub mod import;
 pub mod ingest;

@@ -3,9 +3,11 @@
 //! telemetry the firmware streams meanwhile.
 //!
 //! A port is `tcp:HOST:PORT` (QEMU's serial port as a socket, `host-sim
-//! pil --link-port`) or a serial device (`/dev/ttyACM0`: the prototype's
-//! USART2 through a USB–serial adapter; set to 460 800 baud raw with
-//! `stty` before it is opened).
+//! pil --link-port`; on the prototype, OpenOCD's RTT server for channel 1),
+//! `rtt:HOST:PORT` (RTT channel 1 through QEMU's GDB stub, `host-sim pil
+//! --gdb-port`; [`crate::gdb_rtt`]) or a serial device (`/dev/ttyACM0`: the
+//! prototype's USART2 through a USB–serial adapter; set to 460 800 baud raw
+//! with `stty` before it is opened).
 //!
 //! Requests are stop-and-wait: one frame, then its acknowledgement (the
 //! firmware checks each one down to `validate()` before it answers), then
@@ -146,8 +148,13 @@ impl Port for LosesAcks {
     }
 }
 
-/// Open `spec`: `tcp:HOST:PORT` or a serial device path.
+/// Open `spec`: `tcp:HOST:PORT`, `rtt:HOST:PORT` (RTT channel 1 through
+/// a GDB server that stops the target to poll: QEMU only,
+/// [`crate::gdb_rtt`]) or a serial device path.
 pub fn open(spec: &str) -> anyhow::Result<Box<dyn Port>> {
+    if let Some(addr) = spec.strip_prefix("rtt:") {
+        return Ok(Box::new(crate::gdb_rtt::GdbRtt::connect(addr)?));
+    }
     if let Some(addr) = spec.strip_prefix("tcp:") {
         let stream = TcpStream::connect(addr)
             .with_context(|| format!("connecting to the firmware link at {addr}"))?;

@@ -9,6 +9,11 @@
 //! | 2 (USART2) | the host link, as on the board | [`crate::operator::Client`] (requests), or a TCP port for `host-sim link` (`--link-port`) |
 //! | 3 (USART3) | the sensor bus | this module: one [`SensorFrame`] per tick, answered by the tick's record |
 //!
+//! With [`PilOptions::rtt`] the run's requests take the link's other port
+//! instead: RTT channel 1, through QEMU's GDB stub ([`crate::gdb_rtt`]),
+//! as a probe reaches it on the board; [`PilOptions::gdb_port`] opens the
+//! stub for `host-sim link --port rtt:127.0.0.1:PORT`.
+//!
 //! Each tick the host sends the sample the board would have read, waits for
 //! the tick's telemetry record (DAC code, drive enable), applies the current
 //! to the plant over one period, and sends the next sample: the loop of
@@ -53,6 +58,36 @@ pub struct PilOptions {
     /// `n`-th from 0; [`crate::operator::LosesAcks`]): the request is sent
     /// again and must act once, at the same tick.
     pub lost_acks: Vec<usize>,
+    /// The run's own requests go over RTT channel 1 through QEMU's GDB
+    /// stub instead of USART2.
+    pub rtt: bool,
+    /// Open QEMU's GDB stub on this local TCP port (for `host-sim link
+    /// --port rtt:127.0.0.1:PORT`, or the run's own RTT link); with
+    /// [`PilOptions::rtt`] and no port, a free one is picked.
+    pub gdb_port: Option<u16>,
+}
+
+impl PilOptions {
+    /// The options of a run of `elf` writing to `out_dir`: the link's USART
+    /// kept for the run's own requests, no lost acknowledgements, no GDB
+    /// stub, 20 s for an answer.
+    pub fn new(elf: PathBuf, out_dir: PathBuf) -> Self {
+        Self {
+            elf,
+            out_dir,
+            link_port: None,
+            tick_timeout: Duration::from_secs(20),
+            lost_acks: Vec::new(),
+            rtt: false,
+            gdb_port: None,
+        }
+    }
+}
+
+/// A local TCP port nobody listens on (for QEMU's GDB stub).
+fn free_port() -> anyhow::Result<u16> {
+    let l = TcpListener::bind("127.0.0.1:0").context("finding a free local port")?;
+    Ok(l.local_addr()?.port())
 }
 
 /// The firmware binary on QEMU, driven tick by tick.
@@ -118,6 +153,7 @@ impl Pil {
                 format!("tcp:127.0.0.1:{p},server=on,wait=off,nodelay=on"),
                 None,
             ),
+            None if opts.rtt => ("null".to_owned(), None),
             None => {
                 let l = TcpListener::bind("127.0.0.1:0")
                     .context("opening a local port for the link")?;
@@ -127,9 +163,18 @@ impl Pil {
                 )
             }
         };
+        let gdb_port = match opts.gdb_port {
+            Some(p) => Some(p),
+            None if opts.rtt => Some(free_port()?),
+            None => None,
+        };
         let defmt = File::create(opts.out_dir.join("qemu.defmt"))?;
         let stderr = File::create(opts.out_dir.join("qemu.stderr"))?;
-        let mut child = Command::new("qemu-system-arm")
+        let mut qemu = Command::new("qemu-system-arm");
+        if let Some(p) = gdb_port {
+            qemu.args(["-gdb", &format!("tcp:127.0.0.1:{p}")]);
+        }
+        let mut child = qemu
             .args([
                 "-machine",
                 "netduinoplus2",
@@ -150,16 +195,18 @@ impl Pil {
             .stderr(stderr)
             .spawn()
             .context("starting qemu-system-arm (install it: apt-get install qemu-system-arm)")?;
+        let lossy = |port: Box<dyn crate::operator::Port>| -> Box<dyn crate::operator::Port> {
+            if opts.lost_acks.is_empty() {
+                port
+            } else {
+                Box::new(LosesAcks::new(port, opts.lost_acks.clone()))
+            }
+        };
         // QEMU connects its client ports in order: the link, then the bus.
         let link = match &link_listener {
             Some(l) => {
                 let s = accept(l, &mut child, "link port (USART2)", &opts.out_dir)?;
-                let port: Box<dyn crate::operator::Port> = if opts.lost_acks.is_empty() {
-                    Box::new(s)
-                } else {
-                    Box::new(LosesAcks::new(Box::new(s), opts.lost_acks.clone()))
-                };
-                Some(Client::new(port)?)
+                Some(Client::new(lossy(Box::new(s)))?)
             }
             None => None,
         };
@@ -175,6 +222,12 @@ impl Pil {
         // Bytes sent before the firmware opens the bus are lost.
         if let Frame::Telemetry(_) = pil.next_up("the firmware's ready frame")? {
             bail!("the firmware sent telemetry before its ready frame");
+        }
+        if let (true, Some(p)) = (opts.rtt, gdb_port) {
+            // After the ready frame: the RTT block is in RAM by then.
+            let rtt = crate::gdb_rtt::GdbRtt::connect(&format!("127.0.0.1:{p}"))
+                .context("reaching the firmware's RTT channel through QEMU's GDB stub")?;
+            pil.link = Some(Client::new(lossy(Box::new(rtt)))?);
         }
         Ok(pil)
     }

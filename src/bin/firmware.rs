@@ -16,8 +16,8 @@
 //! | `drive_fault`, `origin_switch` | EXTI1, EXTI2 | 4 | cut the drive at once (BSRR), leave the fault for the control task |
 //! | `control` | TIM6 update | 3 | one control period; a miss is `Fault::Overrun` (latched, drive cut) |
 //! | `link_rx` | USART2 (host link) | 2 | the next byte (22 µs at 460 800 baud): bytes into frames, a complete frame to `link_frame` |
-//! | `telemetry`, `link_frame` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; a host frame is checked down to a request (`cable_joint::link::receive`: CRC, version, body, `validate()`, filter design), queued (4) for the control task, which applies one per tick, and acknowledged. The RTT logger never blocks and takes no critical section (defmt-rtt `disable-blocking-mode`, `drop-on-contention`), so logging can never mask the tasks above |
-//! | `idle` | – | 0 | `wfi` |
+//! | `telemetry`, `link_frame` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; a host frame is checked down to a request (`cable_joint::link::receive`: CRC, version, body, `validate()`, filter design), queued (4) for the control task, which applies one per tick, and acknowledged. The RTT logger (`rtt.rs`) never blocks and takes no critical section (a full channel cuts the frame; a frame logged while another is open is dropped), so logging can never mask the tasks above |
+//! | `idle` | – | 0 | after every wake-up (each tick), the host link's RTT down channel: bytes into frames, a complete frame to `link_frame`; then `wfi` |
 //!
 //! Settings: `board::firmware_config()` (the core's datasheet defaults at
 //! `board::CONTROL_RATE_HZ`, 2 kHz, up to 20 kHz; compiled in; under QEMU
@@ -26,13 +26,16 @@
 //! by the `link_frame` task), the program, and the telemetry decimation (`TELEMETRY_DECIMATION`:
 //! every 10th tick on hardware, i.e. 200 Hz; every tick under QEMU).
 //!
-//! Host link (`cable_joint::link`): USART2 at 460 800 baud (QEMU's second
-//! serial port), COBS frames with CRC-16; down: programs, commands,
-//! configurations, fault clears, telemetry rate, heartbeats, each
-//! acknowledged; up: the acknowledgements and, once a host has sent a valid
-//! frame, every telemetry record as well.
+//! Host link (`cable_joint::link`), one protocol on two ports: USART2 at
+//! 460 800 baud (QEMU's second serial port) and RTT channel 1 through the
+//! debug probe (`rtt.rs`); COBS frames with CRC-16; down: programs,
+//! commands, configurations, fault clears, telemetry rate, heartbeats, each
+//! acknowledged on the port it came from; up: the acknowledgements and,
+//! on each port where a host has sent a valid frame, every telemetry
+//! record as well.
 //!
-//! Telemetry: defmt over RTT (defmt-semihosting under QEMU). Each record is
+//! Telemetry: defmt over RTT channel 0 (`rtt.rs`; defmt-semihosting under
+//! QEMU). Each record is
 //! one `tlm [bytes]` line (`cable_joint::telemetry`: raw counts, ADC code,
 //! DAC code and current reference, theta_ref, theta_hat, F_ext_hat, mode,
 //! fault code, start-up phase, input lines, cycles of the whole tick and of
@@ -65,12 +68,13 @@ mod board;
 #[path = "firmware/usart.rs"]
 mod usart;
 
+#[cfg(target_os = "none")]
+#[path = "firmware/rtt.rs"]
+mod rtt;
+
 #[cfg(all(target_os = "none", feature = "qemu"))]
 #[path = "firmware/qemu.rs"]
 mod board;
-
-#[cfg(all(target_os = "none", not(feature = "qemu")))]
-use defmt_rtt as _;
 
 #[cfg(all(target_os = "none", feature = "qemu"))]
 use defmt_semihosting as _;
@@ -112,19 +116,88 @@ fn take_boot_note() -> Option<cable_joint::Fault> {
     cable_joint::board::boot::recorded(words)
 }
 
-/// The host has sent a valid frame: telemetry goes up the link too.
+/// The ports on which a host has sent a valid frame (a bit per [`Via`]):
+/// telemetry goes up those too.
 #[cfg(target_os = "none")]
-static LINK_UP: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+static LINK_UP: core::sync::atomic::AtomicU8 = core::sync::atomic::AtomicU8::new(0);
 
-/// Log one telemetry record as a `tlm [bytes]` line, and send it up the
-/// host link once a host has spoken.
+/// The two ports of the host link, one protocol on both.
 #[cfg(target_os = "none")]
-fn log_record(record: &cable_joint::telemetry::Record, link: Option<&mut usart::FrameTx>) {
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Via {
+    /// USART2 (QEMU's second serial port).
+    Serial = 1,
+    /// RTT channel 1, through the debug probe.
+    Rtt = 2,
+}
+
+/// A frame as it arrived, and the port to answer on.
+#[cfg(target_os = "none")]
+pub struct Incoming {
+    via: Via,
+    frame: heapless::Vec<u8, { cable_joint::link::MAX_WIRE_LEN }>,
+}
+
+/// The transmitting side of both ports.
+#[cfg(target_os = "none")]
+pub struct Links {
+    serial: usart::FrameTx,
+    rtt: rtt::FrameTx,
+}
+
+#[cfg(target_os = "none")]
+impl Links {
+    /// Send `msg` on `via`.
+    fn send(&mut self, via: Via, msg: &cable_joint::link::Up) {
+        match via {
+            Via::Serial => self.serial.send(msg),
+            Via::Rtt => self.rtt.send(msg),
+        }
+    }
+}
+
+/// Log one telemetry record as a `tlm [bytes]` line, and send it up each
+/// port of the host link on which a host has spoken.
+#[cfg(target_os = "none")]
+fn log_record(record: &cable_joint::telemetry::Record, links: Option<&mut Links>) {
     let mut buf = [0u8; cable_joint::telemetry::MAX_RECORD_LEN];
     let bytes = record.encode(&mut buf);
     defmt::info!("tlm {=[u8]}", bytes);
-    if let Some(link) = link {
-        link.send(&cable_joint::link::Up::Telemetry(bytes));
+    let Some(links) = links else { return };
+    let up = LINK_UP.load(core::sync::atomic::Ordering::Relaxed);
+    for via in [Via::Serial, Via::Rtt] {
+        if up & via as u8 != 0 {
+            links.send(via, &cable_joint::link::Up::Telemetry(bytes));
+        }
+    }
+}
+
+/// Feed one received byte of `via` to its frame reader; a complete frame
+/// goes to `spawn` (the `link_frame` task), which gives it back when that
+/// task is still busy with the last one.
+#[cfg(target_os = "none")]
+fn assemble(
+    reader: &mut cable_joint::link::FrameReader<{ cable_joint::link::MAX_WIRE_LEN }>,
+    byte: u8,
+    via: Via,
+    spawn: impl FnOnce(Incoming) -> Result<(), Incoming>,
+) {
+    use cable_joint::link::{Pushed, MAX_WIRE_LEN};
+    match reader.push(byte) {
+        Pushed::Pending => {}
+        Pushed::Dropped => defmt::warn!(
+            "link: frame longer than {=usize} bytes dropped",
+            MAX_WIRE_LEN
+        ),
+        Pushed::Frame(n) => {
+            let Ok(frame) = heapless::Vec::from_slice(&reader.frame()[..n]) else {
+                return;
+            };
+            if spawn(Incoming { via, frame }).is_err() {
+                // The host waits for each answer: it sent too soon.
+                defmt::warn!("link: frame dropped, the last one is still being checked");
+            }
+        }
     }
 }
 
@@ -135,21 +208,21 @@ mod app {
     use cable_joint::board::{
         on_drive_fault_edge, on_origin_edge, ControlLoop, DriveEnable, InputLine, Program, Request,
     };
-    use cable_joint::link::{
-        receive, FrameReader, Pushed, Refusal, Refused, Repeats, Up, MAX_WIRE_LEN,
-    };
+    use cable_joint::link::{receive, FrameReader, Refusal, Refused, Repeats, Up, MAX_WIRE_LEN};
     use cable_joint::telemetry::Record;
     use core::sync::atomic::Ordering;
     use heapless::spsc::{Consumer, Producer, Queue};
-    use heapless::Vec;
 
-    use super::{board, log_record, take_boot_note, usart, EVENTS, LINK_UP};
+    use super::{
+        assemble, board, log_record, rtt, take_boot_note, usart, Incoming, Links, Via, EVENTS,
+        LINK_UP,
+    };
 
     #[shared]
     struct Shared {
-        /// The host link's transmit side (the link and telemetry tasks,
+        /// The host link's transmit sides (the link and telemetry tasks,
         /// both priority 1: the lock costs nothing).
-        link_tx: usart::FrameTx,
+        links: Links,
     }
 
     #[local]
@@ -167,6 +240,7 @@ mod app {
         drive_fault: InputLine<board::FaultPin>,
         origin: InputLine<board::OriginPin>,
         link_rx: usart::Rx,
+        rtt_rx: rtt::Rx,
     }
 
     #[init(local = [
@@ -215,7 +289,10 @@ mod app {
         }
         (
             Shared {
-                link_tx: usart::FrameTx::new(b.link_tx),
+                links: Links {
+                    serial: usart::FrameTx::new(b.link_tx),
+                    rtt: rtt::FrameTx::take(),
+                },
             },
             Local {
                 control,
@@ -231,13 +308,28 @@ mod app {
                 drive_fault: b.drive_fault,
                 origin: b.origin,
                 link_rx: b.link_rx,
+                rtt_rx: rtt::Rx::take(),
             },
         )
     }
 
-    #[idle]
-    fn idle(_: idle::Context) -> ! {
+    /// Idle: read the host link's RTT down channel (a probe cannot raise
+    /// an interrupt, so it is polled after every wake-up: each control
+    /// tick on the board), then sleep until the next interrupt.
+    #[idle(local = [rtt_rx, reader: FrameReader<MAX_WIRE_LEN> = FrameReader::new()])]
+    fn idle(cx: idle::Context) -> ! {
+        let idle::LocalResources { rtt_rx, reader, .. } = cx.local;
         loop {
+            let mut bytes = [0u8; 64];
+            loop {
+                let n = rtt_rx.read(&mut bytes);
+                if n == 0 {
+                    break;
+                }
+                for &byte in &bytes[..n] {
+                    assemble(reader, byte, Via::Rtt, link_frame::spawn);
+                }
+            }
             cortex_m::asm::wfi();
         }
     }
@@ -338,6 +430,14 @@ mod app {
         board::on_tick_source();
     }
 
+    /// PIL only: TIM4 wakes the idle loop, which polls the RTT down
+    /// channel (lowest priority: it never delays a tick).
+    #[cfg(feature = "pil")]
+    #[task(binds = TIM4, priority = 1)]
+    fn rtt_wake(_: rtt_wake::Context) {
+        board::on_wake();
+    }
+
     /// PIL only: the host plant's sensor frame is the tick (see the QEMU
     /// board's docs).
     #[cfg(feature = "pil")]
@@ -358,22 +458,7 @@ mod app {
             link_rx, reader, ..
         } = cx.local;
         while let Some(byte) = link_rx.read() {
-            match reader.push(byte) {
-                Pushed::Pending => {}
-                Pushed::Dropped => defmt::warn!(
-                    "link: frame longer than {=usize} bytes dropped",
-                    MAX_WIRE_LEN
-                ),
-                Pushed::Frame(n) => {
-                    let Ok(frame) = Vec::from_slice(&reader.frame()[..n]) else {
-                        continue;
-                    };
-                    if link_frame::spawn(frame).is_err() {
-                        // The host waits for each answer: it sent too soon.
-                        defmt::warn!("link: frame dropped, the last one is still being checked");
-                    }
-                }
-            }
+            assemble(reader, byte, Via::Serial, link_frame::spawn);
         }
     }
 
@@ -381,8 +466,9 @@ mod app {
     /// content; a configuration is validated and its filters designed
     /// here), queued for the control task, which applies one per tick, and
     /// answered with an acknowledgement that names a refusal. No deadline.
-    #[task(priority = 1, shared = [link_tx], local = [requests_tx, repeats: Repeats = Repeats::new()])]
-    async fn link_frame(mut cx: link_frame::Context, mut frame: Vec<u8, MAX_WIRE_LEN>) {
+    #[task(priority = 1, shared = [links], local = [requests_tx, repeats: Repeats = Repeats::new()])]
+    async fn link_frame(mut cx: link_frame::Context, incoming: Incoming) {
+        let Incoming { via, mut frame } = incoming;
         let n = frame.len();
         let received = receive(&mut frame, n);
         let (seq, crc) = (received.seq, received.crc);
@@ -396,7 +482,7 @@ mod app {
                 None
             }
             Ok(request) => {
-                LINK_UP.store(true, Ordering::Relaxed);
+                LINK_UP.fetch_or(via as u8, Ordering::Relaxed);
                 match cx.local.requests_tx.enqueue(request) {
                     Ok(()) => {
                         cx.local.repeats.queued(seq, crc);
@@ -422,36 +508,35 @@ mod app {
             }
         };
         let ack = Up::Ack { seq, refused };
-        cx.shared.link_tx.lock(|link| link.send(&ack));
+        cx.shared.links.lock(|links| links.send(via, &ack));
     }
 
     /// Telemetry: encode the queued raw records and log them; report phase
     /// and fault changes as text. No deadline: when it falls behind, the
     /// control task drops records (counted) instead of waiting.
-    #[task(priority = 1, shared = [link_tx], local = [telemetry_rx, last: (u8, u8) = (u8::MAX, 0)])]
+    #[task(priority = 1, shared = [links], local = [telemetry_rx, last: (u8, u8) = (u8::MAX, 0)])]
     async fn telemetry(mut cx: telemetry::Context) {
         let telemetry::LocalResources {
             telemetry_rx, last, ..
         } = cx.local;
         cx.shared
-            .link_tx
-            .lock(|link| drain(telemetry_rx, last, link));
+            .links
+            .lock(|links| drain(telemetry_rx, last, links));
         #[cfg(feature = "qemu")]
         if super::DONE.load(core::sync::atomic::Ordering::SeqCst) {
             // The control task stopped before setting DONE: this drain
             // flushes everything it queued.
             cx.shared
-                .link_tx
-                .lock(|link| drain(telemetry_rx, last, link));
+                .links
+                .lock(|links| drain(telemetry_rx, last, links));
             defmt::info!("trace played");
             board::trace_played();
         }
     }
 
-    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8), link: &mut usart::FrameTx) {
+    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8), links: &mut Links) {
         while let Some(record) = rx.dequeue() {
-            let up = LINK_UP.load(Ordering::Relaxed);
-            log_record(&record, up.then_some(&mut *link));
+            log_record(&record, Some(&mut *links));
             if let Record::Tick(t) = record {
                 if (t.phase, t.fault) != *last {
                     defmt::info!(

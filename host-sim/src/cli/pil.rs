@@ -26,6 +26,10 @@ pub struct PilArgs {
     /// the run differ from the host-only one from that tick on.
     #[arg(long)]
     pub link_port: Option<u16>,
+    /// Open QEMU's GDB stub on this local TCP port, for the link over RTT
+    /// channel 1: `host-sim link --port rtt:127.0.0.1:PORT`.
+    #[arg(long)]
+    pub gdb_port: Option<u16>,
     /// The live view of the PIL run.
     #[command(flatten)]
     pub view: ViewArg,
@@ -42,11 +46,10 @@ pub fn run(args: PilArgs) -> anyhow::Result<()> {
     let plant = crate::io::config::load_plant(args.run.plant.as_deref())?;
     let opts = args.run.options();
     let pil = PilOptions {
-        elf: args.elf.clone(),
-        out_dir: args.out.clone(),
         link_port: args.link_port,
+        gdb_port: args.gdb_port,
         tick_timeout: Duration::from_secs_f64(args.tick_timeout_s),
-        lost_acks: Vec::new(),
+        ..PilOptions::new(args.elf.clone(), args.out.clone())
     };
     let config = opts.config();
     let mut watch = Watch::new(

@@ -438,6 +438,13 @@ impl TickTimer {
     }
 }
 
+/// TIM4 update (PIL): the idle loop's wake-up, nothing else.
+#[cfg(feature = "pil")]
+pub fn on_wake() {
+    // SAFETY: clear TIM4's update flag (rc_w0); TIM4 is only this wake-up.
+    unsafe { (*pac::TIM4::ptr()).sr().write(|w| w.bits(0)) };
+}
+
 /// TIM5 update: one control tick, and the software watchdog's check.
 #[cfg(not(feature = "pil"))]
 #[inline(always)]
@@ -537,7 +544,21 @@ pub fn init(dp: pac::Peripherals, _cp: cortex_m::Peripherals, rate_hz: f32) -> B
     #[cfg(feature = "pil")]
     let front_end = {
         let _ = rate_hz; // the host's plant sets the pace
-                         // The receiving half is the sensor bus task's (`SensorBus::new`).
+                         // Nothing else wakes the idle loop between two sensor frames, and a
+                         // host that writes the RTT down channel waits for its answer before
+                         // it sends the next one: TIM5 wakes it every millisecond (TIM4; of
+                         // virtual time, which follows the host's time while idle under
+                         // `-icount sleep=on`), as the control tick does on the board.
+                         // CNT first: QEMU's timer counts from its last CNT write and sets
+                         // the update's alarm when ARR is written, which a counter already
+                         // past ARR would put out of reach.
+        let tim4 = dp.TIM4;
+        tim4.psc().write(|w| w.psc().set(9_999));
+        tim4.cnt().write(|w| unsafe { w.bits(0) });
+        tim4.arr().write(|w| unsafe { w.bits(100 - 1) });
+        tim4.dier().write(|w| w.uie().set_bit());
+        tim4.cr1().write(|w| w.cen().set_bit());
+        // The receiving half is the sensor bus task's (`SensorBus::new`).
         let (tx, _rx) = crate::usart::start(pac::USART3::ptr(), 1);
         let mut front_end = FrontEnd {
             frames: crate::usart::FrameTx::new(tx),

@@ -119,21 +119,13 @@ struct End {
 unsafe impl Send for End {}
 
 impl End {
-    /// The ring as this end sees it: the other side's offset acquired, so
-    /// the bytes it handed over are visible before they are used.
-    fn ring(&self, writer: bool) -> Ring {
-        let (own, theirs) = if writer {
-            (&self.channel.write, &self.channel.read)
-        } else {
-            (&self.channel.read, &self.channel.write)
-        };
-        let own = own.load(Ordering::Relaxed);
-        let theirs = theirs.load(Ordering::Acquire);
-        let (write, read) = if writer { (own, theirs) } else { (theirs, own) };
+    /// The ring as it stands: both offsets acquired, so the bytes the
+    /// other side handed over are visible before they are used.
+    fn ring(&self) -> Ring {
         Ring {
             size: self.len,
-            write,
-            read,
+            write: self.channel.write.load(Ordering::Acquire),
+            read: self.channel.read.load(Ordering::Acquire),
         }
     }
 
@@ -158,14 +150,14 @@ impl End {
     // The defmt logger's: the QEMU builds log over semihosting.
     #[cfg_attr(feature = "qemu", allow(dead_code))]
     fn write_some(&mut self, bytes: &[u8]) -> usize {
-        let t = self.ring(true).write_some(bytes.len() as u32);
+        let t = self.ring().write_some(bytes.len() as u32);
         self.put(&t, &bytes[..t.len() as usize]);
         t.len() as usize
     }
 
     /// Write all of `bytes`, or nothing if they do not fit.
     fn write_all(&mut self, bytes: &[u8]) -> bool {
-        match self.ring(true).write_all(bytes.len() as u32) {
+        match self.ring().write_all(bytes.len() as u32) {
             Some(t) => {
                 self.put(&t, bytes);
                 true
@@ -176,7 +168,7 @@ impl End {
 
     /// Take up to `out.len()` waiting bytes; returns how many.
     fn read(&mut self, out: &mut [u8]) -> usize {
-        let t = self.ring(false).read(out.len() as u32);
+        let t = self.ring().read(out.len() as u32);
         let (a, b) = out.split_at_mut(t.first.len as usize);
         // SAFETY: `Ring` keeps both runs inside `len` bytes of `buffer`; the
         // writer (the probe) does not touch bytes before its write offset

@@ -43,7 +43,7 @@ pub mod units;
 // The paths from before the grouping, kept: `crate::dob` is `control::dob`,
 // `crate::lsq` is `ident::lsq`.
 pub use control::{
-    cascade, controller, dob, effects, filter, fusion, jae, model, probe, trajectory,
+    cascade, controller, dob, effects, filter, fusion, jae, joints, model, probe, trajectory, wrist,
 };
 pub use ident::{lsq, payload};
 

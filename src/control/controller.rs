@@ -481,6 +481,22 @@ impl Controller {
         self.state.i2t_a2 > ic * ic
     }
 
+    /// Stop the drive because something outside this joint demands it (a
+    /// fault on another joint of the same instrument): fall back to
+    /// [`Mode::Idle`] for the ticks to come, and rewrite `out`, this tick's
+    /// output, as a disabled drive (zero current, the zero DAC code), so
+    /// the stop takes effect within the tick. The estimates in `out` stay.
+    pub fn stop(&mut self, out: &mut Output) {
+        self.set_command(Command::default());
+        self.state.cascade = CascadeState::default();
+        self.state.last_current_a = 0.0;
+        self.state.drive_was_enabled = false;
+        out.current_ref_a = 0.0;
+        out.dac = self.prepared.config.scales.dac_code(0.0);
+        out.drive_enable = false;
+        out.mode = Mode::Idle;
+    }
+
     /// Clear a latched fault and fall back to [`Mode::Idle`]; the operator
     /// must command a mode again. Callers check
     /// [`Controller::fault_cause_persists`] first.

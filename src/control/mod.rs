@@ -19,6 +19,10 @@
 //!   with its synchronous mean;
 //! * [`cascade`]: the PD/PI cascade to the current reference.
 //!
+//! Beside the tick: [`joints`] runs `N` joints' control paths side by side
+//! (one fault stops every drive), and [`wrist`] maps the joints' force
+//! estimates to the jaws' tip forces and the clamp force (seed Eq. 1-5).
+//!
 //! Each module is also re-exported at the crate root under its name
 //! (`cable_joint::dob` is `cable_joint::control::dob`), so the paths used
 //! before this grouping still work.
@@ -30,6 +34,8 @@ pub mod effects;
 pub mod filter;
 pub mod fusion;
 pub mod jae;
+pub mod joints;
 pub mod model;
 pub mod probe;
 pub mod trajectory;
+pub mod wrist;

@@ -52,6 +52,7 @@ pub mod regressors;
 pub mod render;
 pub mod seed;
 pub mod variants;
+pub mod wrist;
 
 use std::path::{Path, PathBuf};
 
@@ -141,6 +142,11 @@ pub struct Report {
     /// The designed excitations against `jae-ident` on the plant variants
     /// (`Err`: why the section could not run).
     pub excitation: Result<excitation::ExcitationSection, String>,
+    /// The wrist's clamp force on the plant variants (`Err`: why the
+    /// section could not run).
+    pub wrist: Result<wrist::WristSection, String>,
+    /// The wrist section's figure (its stem), if drawn.
+    pub wrist_figure: Option<String>,
     /// The figures, staged: [`write()`] commits them with the report, so a
     /// run that fails leaves the output directory as it was.
     pub staged: Outputs,
@@ -319,6 +325,9 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
     let variant_results = variants::run_all(&s);
     progress.line("report", "designed excitations on plant variants");
     let excitation = excitation::run_all(&s).map_err(|e| format!("{e:#}"));
+    progress.line("report", "the wrist's clamp force on plant variants");
+    let wrist_section = wrist::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
+    let wrist_figure = wrist::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
     if let Some(fx) = &fx {
         progress.line("report", "step 7 figures");
         figs.extend(figures::accuracy_figure(
@@ -355,6 +364,8 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         figures: figs,
         variants: variant_results,
         excitation,
+        wrist: wrist_section,
+        wrist_figure,
         staged,
     })
 }
@@ -417,6 +428,18 @@ pub fn write(r: &mut Report) -> Result<String> {
     match &r.excitation {
         Ok(x) => {
             for (g, ok) in excitation::goal_lines(x) {
+                text.push_str(&format!(
+                    "  {} {g}\n",
+                    if ok { "met    " } else { "NOT met" }
+                ));
+            }
+        }
+        Err(e) => text.push_str(&format!("  could not run: {e}\n")),
+    }
+    text.push_str("\nThe wrist's clamp force (Eq. 4-5) on plant variants\n");
+    match &r.wrist {
+        Ok(w) => {
+            for (g, ok) in wrist::goal_lines(w) {
                 text.push_str(&format!(
                     "  {} {g}\n",
                     if ok { "met    " } else { "NOT met" }

@@ -38,6 +38,12 @@ pub fn markdown(r: &Report, rows: &[Row]) -> String {
             let _ = writeln!(o, "## Optimized excitation\n\nCould not run: {e}\n");
         }
     }
+    match &r.wrist {
+        Ok(w) => o.push_str(&super::wrist::markdown(w, r.wrist_figure.as_deref())),
+        Err(e) => {
+            let _ = writeln!(o, "## The wrist's clamp force\n\nCould not run: {e}\n");
+        }
+    }
     md_definitions(&mut o);
     o
 }

@@ -1,0 +1,347 @@
+//! The report's wrist section (issue "beyond one joint", item 2): the clamp
+//! force (seed 000 Eq. 4-5) of the simulated four-joint wrist
+//! ([`crate::wrist`]) against the true contact force, grasping, holding and
+//! releasing soft objects, on every plant variant with the configuration
+//! the variant section identified for it, passive and with probing.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use super::programme::run_seed;
+use super::variants::VariantResult;
+use crate::output::Outputs;
+use crate::plot::{stage_figure, Figure, Panel, Series};
+use crate::wrist::{grasp_stats, run_grasp, Grasp, GraspStats, SoftObject, WristParams};
+
+/// Object stiffnesses across the jaws, N/m: tissue-soft and ten times
+/// stiffer (the issue's "objects 10x apart in stiffness").
+pub const STIFFNESS_N_M: [f64; 2] = [1000.0, 10_000.0];
+/// Squeezes the closing angle aims at, N.
+pub const TARGETS_N: [f64; 3] = [1.0, 2.0, 4.0];
+/// The object's width at rest, m (the open jaws' tips are 13.7 mm apart).
+pub const OBJECT_WIDTH_M: f64 = 10e-3;
+/// The object's damping across the jaws, N·s/m.
+pub const OBJECT_DAMPING_N_S_M: f64 = 0.5;
+
+/// One grasp on one variant.
+#[derive(Clone, Debug, Serialize)]
+pub struct WristRow {
+    /// Plant variant (every joint of the wrist is this plant).
+    pub variant: String,
+    /// Control rate, Hz.
+    pub rate_hz: f32,
+    /// Probing on.
+    pub probing: bool,
+    /// Object stiffness, N/m.
+    pub stiffness_n_m: f64,
+    /// Target squeeze, N.
+    pub target_n: f64,
+    /// What the run measured.
+    pub stats: GraspStats,
+}
+
+/// The section.
+#[derive(Clone, Debug, Serialize)]
+pub struct WristSection {
+    /// Every grasp.
+    pub rows: Vec<WristRow>,
+    /// Variants that could not run (no identified configuration), and why.
+    pub skipped: Vec<String>,
+}
+
+fn object(k: f64) -> SoftObject {
+    SoftObject {
+        width_m: OBJECT_WIDTH_M,
+        stiffness_n_m: k,
+        damping_n_s_m: OBJECT_DAMPING_N_S_M,
+    }
+}
+
+/// Every variant with an identified configuration, passive and probing,
+/// every object and target; `base_seed` seeds the runs.
+pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<WristSection> {
+    let mut sec = WristSection {
+        rows: Vec::new(),
+        skipped: Vec::new(),
+    };
+    for v in variants {
+        let Some(config) = v.config else {
+            sec.skipped.push(format!(
+                "{}: no identified configuration ({})",
+                v.name,
+                v.error.as_deref().unwrap_or("identification did not run")
+            ));
+            continue;
+        };
+        for probing in [false, true] {
+            let mut c = config;
+            c.probe.enabled = probing;
+            let params = WristParams::uniform(v.plant, c);
+            for k in STIFFNESS_N_M {
+                for target in TARGETS_N {
+                    let label = format!("wrist/{}/{probing}/{k}/{target}", v.name);
+                    let grasp = Grasp {
+                        target_n: target,
+                        ..Grasp::default()
+                    };
+                    let ticks = run_grasp(&params, object(k), &grasp, run_seed(base_seed, &label))
+                        .with_context(|| label.clone())?;
+                    sec.rows.push(WristRow {
+                        variant: v.name.clone(),
+                        rate_hz: v.rate_hz,
+                        probing,
+                        stiffness_n_m: k,
+                        target_n: target,
+                        stats: grasp_stats(&ticks),
+                    });
+                }
+            }
+        }
+    }
+    Ok(sec)
+}
+
+/// One variant and mode, summarised over its grasps.
+struct Summary {
+    name: String,
+    rate_hz: f32,
+    probing: bool,
+    /// Worst hold accuracy over the grasps whose true squeeze is >= 1 N, %.
+    worst_pct: f64,
+    /// Least coverage over whole grasps (open, grasp, hold, release).
+    coverage: f64,
+    /// Least coverage over the holds.
+    hold_coverage: f64,
+    /// Largest |estimate| with the jaws open, N.
+    open_n: f64,
+    faults: usize,
+}
+
+impl Summary {
+    fn met(&self) -> bool {
+        self.worst_pct >= 90.0 && self.coverage >= 0.95 && self.faults == 0
+    }
+}
+
+fn summary(sec: &WristSection) -> Vec<Summary> {
+    let mut out: Vec<Summary> = Vec::new();
+    for r in &sec.rows {
+        if out
+            .iter()
+            .any(|s| s.name == r.variant && s.probing == r.probing)
+        {
+            continue;
+        }
+        let rows: Vec<&WristRow> = sec
+            .rows
+            .iter()
+            .filter(|x| x.variant == r.variant && x.probing == r.probing)
+            .collect();
+        let worst = rows
+            .iter()
+            .filter(|x| x.stats.fault.is_none() && x.stats.hold_true_n >= 1.0)
+            .map(|x| x.stats.hold_accuracy_pct)
+            .fold(f64::NAN, f64::min);
+        let coverage = rows
+            .iter()
+            .map(|x| x.stats.coverage)
+            .fold(f64::NAN, f64::min);
+        let open = rows.iter().map(|x| x.stats.open_max_n).fold(0.0, f64::max);
+        let hold_coverage = rows
+            .iter()
+            .map(|x| x.stats.hold_coverage)
+            .fold(f64::NAN, f64::min);
+        let faults = rows.iter().filter(|x| x.stats.fault.is_some()).count();
+        out.push(Summary {
+            name: r.variant.clone(),
+            rate_hz: r.rate_hz,
+            probing: r.probing,
+            worst_pct: worst,
+            coverage,
+            hold_coverage,
+            open_n: open,
+            faults,
+        });
+    }
+    out
+}
+
+/// The goals, per variant and mode, met or not.
+pub fn goal_lines(sec: &WristSection) -> Vec<(String, bool)> {
+    summary(sec)
+        .into_iter()
+        .map(|s| {
+            let mode = if s.probing { "probing" } else { "passive" };
+            (
+                format!(
+                    "wrist, {}, {mode}: clamp force worst case while holding {:.1} % \
+                     (goal >= 90 %), bound coverage {:.1} % (goal >= 95 %; {:.1} % over the \
+                     holds), {} faulted grasps",
+                    s.name,
+                    s.worst_pct,
+                    100.0 * s.coverage,
+                    100.0 * s.hold_coverage,
+                    s.faults
+                ),
+                s.met(),
+            )
+        })
+        .collect()
+}
+
+/// The section in markdown.
+pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
+    let mut o = String::new();
+    let _ = writeln!(o, "## The wrist's clamp force (seed 000 Eq. 1-5)\n");
+    let _ = writeln!(
+        o,
+        "Four joints (roll, pitch, jaw A, jaw B), each the single-joint cable plant of the \
+         variant with its own noise, each controlled by the core with the configuration the \
+         variant section identified, all four stepped by `cable_joint::joints::Joints`. The wrist \
+         pitches to 30° and the jaws (20 mm, open 20° each) close on a soft object 10 mm wide \
+         at their tips (a spring–damper across the gap, pushing only, normal to the jaws), hold \
+         3 s and open again. The clamp force is Eq. 5 on Eq. 4's jaw forces from each joint's \
+         fused estimate and bound (`cable_joint::wrist`). Accuracy: the mean estimate against \
+         the mean true contact force over the hold's second half; coverage: the share of every \
+         tick (open, grasp, hold, release) whose true contact force lies in the bound. Every \
+         assumption (geometry, decoupled joints, no gravity) is in `host-sim/src/wrist.rs` and \
+         `src/control/wrist.rs`. Reproduce: `cargo run --release -p host-sim` (this section).\n"
+    );
+    let _ = writeln!(
+        o,
+        "| variant | rate | mode | worst hold accuracy, true ≥ 1 N | least coverage, whole grasp | least coverage, hold | largest \\|estimate\\| jaws open | faulted grasps | goals |"
+    );
+    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|");
+    for s in summary(sec) {
+        let _ = writeln!(
+            o,
+            "| {} | {:.0} Hz | {} | {:.1} % | {:.1} % | {:.1} % | {:.3} N | {} | {} |",
+            s.name,
+            s.rate_hz,
+            if s.probing { "probing" } else { "passive" },
+            s.worst_pct,
+            100.0 * s.coverage,
+            100.0 * s.hold_coverage,
+            s.open_n,
+            s.faults,
+            if s.met() { "met" } else { "**not met**" }
+        );
+    }
+    let _ = writeln!(
+        o,
+        "\nWhere the bound misses: each joint's estimate and bound pass through the DOB's \
+         low-pass `Q` (`cable_joint::fusion`), so they bound the force as `Q` lets it through. \
+         While the squeeze rises or falls (closing and opening) the true force runs ahead of \
+         both by about `F'/g`, and the bound misses it. The hold's coverage counts \
+         its first ticks, right after the closing move, where the lag still shows (not traced \
+         further); on slider-2 friction the bound misses the whole hold, as the single \
+         joint's does there (the JAE's sign term identified 22 % low, README \"Force at \
+         standstill\"). Widening the bound by the estimate's own rate over `g` was not tried yet."
+    );
+    let _ = writeln!(
+        o,
+        "\nEvery grasp (k: object stiffness; target: the squeeze the closing angle aims at with \
+         rigid jaws; the joints' position error sets the true squeeze):\n"
+    );
+    let _ = writeln!(
+        o,
+        "| variant | mode | k [N/m] | target [N] | true hold [N] | estimate [N] | accuracy | coverage (all / hold) | bound width | fault |"
+    );
+    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|");
+    for r in &sec.rows {
+        let s = &r.stats;
+        let _ = writeln!(
+            o,
+            "| {} | {} | {:.0} | {:.0} | {:.3} | {:.3} | {:.1} % | {:.1} / {:.1} % | {:.3} N | {} |",
+            r.variant,
+            if r.probing { "probing" } else { "passive" },
+            r.stiffness_n_m,
+            r.target_n,
+            s.hold_true_n,
+            s.hold_est_n,
+            s.hold_accuracy_pct,
+            100.0 * s.coverage,
+            100.0 * s.hold_coverage,
+            s.hold_bound_width_n,
+            s.fault.as_deref().unwrap_or("-")
+        );
+    }
+    for s in &sec.skipped {
+        let _ = writeln!(o, "\nNot run: {s}");
+    }
+    if let Some(stem) = figure {
+        let _ = writeln!(
+            o,
+            "\n![clamp force estimate and bound against the true contact force]({stem}.svg)\n"
+        );
+    }
+    o
+}
+
+/// The figure: one grasp on the first variant with a configuration (the
+/// default plant), 1000 N/m and a 2 N target, passive and with probing:
+/// the true contact force, the clamp estimate and its bound over time.
+pub fn stage_figure_for(
+    variants: &[VariantResult],
+    base_seed: u64,
+    out: &mut Outputs,
+    dir: &Path,
+) -> Result<Option<String>> {
+    let Some(v) = variants.iter().find(|v| v.config.is_some()) else {
+        return Ok(None);
+    };
+    let Some(config) = v.config else {
+        return Ok(None);
+    };
+    let mut panels = Vec::new();
+    for probing in [false, true] {
+        let mut c = config;
+        c.probe.enabled = probing;
+        let params = WristParams::uniform(v.plant, c);
+        let label = format!("wrist/figure/{}/{probing}", v.name);
+        let ticks = run_grasp(
+            &params,
+            object(STIFFNESS_N_M[0]),
+            &Grasp::default(),
+            run_seed(base_seed, &label),
+        )?;
+        let t: Vec<f64> = ticks.iter().map(|(_, x)| x.t_s).collect();
+        let col = |f: &dyn Fn(&crate::wrist::WristTick) -> f64| -> Vec<f64> {
+            ticks.iter().map(|(_, x)| f(x)).collect()
+        };
+        let mode = if probing { "probing" } else { "passive" };
+        panels.push(
+            Panel::new(
+                format!("{}: clamp force, {mode}", v.name),
+                "t [s]",
+                "force [N]",
+            )
+            .with(Series::line(
+                "true contact",
+                t.clone(),
+                col(&|x| x.contact_n),
+            ))
+            .with(Series::line(
+                "estimate (Eq. 5)",
+                t.clone(),
+                col(&|x| x.clamp_n),
+            ))
+            .with(Series::line(
+                "bound, low",
+                t.clone(),
+                col(&|x| f64::from(x.clamp_bound_n.lo)),
+            ))
+            .with(Series::line(
+                "bound, high",
+                t,
+                col(&|x| f64::from(x.clamp_bound_n.hi)),
+            )),
+        );
+    }
+    let stem = "fig_wrist_clamp";
+    stage_figure(out, &Figure::grid(panels, 1), &dir.join(stem))?;
+    Ok(Some(stem.to_owned()))
+}

@@ -1,0 +1,481 @@
+//! The simulated four-joint wrist (seed 000 Sect. 2.2-2.3): roll, pitch and
+//! the two jaws, every joint the single-joint cable plant with its own
+//! controller, run together by the core's [`Joints`], grasping a soft object.
+//!
+//! # Model
+//!
+//! * Joint 0 is the roll, 1 the pitch, 2 jaw A, 3 jaw B. Each is a
+//!   [`Plant`] (motor, cables, sliders, return spring, sensors, noise) with
+//!   its own parameters and seed, controlled by a [`cable_joint::Controller`]
+//!   with its own identified configuration, all four stepped in one
+//!   [`Joints::step`].
+//! * Each jaw's joint angle `theta` is zero with the jaw open by
+//!   [`WristParams::jaw_open_rad`] from the wrist's axis and grows as the
+//!   jaw closes; jaw B is the mirror image of jaw A
+//!   ([`cable_joint::wrist`]'s frames: `q_3 = theta - jaw_open`).
+//! * The object ([`SoftObject`]) sits centred between the jaw tips: a
+//!   spring–damper across the tips' gap `l_e (sin(a - theta_a) + sin(a -
+//!   theta_b))`, pushing only (no adhesion), its force normal to each jaw
+//!   (frictionless contact) at the jaw's tip. Each jaw's plant takes it as
+//!   its external tip force (`F_ext > 0` opposes closing). A squeeze is an
+//!   internal force: the roll and pitch joints carry none of it.
+//! * Assumed and stated: the joints are dynamically decoupled (the wrist's
+//!   links weigh grams, so the rigid-body coupling of Eq. 1's `D(q)` and
+//!   `H` is far below the cables' friction) and gravity is left out as in
+//!   seed 000's single joint. Each joint's no-load model (its DOB and
+//!   stretch chain) is therefore Eq. 3's `tau_hat` for that joint.
+//!
+//! # Estimate
+//!
+//! Every tick each joint's fused force estimate and its bound become an
+//! external torque `F l_e` with its bound; [`cable_joint::wrist::jaw_force`]
+//! (Eq. 4) gives each jaw's force and [`cable_joint::wrist::clamp_force`]
+//! (Eq. 5) the clamp force with its bound.
+
+use anyhow::{ensure, Context, Result};
+use cable_joint::joints::Joints;
+use cable_joint::trajectory::Trajectory;
+use cable_joint::wrist::{self, Geometry, Interval};
+use cable_joint::{Command, Config, Controller, Mode, Output, RawSample};
+
+use crate::plant::{Plant, PlantParams};
+
+/// Joint indices.
+pub const ROLL: usize = 0;
+/// Pitch joint.
+pub const PITCH: usize = 1;
+/// Jaw A.
+pub const JAW_A: usize = 2;
+/// Jaw B.
+pub const JAW_B: usize = 3;
+
+/// The object between the jaws: a spring–damper across the tips' gap.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SoftObject {
+    /// Width at rest, m.
+    pub width_m: f64,
+    /// Stiffness across the jaws, N/m.
+    pub stiffness_n_m: f64,
+    /// Damping across the jaws, N·s/m.
+    pub damping_n_s_m: f64,
+}
+
+/// The wrist: four joints' plants and configurations, the geometry, the
+/// jaws' opening and the pose the roll and pitch hold.
+#[derive(Clone, Debug)]
+pub struct WristParams {
+    /// Plants of roll, pitch, jaw A, jaw B.
+    pub plants: [PlantParams; 4],
+    /// Configurations of roll, pitch, jaw A, jaw B (the same control rate).
+    pub configs: [Config; 4],
+    /// The wrist's dimensions (its jaw length must be each jaw
+    /// configuration's gripper length).
+    pub geometry: Geometry,
+    /// Each jaw's angle from the wrist axis at `theta = 0`, rad.
+    pub jaw_open_rad: f64,
+    /// Pitch angle the wrist holds, rad.
+    pub pitch_rad: f64,
+}
+
+impl WristParams {
+    /// Every joint the same machine (`plant`, `config`), the seed's
+    /// geometry, jaws open by 20° each, the wrist pitched by 30°.
+    pub fn uniform(plant: PlantParams, config: Config) -> Self {
+        let geometry = Geometry {
+            jaw_length_m: config.machine.gripper_length_m,
+            ..Geometry::default()
+        };
+        Self {
+            plants: [plant; 4],
+            configs: [config; 4],
+            geometry,
+            jaw_open_rad: 20f64.to_radians(),
+            pitch_rad: 30f64.to_radians(),
+        }
+    }
+
+    /// The jaws' tip gap at jaw angles `theta_a`, `theta_b`, m.
+    pub fn gap_m(&self, theta_a: f64, theta_b: f64) -> f64 {
+        let l = f64::from(self.geometry.jaw_length_m);
+        l * ((self.jaw_open_rad - theta_a).sin() + (self.jaw_open_rad - theta_b).sin())
+    }
+
+    /// The jaw angle (both jaws alike) at which the gap is `gap_m`, rad.
+    pub fn theta_for_gap(&self, gap_m: f64) -> f64 {
+        let l = f64::from(self.geometry.jaw_length_m);
+        self.jaw_open_rad - (0.5 * gap_m / l).clamp(-1.0, 1.0).asin()
+    }
+}
+
+/// One tick of the wrist.
+#[derive(Clone, Copy, Debug)]
+pub struct WristTick {
+    /// Time, s.
+    pub t_s: f64,
+    /// The four joints' outputs.
+    pub outputs: [Output; 4],
+    /// True joint angles, rad.
+    pub theta_rad: [f64; 4],
+    /// True contact force (each jaw's squeeze), N.
+    pub contact_n: f64,
+    /// Eq. 5's clamp force from the joints' point estimates, N.
+    pub clamp_n: f64,
+    /// Its bound, from the joints' bounds through Eq. 4 and 5, N.
+    pub clamp_bound_n: Interval,
+    /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N.
+    pub jaws: [wrist::JawForce; 2],
+}
+
+/// The four plants under [`Joints`], with the object between the jaws.
+pub struct WristSim {
+    params: WristParams,
+    object: SoftObject,
+    plants: [Plant; 4],
+    joints: Joints<4>,
+    period_s: f64,
+    substeps: usize,
+    tick: u64,
+    contact_n: f64,
+}
+
+/// The contact force of `object` at gap `gap_m` closing at `gap_rate`, N.
+fn contact(object: &SoftObject, gap_m: f64, gap_rate_m_s: f64) -> f64 {
+    let penetration = object.width_m - gap_m;
+    if penetration <= 0.0 {
+        return 0.0;
+    }
+    (object.stiffness_n_m * penetration - object.damping_n_s_m * gap_rate_m_s).max(0.0)
+}
+
+impl WristSim {
+    /// Every plant at rest, every controller homed on its first sample and
+    /// idle. `seed` drives the noise (each joint its own stream).
+    pub fn new(params: WristParams, object: SoftObject, seed: u64) -> Result<Self> {
+        let rate = params.configs[0].control_rate_hz;
+        ensure!(
+            params.configs.iter().all(|c| c.control_rate_hz == rate),
+            "every joint of the wrist must run at one control rate"
+        );
+        ensure!(
+            params.configs[JAW_A..]
+                .iter()
+                .all(|c| c.machine.gripper_length_m == params.geometry.jaw_length_m),
+            "the wrist's jaw length must be each jaw configuration's gripper length"
+        );
+        let period_s = 1.0 / f64::from(rate);
+        let mut plants = Vec::with_capacity(4);
+        let mut controllers = Vec::with_capacity(4);
+        let mut substeps = 1;
+        for (j, (p, c)) in params.plants.iter().zip(&params.configs).enumerate() {
+            let mut p = *p;
+            substeps = (p.integration.step_hz * period_s - 1e-9).ceil().max(1.0) as usize;
+            p.integration.step_hz = substeps as f64 / period_s;
+            let seed_j = seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1));
+            plants.push(Plant::new(p, seed_j).with_context(|| format!("wrist joint {j}"))?);
+            controllers.push(
+                Controller::new(*c)
+                    .map_err(|e| anyhow::anyhow!("wrist joint {j}'s configuration: {e}"))?,
+            );
+        }
+        let mut plants: [Plant; 4] = plants
+            .try_into()
+            .map_err(|_| anyhow::anyhow!("four plants"))?;
+        let controllers: [Controller; 4] = controllers
+            .try_into()
+            .map_err(|_| anyhow::anyhow!("four controllers"))?;
+        let mut joints = Joints::new(controllers);
+        let raw: [RawSample; 4] = core::array::from_fn(|j| plants[j].sample());
+        joints.set_origin(&raw);
+        // The substeps differ only if the plants' step rates do; the
+        // coarsest is kept for all (each plant's own bound was checked).
+        Ok(Self {
+            params,
+            object,
+            plants,
+            joints,
+            period_s,
+            substeps,
+            tick: 0,
+            contact_n: 0.0,
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &WristParams {
+        &self.params
+    }
+
+    /// The joints.
+    pub fn joints(&self) -> &Joints<4> {
+        &self.joints
+    }
+
+    /// Give joint `j` a command (refused while a fault is latched).
+    pub fn set_command(&mut self, j: usize, command: Command) -> Result<()> {
+        self.joints
+            .set_command(j, command)
+            .map_err(|e| anyhow::anyhow!("wrist joint {j}: command refused: {e:?}"))
+    }
+
+    /// Time of the next tick, s.
+    pub fn time_s(&self) -> f64 {
+        self.tick as f64 * self.period_s
+    }
+
+    /// One control tick of every joint, then the plants over one period
+    /// with the contact force updated at every sub-step.
+    pub fn step(&mut self) -> WristTick {
+        let t_s = self.time_s();
+        let raw: [RawSample; 4] = core::array::from_fn(|j| self.plants[j].sample());
+        let theta_rad: [f64; 4] = core::array::from_fn(|j| self.plants[j].state().theta_rad);
+        let outputs = self.joints.step(&raw);
+        let g = &self.params.geometry;
+        let torque = |o: &Output, l: f32| Interval::new(o.est.f_ext_lo_n * l, o.est.f_ext_hi_n * l);
+        let point = |o: &Output, l: f32| Interval::point(o.est.f_ext_fused_n * l);
+        let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
+        // The wrist's pose as the joints estimate it (the JAE of each).
+        let q2 = outputs[PITCH].est.theta_hat_rad;
+        let open = self.params.jaw_open_rad as f32;
+        let qa = outputs[JAW_A].est.theta_hat_rad - open;
+        let qb = outputs[JAW_B].est.theta_hat_rad - open;
+        // Jaw B is jaw A's mirror image: its roll torque enters with the
+        // other sign (wrist module docs).
+        let roll = torque(&outputs[ROLL], l(ROLL));
+        let pitch = torque(&outputs[PITCH], l(PITCH));
+        let jaw_a = wrist::jaw_force(g, q2, qa, [roll, pitch, torque(&outputs[JAW_A], l(JAW_A))]);
+        let jaw_b = wrist::jaw_force(
+            g,
+            q2,
+            qb,
+            [roll.scale(-1.0), pitch, torque(&outputs[JAW_B], l(JAW_B))],
+        );
+        let clamp_bound_n = wrist::clamp_force(jaw_a.force_n[1], jaw_b.force_n[1]);
+        let pa = point(&outputs[JAW_A], l(JAW_A)).scale(1.0 / g.jaw_length_m);
+        let pb = point(&outputs[JAW_B], l(JAW_B)).scale(1.0 / g.jaw_length_m);
+        let clamp_n = f64::from(wrist::clamp_force(pa, pb).mid());
+        let record = WristTick {
+            t_s,
+            outputs,
+            theta_rad,
+            contact_n: self.contact_n,
+            clamp_n,
+            clamp_bound_n,
+            jaws: [jaw_a, jaw_b],
+        };
+        for (p, o) in self.plants.iter_mut().zip(&outputs) {
+            let i_a = if o.drive_enable {
+                p.params().sensors.scales.dac_a(o.dac) as f64
+            } else {
+                0.0
+            };
+            p.set_current_command(i_a);
+        }
+        for _ in 0..self.substeps {
+            let (a, b) = (*self.plants[JAW_A].state(), *self.plants[JAW_B].state());
+            let gap = self.params.gap_m(a.theta_rad, b.theta_rad);
+            let l = f64::from(self.params.geometry.jaw_length_m);
+            let open = self.params.jaw_open_rad;
+            let gap_rate = -l
+                * ((open - a.theta_rad).cos() * a.theta_vel_rad_s
+                    + (open - b.theta_rad).cos() * b.theta_vel_rad_s);
+            self.contact_n = contact(&self.object, gap, gap_rate);
+            for (j, p) in self.plants.iter_mut().enumerate() {
+                p.set_external_force(if j >= JAW_A { self.contact_n } else { 0.0 });
+                p.step();
+            }
+        }
+        self.tick += 1;
+        record
+    }
+}
+
+/// A grasp: close both jaws onto the object to the angle that would squeeze
+/// it with `target_n` at rigid jaws, hold, open again.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grasp {
+    /// Squeeze the closing angle aims at, N.
+    pub target_n: f64,
+    /// Settling before the grasp, s.
+    pub settle_s: f64,
+    /// Closing (and opening) move, s.
+    pub move_s: f64,
+    /// Hold, s.
+    pub hold_s: f64,
+    /// After opening, s.
+    pub after_s: f64,
+}
+
+impl Default for Grasp {
+    fn default() -> Self {
+        Self {
+            target_n: 2.0,
+            settle_s: 1.0,
+            move_s: 1.0,
+            hold_s: 3.0,
+            after_s: 1.0,
+        }
+    }
+}
+
+/// Phases of a grasp run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// Jaws open, before the grasp.
+    Open,
+    /// Closing onto the object.
+    Grasp,
+    /// Holding (the stable region is its second half).
+    Hold,
+    /// Opening.
+    Release,
+    /// Open after the release.
+    After,
+}
+
+/// Run one grasp; returns every tick with its phase.
+pub fn run_grasp(
+    params: &WristParams,
+    object: SoftObject,
+    grasp: &Grasp,
+    seed: u64,
+) -> Result<Vec<(Phase, WristTick)>> {
+    ensure!(
+        grasp.target_n > 0.0 && object.stiffness_n_m > 0.0,
+        "a grasp needs a positive target force and a positive object stiffness"
+    );
+    let mut sim = WristSim::new(params.clone(), object, seed)?;
+    let hold = |a: f64| Command {
+        mode: Mode::JointClosedLoop,
+        trajectory: Trajectory::Hold {
+            angle_rad: a as f32,
+        },
+    };
+    let open_gap = params.gap_m(0.0, 0.0);
+    ensure!(
+        object.width_m < open_gap,
+        "the object ({:.1} mm) does not fit between the open jaws ({:.1} mm)",
+        object.width_m * 1e3,
+        open_gap * 1e3
+    );
+    let close = params.theta_for_gap(object.width_m - grasp.target_n / object.stiffness_n_m);
+    let move_to = |from: f64, to: f64| Command {
+        mode: Mode::JointClosedLoop,
+        trajectory: Trajectory::PointToPoint {
+            from_rad: from as f32,
+            to_rad: to as f32,
+            duration_s: grasp.move_s as f32,
+        },
+    };
+    sim.set_command(ROLL, hold(0.0))?;
+    sim.set_command(PITCH, move_to(0.0, params.pitch_rad))?;
+    sim.set_command(JAW_A, hold(0.0))?;
+    sim.set_command(JAW_B, hold(0.0))?;
+    let period = sim.period_s;
+    let mut out = Vec::new();
+    let run = |sim: &mut WristSim, phase: Phase, seconds: f64, out: &mut Vec<_>| {
+        for _ in 0..(seconds / period).round() as u64 {
+            out.push((phase, sim.step()));
+        }
+    };
+    run(&mut sim, Phase::Open, grasp.settle_s, &mut out);
+    for j in [JAW_A, JAW_B] {
+        sim.set_command(j, move_to(0.0, close))?;
+    }
+    run(&mut sim, Phase::Grasp, grasp.move_s, &mut out);
+    run(&mut sim, Phase::Hold, grasp.hold_s, &mut out);
+    for j in [JAW_A, JAW_B] {
+        sim.set_command(j, move_to(close, 0.0))?;
+    }
+    run(&mut sim, Phase::Release, grasp.move_s, &mut out);
+    run(&mut sim, Phase::After, grasp.after_s, &mut out);
+    Ok(out)
+}
+
+/// What a grasp run measured.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct GraspStats {
+    /// Mean true contact force in the stable hold (the hold's second half), N.
+    pub hold_true_n: f64,
+    /// Mean clamp estimate there, N.
+    pub hold_est_n: f64,
+    /// `100 (1 - |est - true| / true)` of those means, %.
+    pub hold_accuracy_pct: f64,
+    /// Share of all ticks whose true clamp force is inside the bound.
+    pub coverage: f64,
+    /// The same over the hold's ticks.
+    pub hold_coverage: f64,
+    /// Mean bound width in the stable hold, N.
+    pub hold_bound_width_n: f64,
+    /// Largest |estimate| with the jaws open (before and after), N.
+    pub open_max_n: f64,
+    /// The first fault a joint latched (joint and fault), if any.
+    pub fault: Option<String>,
+}
+
+/// Summarise a grasp run.
+pub fn grasp_stats(ticks: &[(Phase, WristTick)]) -> GraspStats {
+    let hold: Vec<&WristTick> = ticks
+        .iter()
+        .filter(|(p, _)| *p == Phase::Hold)
+        .map(|(_, t)| t)
+        .collect();
+    let stable = &hold[hold.len() / 2..];
+    let mean = |f: &dyn Fn(&WristTick) -> f64, v: &[&WristTick]| {
+        v.iter().map(|t| f(t)).sum::<f64>() / v.len().max(1) as f64
+    };
+    let inside = |t: &WristTick| {
+        let c = t.contact_n as f32;
+        t.clamp_bound_n.lo <= c + 1e-6 && c - 1e-6 <= t.clamp_bound_n.hi
+    };
+    let hold_true_n = mean(&|t| t.contact_n, stable);
+    let hold_est_n = mean(&|t| t.clamp_n, stable);
+    GraspStats {
+        hold_true_n,
+        hold_est_n,
+        hold_accuracy_pct: 100.0 * (1.0 - (hold_est_n - hold_true_n).abs() / hold_true_n),
+        coverage: ticks.iter().filter(|(_, t)| inside(t)).count() as f64
+            / ticks.len().max(1) as f64,
+        hold_coverage: hold.iter().filter(|t| inside(t)).count() as f64 / hold.len().max(1) as f64,
+        hold_bound_width_n: mean(&|t| f64::from(t.clamp_bound_n.width()), stable),
+        open_max_n: ticks
+            .iter()
+            .filter(|(p, _)| matches!(p, Phase::Open | Phase::After))
+            .map(|(_, t)| t.clamp_n.abs())
+            .fold(0.0, f64::max),
+        fault: ticks.iter().find_map(|(_, t)| {
+            t.outputs
+                .iter()
+                .enumerate()
+                .find_map(|(j, o)| o.fault.map(|f| format!("joint {j}: {f}")))
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn object(k: f64) -> SoftObject {
+        SoftObject {
+            width_m: 10e-3,
+            stiffness_n_m: k,
+            damping_n_s_m: 0.5,
+        }
+    }
+
+    #[test]
+    fn the_gap_and_the_closing_angle_agree() {
+        let p = WristParams::uniform(PlantParams::default(), Config::default());
+        let th = p.theta_for_gap(8e-3);
+        assert!((p.gap_m(th, th) - 8e-3).abs() < 1e-12);
+        assert!(p.gap_m(0.0, 0.0) > 13e-3, "jaws 20° open, 20 mm long");
+    }
+
+    #[test]
+    fn the_object_only_pushes() {
+        let o = object(1000.0);
+        assert_eq!(contact(&o, 11e-3, 0.0), 0.0);
+        assert!((contact(&o, 9e-3, 0.0) - 1.0).abs() < 1e-12);
+        assert_eq!(contact(&o, 9.99e-3, 1.0), 0.0, "opening fast: no pull");
+    }
+}

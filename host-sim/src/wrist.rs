@@ -165,10 +165,16 @@ impl WristSim {
         let period_s = 1.0 / f64::from(rate);
         let mut plants = Vec::with_capacity(4);
         let mut controllers = Vec::with_capacity(4);
-        let mut substeps = 1;
+        // One sub-step for all four plants (the contact couples the jaws at
+        // every sub-step): the finest any plant asks for, whole per period.
+        let substeps = params
+            .plants
+            .iter()
+            .map(|p| (p.integration.step_hz * period_s - 1e-9).ceil().max(1.0) as usize)
+            .max()
+            .unwrap_or(1);
         for (j, (p, c)) in params.plants.iter().zip(&params.configs).enumerate() {
             let mut p = *p;
-            substeps = (p.integration.step_hz * period_s - 1e-9).ceil().max(1.0) as usize;
             p.integration.step_hz = substeps as f64 / period_s;
             let seed_j = seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1));
             plants.push(Plant::new(p, seed_j).with_context(|| format!("wrist joint {j}"))?);
@@ -186,8 +192,6 @@ impl WristSim {
         let mut joints = Joints::new(controllers);
         let raw: [RawSample; 4] = core::array::from_fn(|j| plants[j].sample());
         joints.set_origin(&raw);
-        // The substeps differ only if the plants' step rates do; the
-        // coarsest is kept for all (each plant's own bound was checked).
         Ok(Self {
             params,
             object,

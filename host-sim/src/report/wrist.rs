@@ -290,10 +290,7 @@ pub fn stage_figure_for(
     out: &mut Outputs,
     dir: &Path,
 ) -> Result<Option<String>> {
-    let Some(v) = variants.iter().find(|v| v.config.is_some()) else {
-        return Ok(None);
-    };
-    let Some(config) = v.config else {
+    let Some((v, config)) = variants.iter().find_map(|v| v.config.map(|c| (v, c))) else {
         return Ok(None);
     };
     let mut panels = Vec::new();

@@ -5,8 +5,8 @@
 //! * [`control`], the control path, runs every tick in [`Controller::step`]:
 //!   [`controller`] (the step, sensing and faults), [`filter`], [`jae`],
 //!   [`model`] and [`effects`] (the effect terms added to the JAE and the
-//!   tension model), [`dob`], [`fusion`], [`trajectory`], [`probe`],
-//!   [`cascade`].
+//!   tension model), [`dob`], [`fusion`], [`trajectory`], [`grip`],
+//!   [`probe`], [`cascade`].
 //! * [`ident`], the identification helpers (`no_std` too), called by the
 //!   host tools and never in the tick: [`lsq`] (least squares), [`payload`]
 //!   (seed 001's tool-end estimator).
@@ -43,7 +43,8 @@ pub mod units;
 // The paths from before the grouping, kept: `crate::dob` is `control::dob`,
 // `crate::lsq` is `ident::lsq`.
 pub use control::{
-    cascade, controller, dob, effects, filter, fusion, jae, joints, model, probe, trajectory, wrist,
+    cascade, controller, dob, effects, filter, fusion, grip, jae, joints, model, probe, trajectory,
+    wrist,
 };
 pub use ident::{lsq, payload};
 

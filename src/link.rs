@@ -35,8 +35,8 @@ use crate::config::{Config, ConfigError};
 use crate::controller::{Command, PreparedConfig};
 
 /// Version of the wire format. Raise it on any change of the frame layout
-/// or of a message's encoding.
-pub const LINK_VERSION: u8 = 1;
+/// or of a message's encoding (2: `Trajectory::Grip`).
+pub const LINK_VERSION: u8 = 2;
 
 /// Largest decoded frame, bytes (version, seq, body and CRC): a whole
 /// [`Config`] takes 377 on the wire (measured in a test that keeps it

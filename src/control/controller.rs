@@ -17,6 +17,7 @@ use crate::effects::TermState;
 use crate::fault::{Fault, Sensor};
 use crate::filter::{Kinematics, LowPass1, TrackingObserver};
 use crate::fusion::{self, Fusion, FusionIn, FusionState};
+use crate::grip::{Grip, GripIn, GripPartner, GripState};
 use crate::jae::{self, JaeState};
 use crate::math;
 use crate::model::{sig, AddedState, Signals};
@@ -226,6 +227,7 @@ struct Derived {
     dob: Dob,
     fusion: Fusion,
     probe: Probe,
+    grip: Grip,
     blend: Option<LowPass1>,
     force_lp: LowPass1,
     motor_per_joint: f32,
@@ -257,6 +259,7 @@ impl Derived {
             dob: Dob::new(&c.dob, m, period_s),
             fusion: Fusion::new(c, period_s),
             probe: Probe::new(&c.probe, period_s),
+            grip: Grip::new(c.dob.cutoff_rad_s, period_s),
             force_lp: LowPass1::new(c.dob.cutoff_rad_s, period_s),
             blend: (c.cascade.jae_blend_hz > 0.0)
                 .then(|| LowPass1::new(2.0 * math::PI * c.cascade.jae_blend_hz, period_s)),
@@ -356,6 +359,10 @@ pub struct State {
     probe: ProbeState,
     /// The last tick dithered (the probe state is reset when a hold ends).
     probing: bool,
+    /// The grip law's state ([`crate::grip`]), restarted by every command.
+    grip: GripState,
+    /// The other jaw of a gripping pair, as of its last tick.
+    grip_partner: Option<GripPartner>,
     /// `Q[F_1']`'s Coulomb part (model C's sign terms), N.
     tension_friction_n: f32,
     cascade: CascadeState,
@@ -461,6 +468,25 @@ impl Controller {
         }
         self.command = command;
         self.state.command_tick = self.state.tick;
+        self.state.grip.started = false;
+    }
+
+    /// Tell a gripping jaw about its partner (the other jaw on the same
+    /// object), as of the partner's last tick; `None` for a single jaw.
+    /// [`crate::joints::Joints::set_pair`] does this every tick.
+    pub fn set_grip_partner(&mut self, partner: Option<GripPartner>) {
+        self.state.grip_partner = partner;
+    }
+
+    /// The partner a gripping jaw last heard of, if any.
+    pub fn grip_partner(&self) -> Option<GripPartner> {
+        self.state.grip_partner
+    }
+
+    /// The grip law's state (contact, measured contact stiffness), for
+    /// telemetry and the host's report.
+    pub fn grip_state(&self) -> &GripState {
+        &self.state.grip
     }
 
     /// Latch an external fault (drive fault line, overrun, origin switch).
@@ -529,6 +555,8 @@ impl Controller {
             fusion,
             probe,
             probing,
+            grip,
+            grip_partner,
             tension_friction_n,
             cascade,
             stretch_force_n,
@@ -570,6 +598,8 @@ impl Controller {
         *fusion = FusionState::default();
         probe.restart();
         *probing = false;
+        grip.started = false;
+        *grip_partner = None;
         *tension_friction_n = 0.0;
         *cascade = CascadeState::default();
         *stretch_force_n = 0.0;
@@ -834,16 +864,47 @@ impl Controller {
 
         // --- Reference and cascade -------------------------------------------
         let t_cmd = st.tick.wrapping_sub(st.command_tick) as f32 * d.period_s;
-        let mut reference = match self.command.mode {
-            Mode::Idle => Reference {
+        if !st.primed {
+            st.stretch_rad = theta_hat_rad - theta_motor_rad;
+        }
+        let stretch_rad = match &d.blend {
+            Some(lp) => lp.update(&mut st.stretch_rad, theta_hat_rad - theta_motor_rad),
+            None => theta_hat_rad - theta_motor_rad,
+        };
+        let feedback = match self.command.mode {
+            Mode::JointClosedLoop => theta_motor_rad + stretch_rad,
+            _ => theta_motor_rad,
+        };
+        let gripping = self.command.trajectory.is_grip();
+        let mut reference = match (self.command.mode, self.command.trajectory) {
+            (Mode::Idle, _) => Reference {
                 angle_rad: theta_hat_rad,
                 vel_rad_s: 0.0,
             },
-            _ => self.command.trajectory.at(t_cmd),
+            (
+                _,
+                Trajectory::Grip {
+                    force_n,
+                    approach_rad_s,
+                },
+            ) if st.fault.is_none() => d.grip.update(
+                &mut st.grip,
+                &GripIn {
+                    set_n: force_n,
+                    approach_rad_s,
+                    force_n: fused.f_ext_n,
+                    angle_fb_rad: feedback,
+                    partner: st.grip_partner,
+                    max_angle_rad: cfg.limits.max_joint_angle_rad,
+                },
+            ),
+            (_, trajectory) => trajectory.at(t_cmd),
         };
         // Probing: a dither on a hold, and the fused estimate replaced by
         // its mean over the last whole dither period once one is complete.
+        // Never during a grip: its law reads the estimate every tick.
         let probing = d.probe.enabled()
+            && !gripping
             && self.command.mode != Mode::Idle
             && st.fault.is_none()
             && reference.vel_rad_s == 0.0;
@@ -868,17 +929,6 @@ impl Controller {
             st.probe.restart();
         }
         st.probing = probing;
-        if !st.primed {
-            st.stretch_rad = theta_hat_rad - theta_motor_rad;
-        }
-        let stretch_rad = match &d.blend {
-            Some(lp) => lp.update(&mut st.stretch_rad, theta_hat_rad - theta_motor_rad),
-            None => theta_hat_rad - theta_motor_rad,
-        };
-        let feedback = match self.command.mode {
-            Mode::JointClosedLoop => theta_motor_rad + stretch_rad,
-            _ => theta_motor_rad,
-        };
         let current_ff_a = if cfg.cascade.tension_feedforward {
             (model_n * m.rope_wheel_radius_m / m.gear_ratio + cfg.dob.viscous_nm_s_rad * phi.vel)
                 / m.torque_constant_nm_a

@@ -17,11 +17,18 @@
 //!   cleared, and [`Joints::clear_fault`] refuses while the fault's cause
 //!   persists ([`Controller::fault_cause_persists`]).
 //!
+//! Two joints can be declared a **pair of jaws** on one object
+//! ([`Joints::set_pair`]): while both run a grip
+//! ([`crate::trajectory::Trajectory::Grip`]), each tells the other its force
+//! estimate and angle reference every tick, so together they regulate the clamp force
+//! (Eq. 5, the mean of both jaws' squeeze) and stay level ([`crate::grip`]).
+//!
 //! The single joint is `N = 1`: [`Joints::step`] then runs exactly
 //! [`Controller::step`], output for output (tested below).
 
 use crate::controller::{Command, Controller, Mode, Output, RawSample};
 use crate::fault::Fault;
+use crate::grip::GripPartner;
 
 /// Why [`Joints::set_command`] refused a command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -29,6 +36,8 @@ use crate::fault::Fault;
 pub enum Refused {
     /// There is no joint with this index.
     NoSuchJoint(usize),
+    /// A pair of jaws needs two different joints.
+    NotAPair(usize),
     /// A fault is latched on `joint`: no drive runs until it is cleared.
     Faulted {
         /// The joint whose fault is latched (the lowest index if several).
@@ -45,6 +54,8 @@ pub enum Refused {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Joints<const N: usize> {
     joints: [Controller; N],
+    /// The jaws of a gripping pair, if declared.
+    pair: Option<(usize, usize)>,
 }
 
 impl<const N: usize> Joints<N> {
@@ -52,7 +63,30 @@ impl<const N: usize> Joints<N> {
     /// Each controller carries its own configuration (its own identified
     /// parameters).
     pub fn new(joints: [Controller; N]) -> Self {
-        Self { joints }
+        Self { joints, pair: None }
+    }
+
+    /// Declare joints `a` and `b` the two jaws on one object (`None`: no
+    /// pair). While both run a grip they regulate their mean force and
+    /// stay level; otherwise each runs its own command alone.
+    pub fn set_pair(&mut self, pair: Option<(usize, usize)>) -> Result<(), Refused> {
+        if let Some((a, b)) = pair {
+            for j in [a, b] {
+                if j >= N {
+                    return Err(Refused::NoSuchJoint(j));
+                }
+            }
+            if a == b {
+                return Err(Refused::NotAPair(a));
+            }
+        }
+        self.pair = pair;
+        if pair.is_none() {
+            for c in &mut self.joints {
+                c.set_grip_partner(None);
+            }
+        }
+        Ok(())
     }
 
     /// Joint `j`'s controller.
@@ -113,6 +147,19 @@ impl<const N: usize> Joints<N> {
         let mut out = [Output::default(); N];
         for ((o, c), r) in out.iter_mut().zip(self.joints.iter_mut()).zip(raw) {
             *o = c.step(r);
+        }
+        if let Some((a, b)) = self.pair {
+            let both = self.joints[a].command().trajectory.is_grip()
+                && self.joints[b].command().trajectory.is_grip();
+            let partner = |o: &Output| {
+                both.then_some(GripPartner {
+                    force_n: o.est.f_ext_fused_n,
+                    angle_ref_rad: o.est.theta_ref_rad,
+                })
+            };
+            let (pa, pb) = (partner(&out[b]), partner(&out[a]));
+            self.joints[a].set_grip_partner(pa);
+            self.joints[b].set_grip_partner(pb);
         }
         if out.iter().any(|o| o.fault.is_some()) {
             for (o, c) in out.iter_mut().zip(self.joints.iter_mut()) {
@@ -223,5 +270,44 @@ mod tests {
             Err(Refused::NoSuchJoint(2))
         );
         assert_eq!(joints.clear_fault(5), Err(Refused::NoSuchJoint(5)));
+    }
+
+    #[test]
+    fn a_pair_needs_two_joints_that_exist() {
+        let mut joints = Joints::new([controller(), controller(), controller()]);
+        assert_eq!(joints.set_pair(Some((0, 3))), Err(Refused::NoSuchJoint(3)));
+        assert_eq!(joints.set_pair(Some((1, 1))), Err(Refused::NotAPair(1)));
+        assert_eq!(joints.set_pair(Some((1, 2))), Ok(()));
+    }
+
+    #[test]
+    fn gripping_jaws_of_a_pair_hear_of_each_other_and_others_do_not() {
+        let grip = Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Grip {
+                force_n: 1.0,
+                approach_rad_s: 0.1,
+            },
+        };
+        let raw = [at_rest(); 3];
+        let mut joints = Joints::new([controller(), controller(), controller()]);
+        joints.set_origin(&raw);
+        joints.set_pair(Some((0, 2))).unwrap();
+        joints.set_command(0, grip).unwrap();
+        joints.step(&raw);
+        let partner = |joints: &Joints<3>, j: usize| joints.joint(j).unwrap().grip_partner();
+        assert_eq!(partner(&joints, 0), None, "joint 2 does not grip yet");
+        joints.set_command(2, grip).unwrap();
+        let out = joints.step(&raw);
+        let heard = partner(&joints, 0).expect("both grip: joint 0 hears of joint 2");
+        assert_eq!(heard.force_n, out[2].est.f_ext_fused_n);
+        assert_eq!(heard.angle_ref_rad, out[2].est.theta_ref_rad);
+        assert_eq!(
+            partner(&joints, 2).map(|p| p.angle_ref_rad),
+            Some(out[0].est.theta_ref_rad)
+        );
+        assert_eq!(partner(&joints, 1), None, "joint 1 is not of the pair");
+        joints.set_pair(None).unwrap();
+        assert_eq!(partner(&joints, 0), None, "no pair, no partner");
     }
 }

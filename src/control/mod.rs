@@ -16,7 +16,8 @@
 //! * [`dob`]: the no-load tension model and the disturbance observer;
 //! * [`fusion`]: the fused force estimate and its bound;
 //! * [`trajectory`] and [`probe`]: the reference, and the dither at a hold
-//!   with its synchronous mean;
+//!   with its synchronous mean; [`grip`]: the admittance law that makes the
+//!   reference of a force set point;
 //! * [`cascade`]: the PD/PI cascade to the current reference.
 //!
 //! Beside the tick: [`joints`] runs `N` joints' control paths side by side
@@ -33,6 +34,7 @@ pub mod dob;
 pub mod effects;
 pub mod filter;
 pub mod fusion;
+pub mod grip;
 pub mod jae;
 pub mod joints;
 pub mod model;

@@ -62,7 +62,27 @@ pub enum Trajectory {
         /// Cosine coefficients of harmonics 1..=HARMONICS, rad.
         cos_rad: [f32; HARMONICS],
     },
+    /// Grip-force control: close until the fused force estimate reads
+    /// `force_n`, and hold it there ([`crate::grip`]: an admittance law
+    /// moves the angle reference, the cascade follows it; meant for
+    /// [`crate::Mode::JointClosedLoop`], whose feedback is the estimated
+    /// angle the law leashes the reference to). It has no law of time, so
+    /// [`Trajectory::at`] gives a zero reference for it.
+    Grip {
+        /// Force set point, N; its sign says which way the jaw closes
+        /// (positive: towards positive angles).
+        force_n: f32,
+        /// Closing speed before contact, and the fastest the reference
+        /// moves, rad/s.
+        approach_rad_s: f32,
+    },
 }
+
+/// Largest grip set point a command may ask for, N (four times the seed's
+/// heaviest load, 250 g at 20 mm).
+pub const MAX_GRIP_N: f32 = 10.0;
+/// Fastest grip approach a command may ask for, rad/s.
+pub const MAX_APPROACH_RAD_S: f32 = 1.0;
 
 /// Harmonics of [`Trajectory::Fourier`] (seed 001 uses N = 5).
 pub const HARMONICS: usize = 5;
@@ -83,7 +103,9 @@ impl Trajectory {
     /// every value finite, angles within ±10 rad (the widest range homing
     /// uses), frequencies within 0 < f <= 100 Hz (far above the joint's
     /// bandwidth), durations within 0..=1e5 s, a Fourier series starting at
-    /// rest. Returns what is wrong.
+    /// rest, a grip's set point within 0 < |F| <= [`MAX_GRIP_N`] and its
+    /// approach within 0 < v <= [`MAX_APPROACH_RAD_S`]. Returns what is
+    /// wrong.
     pub fn validate(&self) -> Result<(), &'static str> {
         let angle = |a: f32| a.is_finite() && a.abs() <= 10.0;
         let freq = |f: f32| f.is_finite() && f > 0.0 && f <= 100.0;
@@ -121,6 +143,21 @@ impl Trajectory {
                     return Err("a Fourier series must start at rest: sum k sin_k = 0 and sum k^2 cos_k = 0");
                 }
                 fine
+            }
+            Trajectory::Grip {
+                force_n,
+                approach_rad_s,
+            } => {
+                let force = force_n.is_finite() && force_n != 0.0 && force_n.abs() <= MAX_GRIP_N;
+                let speed = approach_rad_s.is_finite()
+                    && approach_rad_s > 0.0
+                    && approach_rad_s <= MAX_APPROACH_RAD_S;
+                if !(force && speed) {
+                    return Err(
+                        "a grip needs 0 < |force_n| <= 10 N and 0 < approach_rad_s <= 1 rad/s",
+                    );
+                }
+                true
             }
         };
         if ok {
@@ -222,7 +259,13 @@ impl Trajectory {
                     vel_rad_s: v,
                 }
             }
+            Trajectory::Grip { .. } => Reference::default(),
         }
+    }
+
+    /// Is this a grip (a force set point, not an angle law)?
+    pub const fn is_grip(&self) -> bool {
+        matches!(self, Trajectory::Grip { .. })
     }
 }
 

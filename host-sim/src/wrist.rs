@@ -214,6 +214,14 @@ impl WristSim {
         &self.joints
     }
 
+    /// Declare jaws A and B a gripping pair (or not): see
+    /// [`Joints::set_pair`].
+    pub fn set_pair(&mut self, pair: bool) -> Result<()> {
+        self.joints
+            .set_pair(pair.then_some((JAW_A, JAW_B)))
+            .map_err(|e| anyhow::anyhow!("wrist: pair refused: {e:?}"))
+    }
+
     /// Give joint `j` a command (refused while a fault is latched).
     pub fn set_command(&mut self, j: usize, command: Command) -> Result<()> {
         self.joints
@@ -395,6 +403,233 @@ pub fn run_grasp(
     Ok(out)
 }
 
+/// A grip under force control ([`cable_joint::grip`]): from open jaws, the
+/// jaws (both as a pair, or jaw A alone with jaw B held open) are given a
+/// force set point and close on the object on their own; after the hold
+/// they open again under position control.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GripRun {
+    /// Clamp force set point, N.
+    pub set_n: f64,
+    /// Closing speed before contact, rad/s.
+    pub approach_rad_s: f64,
+    /// Both jaws as a pair (the clamp force), or jaw A alone (its tip force).
+    pub pair: bool,
+    /// The mode the grip runs in: [`Mode::MotorPosition`] (the cascade on
+    /// the motor's angle) or [`Mode::JointClosedLoop`] (on the estimated
+    /// angle).
+    pub mode: Mode,
+    /// Settling before the grip, s.
+    pub settle_s: f64,
+    /// Force control, s (the approach included).
+    pub grip_s: f64,
+    /// Opening move, and open after it, s.
+    pub release_s: f64,
+}
+
+impl Default for GripRun {
+    fn default() -> Self {
+        Self {
+            set_n: 2.0,
+            approach_rad_s: 0.05,
+            pair: true,
+            mode: Mode::MotorPosition,
+            settle_s: 1.0,
+            grip_s: 6.0,
+            release_s: 1.0,
+        }
+    }
+}
+
+/// The force a grip regulates, with its bound: the clamp force of a pair
+/// (Eq. 5 from both jaws' estimates) or jaw A's own squeeze.
+pub fn gripped_force(t: &WristTick, pair: bool) -> (f64, Interval) {
+    if pair {
+        (t.clamp_n, t.clamp_bound_n)
+    } else {
+        let e = &t.outputs[JAW_A].est;
+        (
+            f64::from(e.f_ext_fused_n),
+            Interval::new(e.f_ext_lo_n, e.f_ext_hi_n),
+        )
+    }
+}
+
+/// Run one grip; every tick with its phase ([`Phase::Grasp`] while under
+/// force control, [`Phase::Release`] and [`Phase::After`] on the way out).
+pub fn run_grip(
+    params: &WristParams,
+    object: SoftObject,
+    run: &GripRun,
+    seed: u64,
+) -> Result<Vec<(Phase, WristTick)>> {
+    ensure!(
+        run.set_n > 0.0 && run.approach_rad_s > 0.0 && object.stiffness_n_m > 0.0,
+        "a grip needs a positive set point, approach speed and object stiffness"
+    );
+    let open_gap = params.gap_m(0.0, 0.0);
+    ensure!(
+        object.width_m < open_gap,
+        "the object ({:.1} mm) does not fit between the open jaws ({:.1} mm)",
+        object.width_m * 1e3,
+        open_gap * 1e3
+    );
+    let mut sim = WristSim::new(params.clone(), object, seed)?;
+    let joint = |trajectory| Command {
+        mode: Mode::JointClosedLoop,
+        trajectory,
+    };
+    let hold = |a: f64| {
+        joint(Trajectory::Hold {
+            angle_rad: a as f32,
+        })
+    };
+    sim.set_command(ROLL, hold(0.0))?;
+    sim.set_command(
+        PITCH,
+        joint(Trajectory::PointToPoint {
+            from_rad: 0.0,
+            to_rad: params.pitch_rad as f32,
+            duration_s: run.settle_s as f32,
+        }),
+    )?;
+    sim.set_command(JAW_A, hold(0.0))?;
+    sim.set_command(JAW_B, hold(0.0))?;
+    sim.set_pair(run.pair)?;
+    let period = sim.period_s;
+    let mut out = Vec::new();
+    let steps = |seconds: f64| (seconds / period).round() as u64;
+    for _ in 0..steps(run.settle_s) {
+        out.push((Phase::Open, sim.step()));
+    }
+    let grip = Command {
+        mode: run.mode,
+        trajectory: Trajectory::Grip {
+            force_n: run.set_n as f32,
+            approach_rad_s: run.approach_rad_s as f32,
+        },
+    };
+    sim.set_command(JAW_A, grip)?;
+    if run.pair {
+        sim.set_command(JAW_B, grip)?;
+    }
+    for _ in 0..steps(run.grip_s) {
+        out.push((Phase::Grasp, sim.step()));
+    }
+    // Open in the mode the grip ran in (its reference is that mode's angle).
+    let open_move = |from: f32| Command {
+        mode: run.mode,
+        trajectory: Trajectory::PointToPoint {
+            from_rad: from,
+            to_rad: 0.0,
+            duration_s: run.release_s as f32,
+        },
+    };
+    // Open from where each jaw's reference stands (its last tick's).
+    let last = out.last().map(|(_, t): &(Phase, WristTick)| t.outputs);
+    for j in [JAW_A, JAW_B] {
+        let from = last.map_or(0.0, |o| o[j].est.theta_ref_rad);
+        sim.set_command(j, open_move(from))?;
+    }
+    for _ in 0..steps(run.release_s) {
+        out.push((Phase::Release, sim.step()));
+    }
+    for _ in 0..steps(run.release_s) {
+        out.push((Phase::After, sim.step()));
+    }
+    Ok(out)
+}
+
+/// What a grip under force control measured, judged on the true contact
+/// force.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct GripStats {
+    /// Set point, N.
+    pub set_n: f64,
+    /// Mean true contact force over the grip's last second, N.
+    pub steady_true_n: f64,
+    /// Its error, `100 (true - set) / set`, %.
+    pub steady_error_pct: f64,
+    /// Largest true contact force under force control above the set point,
+    /// `100 (max - set) / set` (0 if never above), %.
+    pub overshoot_pct: f64,
+    /// Time from the grip command until the true force enters ±5 % of the
+    /// set point for good, s (`None`: it never does).
+    pub settling_s: Option<f64>,
+    /// Mean of the regulated estimate over the last second, N.
+    pub steady_est_n: f64,
+    /// Mean bound over the last second, N: the true force the estimate can
+    /// promise at the set point.
+    pub steady_lo_n: f64,
+    /// Its upper end, N.
+    pub steady_hi_n: f64,
+    /// Share of the last second's ticks whose true force lies in the bound.
+    pub steady_coverage: f64,
+    /// The first fault a joint latched (joint and fault), if any.
+    pub fault: Option<String>,
+}
+
+/// Summarise a grip run (`pair` as it ran).
+pub fn grip_stats(ticks: &[(Phase, WristTick)], set_n: f64, pair: bool) -> GripStats {
+    let grip: Vec<&WristTick> = ticks
+        .iter()
+        .filter(|(p, _)| *p == Phase::Grasp)
+        .map(|(_, t)| t)
+        .collect();
+    let (t0, t_end) = match (grip.first(), grip.last()) {
+        (Some(a), Some(b)) => (a.t_s, b.t_s),
+        _ => return GripStats::default(),
+    };
+    let last: Vec<&WristTick> = grip
+        .iter()
+        .copied()
+        .filter(|t| t.t_s > t_end - 1.0)
+        .collect();
+    let n = last.len().max(1) as f64;
+    let mean = |f: &dyn Fn(&WristTick) -> f64| last.iter().map(|t| f(t)).sum::<f64>() / n;
+    let steady_true_n = mean(&|t| t.contact_n);
+    let peak = grip.iter().map(|t| t.contact_n).fold(0.0, f64::max);
+    let band = 0.05 * set_n;
+    let settling_s = match grip
+        .iter()
+        .rposition(|t| (t.contact_n - set_n).abs() > band)
+    {
+        Some(k) if k + 1 < grip.len() => Some(grip[k + 1].t_s - t0),
+        Some(_) => None,
+        None => Some(0.0),
+    };
+    GripStats {
+        set_n,
+        steady_true_n,
+        steady_error_pct: 100.0 * (steady_true_n - set_n) / set_n,
+        overshoot_pct: (100.0 * (peak - set_n) / set_n).max(0.0),
+        settling_s,
+        steady_est_n: mean(&|t| gripped_force(t, pair).0),
+        steady_lo_n: mean(&|t| f64::from(gripped_force(t, pair).1.lo)),
+        steady_hi_n: mean(&|t| f64::from(gripped_force(t, pair).1.hi)),
+        steady_coverage: last
+            .iter()
+            .filter(|t| {
+                let b = gripped_force(t, pair).1;
+                let c = t.contact_n as f32;
+                b.lo <= c + 1e-6 && c - 1e-6 <= b.hi
+            })
+            .count() as f64
+            / n,
+        fault: first_fault(ticks),
+    }
+}
+
+/// The first fault any joint latched in a run, as "joint j: fault".
+fn first_fault(ticks: &[(Phase, WristTick)]) -> Option<String> {
+    ticks.iter().find_map(|(_, t)| {
+        t.outputs
+            .iter()
+            .enumerate()
+            .find_map(|(j, o)| o.fault.map(|f| format!("joint {j}: {f}")))
+    })
+}
+
 /// What a grasp run measured.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct GraspStats {
@@ -446,12 +681,7 @@ pub fn grasp_stats(ticks: &[(Phase, WristTick)]) -> GraspStats {
             .filter(|(p, _)| matches!(p, Phase::Open | Phase::After))
             .map(|(_, t)| t.clamp_n.abs())
             .fold(0.0, f64::max),
-        fault: ticks.iter().find_map(|(_, t)| {
-            t.outputs
-                .iter()
-                .enumerate()
-                .find_map(|(j, o)| o.fault.map(|f| format!("joint {j}: {f}")))
-        }),
+        fault: first_fault(ticks),
     }
 }
 

@@ -5,7 +5,10 @@
 use cable_joint::Config;
 use host_sim::plant::PlantParams;
 use host_sim::scenario;
-use host_sim::wrist::{grasp_stats, run_grasp, Grasp, Phase, SoftObject, WristParams};
+use host_sim::wrist::{
+    grasp_stats, grip_stats, run_grasp, run_grip, Grasp, GripRun, Phase, SoftObject, WristParams,
+    JAW_A, JAW_B,
+};
 
 fn params(probing: bool) -> WristParams {
     let p = PlantParams::default();
@@ -86,4 +89,63 @@ fn an_object_that_does_not_fit_is_refused() {
     o.width_m = 20e-3;
     let e = run_grasp(&params(false), o, &Grasp::default(), 1).unwrap_err();
     assert!(format!("{e:#}").contains("does not fit"), "{e:#}");
+}
+
+fn grip(pair: bool) -> GripRun {
+    GripRun {
+        set_n: 2.0,
+        approach_rad_s: 0.1,
+        pair,
+        grip_s: 8.0,
+        ..GripRun::default()
+    }
+}
+
+/// Grip-force control (`cable_joint::grip`) on the default plant with its
+/// true parameters: from open jaws, the pair closes on a soft and on a ten
+/// times firmer object and the regulated clamp estimate settles on the
+/// 2 N set point (the law's own job: within 3 %); the true contact force
+/// follows within the estimate's error (measured -11 % on both objects:
+/// the estimate reads about 0.2 N high at standstill, the pin's friction
+/// at the tip), without overshooting by more than 20 % and without a
+/// fault. Fails if the law winds up, rings or stops short.
+#[test]
+fn the_grip_law_brings_the_clamp_force_to_its_set_point_on_soft_and_firm_objects() {
+    for k in [1000.0, 10_000.0] {
+        let o = SoftObject {
+            stiffness_n_m: k,
+            ..soft()
+        };
+        let ticks = run_grip(&params(false), o, &grip(true), 21).unwrap();
+        let s = grip_stats(&ticks, 2.0, true);
+        eprintln!("k {k}: {s:?}");
+        assert_eq!(s.fault, None);
+        assert!((s.steady_est_n - 2.0).abs() < 0.06, "k {k}: {s:?}");
+        assert!(s.steady_error_pct.abs() < 20.0, "k {k}: {s:?}");
+        assert!(s.overshoot_pct < 20.0, "k {k}: {s:?}");
+        // A pair stays level: both jaws' references within 0.1°.
+        let (_, last) = ticks.iter().rfind(|(p, _)| *p == Phase::Grasp).unwrap();
+        let gap = last.outputs[JAW_A].est.theta_ref_rad - last.outputs[JAW_B].est.theta_ref_rad;
+        assert!(
+            gap.abs() < 0.1f32.to_radians(),
+            "k {k}: jaws {gap} rad apart"
+        );
+    }
+}
+
+/// Jaw A alone under force control, jaw B held open: jaw A closes the whole
+/// way to the object and its own estimate settles on the set point.
+#[test]
+fn a_single_jaw_grips_on_its_own_estimate() {
+    let ticks = run_grip(&params(false), soft(), &grip(false), 22).unwrap();
+    let s = grip_stats(&ticks, 2.0, false);
+    eprintln!("{s:?}");
+    assert_eq!(s.fault, None);
+    assert!((s.steady_est_n - 2.0).abs() < 0.06, "{s:?}");
+    assert!(s.steady_true_n > 1.0, "jaw A reached the object: {s:?}");
+    let (_, last) = ticks.iter().rfind(|(p, _)| *p == Phase::Grasp).unwrap();
+    assert!(
+        last.outputs[JAW_B].est.theta_ref_rad.abs() < 1e-6,
+        "jaw B holds open"
+    );
 }

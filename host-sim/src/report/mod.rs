@@ -44,6 +44,7 @@ pub mod excitation;
 pub mod experiments;
 pub mod figures;
 pub mod goals;
+pub mod grip;
 pub mod keys;
 pub mod markdown;
 pub mod programme;
@@ -147,6 +148,11 @@ pub struct Report {
     pub wrist: Result<wrist::WristSection, String>,
     /// The wrist section's figure (its stem), if drawn.
     pub wrist_figure: Option<String>,
+    /// Grip-force control on the plant variants (`Err`: why the section
+    /// could not run).
+    pub grip: Result<grip::GripSection, String>,
+    /// The grip section's figure (its stem), if drawn.
+    pub grip_figure: Option<String>,
     /// The figures, staged: [`write()`] commits them with the report, so a
     /// run that fails leaves the output directory as it was.
     pub staged: Outputs,
@@ -328,6 +334,9 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
     progress.line("report", "the wrist's clamp force on plant variants");
     let wrist_section = wrist::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
     let wrist_figure = wrist::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
+    progress.line("report", "grip-force control on plant variants");
+    let grip_section = grip::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
+    let grip_figure = grip::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
     if let Some(fx) = &fx {
         progress.line("report", "step 7 figures");
         figs.extend(figures::accuracy_figure(
@@ -366,6 +375,8 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         excitation,
         wrist: wrist_section,
         wrist_figure,
+        grip: grip_section,
+        grip_figure,
         staged,
     })
 }
@@ -440,6 +451,18 @@ pub fn write(r: &mut Report) -> Result<String> {
     match &r.wrist {
         Ok(w) => {
             for (g, ok) in wrist::goal_lines(w) {
+                text.push_str(&format!(
+                    "  {} {g}\n",
+                    if ok { "met    " } else { "NOT met" }
+                ));
+            }
+        }
+        Err(e) => text.push_str(&format!("  could not run: {e}\n")),
+    }
+    text.push_str("\nGrip-force control on plant variants\n");
+    match &r.grip {
+        Ok(g) => {
+            for (g, ok) in grip::goal_lines(g) {
                 text.push_str(&format!(
                     "  {} {g}\n",
                     if ok { "met    " } else { "NOT met" }

@@ -52,7 +52,8 @@ pub struct WristSection {
     pub skipped: Vec<String>,
 }
 
-fn object(k: f64) -> SoftObject {
+/// The report's object of stiffness `k` N/m.
+pub fn object(k: f64) -> SoftObject {
     SoftObject {
         width_m: OBJECT_WIDTH_M,
         stiffness_n_m: k,

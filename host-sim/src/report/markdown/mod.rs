@@ -44,6 +44,12 @@ pub fn markdown(r: &Report, rows: &[Row]) -> String {
             let _ = writeln!(o, "## The wrist's clamp force\n\nCould not run: {e}\n");
         }
     }
+    match &r.grip {
+        Ok(g) => o.push_str(&super::grip::markdown(g, r.grip_figure.as_deref())),
+        Err(e) => {
+            let _ = writeln!(o, "## Grip-force control\n\nCould not run: {e}\n");
+        }
+    }
     md_definitions(&mut o);
     o
 }

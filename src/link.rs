@@ -615,14 +615,15 @@ mod tests {
         }
         // Another version, and bytes that are not COBS at all.
         let mut v2 = [0u8; MAX_WIRE_LEN];
-        let mut raw = std::vec![2u8, 11, 4, 0, 0];
+        let other = LINK_VERSION + 1;
+        let mut raw = std::vec![other, 11, 4, 0, 0];
         let crc = crc16(&raw[..3]);
         raw[3..].copy_from_slice(&crc.to_le_bytes());
         let n = cobs_encode(&raw, &mut v2).unwrap();
         let r = received(&v2[..n]);
         assert_eq!(
             (r.seq, r.outcome),
-            (11, Err(Refused::Frame(LinkError::Version(2))))
+            (11, Err(Refused::Frame(LinkError::Version(other))))
         );
         let r = received(&[5, 1, 0]);
         assert_eq!(
@@ -728,12 +729,13 @@ mod tests {
 
     #[test]
     fn another_version_and_a_foreign_body_are_named() {
-        let mut raw = [2u8, 0, 0, 0, 0];
+        let other = LINK_VERSION + 1;
+        let mut raw = [other, 0, 0, 0, 0];
         let crc = crc16(&raw[..3]);
         raw[3..].copy_from_slice(&crc.to_le_bytes());
         let mut out = [0u8; 16];
         let n = cobs_encode(&raw, &mut out).unwrap();
-        assert_eq!(read_all(&out[..n]), [Err(LinkError::Version(2))]);
+        assert_eq!(read_all(&out[..n]), [Err(LinkError::Version(other))]);
         let mut raw = [LINK_VERSION, 0, 200, 0, 0];
         let crc = crc16(&raw[..3]);
         raw[3..].copy_from_slice(&crc.to_le_bytes());

@@ -100,6 +100,18 @@ impl WristParams {
         l * ((self.jaw_open_rad - theta_a).sin() + (self.jaw_open_rad - theta_b).sin())
     }
 
+    /// Refuse an object that does not fit between the open jaws.
+    pub fn check_fits(&self, object: &SoftObject) -> Result<()> {
+        let open_gap = self.gap_m(0.0, 0.0);
+        ensure!(
+            object.width_m < open_gap,
+            "the object ({:.1} mm) does not fit between the open jaws ({:.1} mm)",
+            object.width_m * 1e3,
+            open_gap * 1e3
+        );
+        Ok(())
+    }
+
     /// The jaw angle (both jaws alike) at which the gap is `gap_m`, rad.
     pub fn theta_for_gap(&self, gap_m: f64) -> f64 {
         let l = f64::from(self.geometry.jaw_length_m);
@@ -362,13 +374,7 @@ pub fn run_grasp(
             angle_rad: a as f32,
         },
     };
-    let open_gap = params.gap_m(0.0, 0.0);
-    ensure!(
-        object.width_m < open_gap,
-        "the object ({:.1} mm) does not fit between the open jaws ({:.1} mm)",
-        object.width_m * 1e3,
-        open_gap * 1e3
-    );
+    params.check_fits(&object)?;
     let close = params.theta_for_gap(object.width_m - grasp.target_n / object.stiffness_n_m);
     let move_to = |from: f64, to: f64| Command {
         mode: Mode::JointClosedLoop,
@@ -467,13 +473,7 @@ pub fn run_grip(
         run.set_n > 0.0 && run.approach_rad_s > 0.0 && object.stiffness_n_m > 0.0,
         "a grip needs a positive set point, approach speed and object stiffness"
     );
-    let open_gap = params.gap_m(0.0, 0.0);
-    ensure!(
-        object.width_m < open_gap,
-        "the object ({:.1} mm) does not fit between the open jaws ({:.1} mm)",
-        object.width_m * 1e3,
-        open_gap * 1e3
-    );
+    params.check_fits(&object)?;
     let mut sim = WristSim::new(params.clone(), object, seed)?;
     let joint = |trajectory| Command {
         mode: Mode::JointClosedLoop,

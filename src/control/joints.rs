@@ -80,11 +80,12 @@ impl<const N: usize> Joints<N> {
                 return Err(Refused::NotAPair(a));
             }
         }
+        // Every partner is forgotten: a jaw that left the pair must not
+        // keep its old partner; the pair's jaws hear of each other again at
+        // the next step.
         self.pair = pair;
-        if pair.is_none() {
-            for c in &mut self.joints {
-                c.set_grip_partner(None);
-            }
+        for c in &mut self.joints {
+            c.set_grip_partner(None);
         }
         Ok(())
     }
@@ -307,6 +308,8 @@ mod tests {
             Some(out[0].est.theta_ref_rad)
         );
         assert_eq!(partner(&joints, 1), None, "joint 1 is not of the pair");
+        joints.set_pair(Some((0, 1))).unwrap();
+        assert_eq!(partner(&joints, 2), None, "joint 2 left the pair");
         joints.set_pair(None).unwrap();
         assert_eq!(partner(&joints, 0), None, "no pair, no partner");
     }

@@ -150,11 +150,6 @@ impl Grip {
         }
     }
 
-    /// The force loop's crossover, rad/s.
-    pub fn bandwidth_rad_s(&self) -> f32 {
-        self.bandwidth_rad_s
-    }
-
     /// One tick: the angle reference and its rate.
     pub fn update(&self, st: &mut GripState, inp: &GripIn) -> Reference {
         if !st.started {

@@ -64,16 +64,17 @@ pub enum Trajectory {
     },
     /// Grip-force control: close until the fused force estimate reads
     /// `force_n`, and hold it there ([`crate::grip`]: an admittance law
-    /// moves the angle reference, the cascade follows it; meant for
-    /// [`crate::Mode::JointClosedLoop`], whose feedback is the estimated
-    /// angle the law leashes the reference to). It has no law of time, so
+    /// moves the angle reference, leashed to the cascade's feedback angle,
+    /// and the cascade follows it). Under [`crate::Mode::MotorPosition`]
+    /// (the default for a grip: the motor's angle has no stick band) or
+    /// [`crate::Mode::JointClosedLoop`]. It has no law of time, so
     /// [`Trajectory::at`] gives a zero reference for it.
     Grip {
         /// Force set point, N; its sign says which way the jaw closes
         /// (positive: towards positive angles).
         force_n: f32,
-        /// Closing speed before contact, and the fastest the reference
-        /// moves, rad/s.
+        /// Closing speed until the contact's stiffness is measured, rad/s
+        /// (then the law's own pace, at least this).
         approach_rad_s: f32,
     },
 }

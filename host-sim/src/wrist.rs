@@ -241,6 +241,36 @@ impl WristSim {
             .map_err(|e| anyhow::anyhow!("wrist joint {j}: command refused: {e:?}"))
     }
 
+    /// A wrist for a grasp or a grip: `object` checked to fit between the
+    /// open jaws, the roll and both jaws holding at zero, the pitch moving
+    /// to its angle over `pitch_move_s`, every joint closed on its JAE.
+    fn opened(
+        params: &WristParams,
+        object: SoftObject,
+        seed: u64,
+        pitch_move_s: f64,
+    ) -> Result<Self> {
+        params.check_fits(&object)?;
+        let mut sim = Self::new(params.clone(), object, seed)?;
+        let hold = Command {
+            mode: Mode::JointClosedLoop,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        };
+        for j in [ROLL, JAW_A, JAW_B] {
+            sim.set_command(j, hold)?;
+        }
+        let pitch = joint_move(Mode::JointClosedLoop, 0.0, params.pitch_rad, pitch_move_s);
+        sim.set_command(PITCH, pitch)?;
+        Ok(sim)
+    }
+
+    /// Step for `seconds`, every tick recorded in `out` with `phase`.
+    fn run(&mut self, phase: Phase, seconds: f64, out: &mut Vec<(Phase, WristTick)>) {
+        for _ in 0..(seconds / self.period_s).round() as u64 {
+            out.push((phase, self.step()));
+        }
+    }
+
     /// Time of the next tick, s.
     pub fn time_s(&self) -> f64 {
         self.tick as f64 * self.period_s
@@ -313,6 +343,18 @@ impl WristSim {
     }
 }
 
+/// A smooth move of one joint from `from` to `to` (rad) over `seconds`.
+fn joint_move(mode: Mode, from: f64, to: f64, seconds: f64) -> Command {
+    Command {
+        mode,
+        trajectory: Trajectory::PointToPoint {
+            from_rad: from as f32,
+            to_rad: to as f32,
+            duration_s: seconds as f32,
+        },
+    }
+}
+
 /// A grasp: close both jaws onto the object to the angle that would squeeze
 /// it with `target_n` at rigid jaws, hold, open again.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -367,45 +409,21 @@ pub fn run_grasp(
         grasp.target_n > 0.0 && object.stiffness_n_m > 0.0,
         "a grasp needs a positive target force and a positive object stiffness"
     );
-    let mut sim = WristSim::new(params.clone(), object, seed)?;
-    let hold = |a: f64| Command {
-        mode: Mode::JointClosedLoop,
-        trajectory: Trajectory::Hold {
-            angle_rad: a as f32,
-        },
-    };
-    params.check_fits(&object)?;
+    let mut sim = WristSim::opened(params, object, seed, grasp.move_s)?;
     let close = params.theta_for_gap(object.width_m - grasp.target_n / object.stiffness_n_m);
-    let move_to = |from: f64, to: f64| Command {
-        mode: Mode::JointClosedLoop,
-        trajectory: Trajectory::PointToPoint {
-            from_rad: from as f32,
-            to_rad: to as f32,
-            duration_s: grasp.move_s as f32,
-        },
-    };
-    sim.set_command(ROLL, hold(0.0))?;
-    sim.set_command(PITCH, move_to(0.0, params.pitch_rad))?;
-    sim.set_command(JAW_A, hold(0.0))?;
-    sim.set_command(JAW_B, hold(0.0))?;
-    let period = sim.period_s;
+    let move_to = |from: f64, to: f64| joint_move(Mode::JointClosedLoop, from, to, grasp.move_s);
     let mut out = Vec::new();
-    let run = |sim: &mut WristSim, phase: Phase, seconds: f64, out: &mut Vec<_>| {
-        for _ in 0..(seconds / period).round() as u64 {
-            out.push((phase, sim.step()));
-        }
-    };
-    run(&mut sim, Phase::Open, grasp.settle_s, &mut out);
+    sim.run(Phase::Open, grasp.settle_s, &mut out);
     for j in [JAW_A, JAW_B] {
         sim.set_command(j, move_to(0.0, close))?;
     }
-    run(&mut sim, Phase::Grasp, grasp.move_s, &mut out);
-    run(&mut sim, Phase::Hold, grasp.hold_s, &mut out);
+    sim.run(Phase::Grasp, grasp.move_s, &mut out);
+    sim.run(Phase::Hold, grasp.hold_s, &mut out);
     for j in [JAW_A, JAW_B] {
         sim.set_command(j, move_to(close, 0.0))?;
     }
-    run(&mut sim, Phase::Release, grasp.move_s, &mut out);
-    run(&mut sim, Phase::After, grasp.after_s, &mut out);
+    sim.run(Phase::Release, grasp.move_s, &mut out);
+    sim.run(Phase::After, grasp.after_s, &mut out);
     Ok(out)
 }
 
@@ -473,35 +491,10 @@ pub fn run_grip(
         run.set_n > 0.0 && run.approach_rad_s > 0.0 && object.stiffness_n_m > 0.0,
         "a grip needs a positive set point, approach speed and object stiffness"
     );
-    params.check_fits(&object)?;
-    let mut sim = WristSim::new(params.clone(), object, seed)?;
-    let joint = |trajectory| Command {
-        mode: Mode::JointClosedLoop,
-        trajectory,
-    };
-    let hold = |a: f64| {
-        joint(Trajectory::Hold {
-            angle_rad: a as f32,
-        })
-    };
-    sim.set_command(ROLL, hold(0.0))?;
-    sim.set_command(
-        PITCH,
-        joint(Trajectory::PointToPoint {
-            from_rad: 0.0,
-            to_rad: params.pitch_rad as f32,
-            duration_s: run.settle_s as f32,
-        }),
-    )?;
-    sim.set_command(JAW_A, hold(0.0))?;
-    sim.set_command(JAW_B, hold(0.0))?;
+    let mut sim = WristSim::opened(params, object, seed, run.settle_s)?;
     sim.set_pair(run.pair)?;
-    let period = sim.period_s;
     let mut out = Vec::new();
-    let steps = |seconds: f64| (seconds / period).round() as u64;
-    for _ in 0..steps(run.settle_s) {
-        out.push((Phase::Open, sim.step()));
-    }
+    sim.run(Phase::Open, run.settle_s, &mut out);
     let grip = Command {
         mode: run.mode,
         trajectory: Trajectory::Grip {
@@ -513,30 +506,16 @@ pub fn run_grip(
     if run.pair {
         sim.set_command(JAW_B, grip)?;
     }
-    for _ in 0..steps(run.grip_s) {
-        out.push((Phase::Grasp, sim.step()));
-    }
-    // Open in the mode the grip ran in (its reference is that mode's angle).
-    let open_move = |from: f32| Command {
-        mode: run.mode,
-        trajectory: Trajectory::PointToPoint {
-            from_rad: from,
-            to_rad: 0.0,
-            duration_s: run.release_s as f32,
-        },
-    };
-    // Open from where each jaw's reference stands (its last tick's).
+    sim.run(Phase::Grasp, run.grip_s, &mut out);
+    // Open in the mode the grip ran in (its reference is that mode's
+    // angle), from where each jaw's reference stands (its last tick's).
     let last = out.last().map(|(_, t): &(Phase, WristTick)| t.outputs);
     for j in [JAW_A, JAW_B] {
         let from = last.map_or(0.0, |o| o[j].est.theta_ref_rad);
-        sim.set_command(j, open_move(from))?;
+        sim.set_command(j, joint_move(run.mode, f64::from(from), 0.0, run.release_s))?;
     }
-    for _ in 0..steps(run.release_s) {
-        out.push((Phase::Release, sim.step()));
-    }
-    for _ in 0..steps(run.release_s) {
-        out.push((Phase::After, sim.step()));
-    }
+    sim.run(Phase::Release, run.release_s, &mut out);
+    sim.run(Phase::After, run.release_s, &mut out);
     Ok(out)
 }
 

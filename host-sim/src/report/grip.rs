@@ -13,9 +13,9 @@ use serde::Serialize;
 
 use super::programme::run_seed;
 use super::variants::VariantResult;
-use super::wrist::{object, STIFFNESS_N_M, TARGETS_N};
+use super::wrist::{force_panel, object, STIFFNESS_N_M, TARGETS_N};
 use crate::output::Outputs;
-use crate::plot::{stage_figure, Figure, Panel, Series};
+use crate::plot::{stage_figure, Figure, Series};
 use crate::wrist::{grip_stats, gripped_force, run_grip, GripRun, GripStats, WristParams};
 
 /// Closing speed before contact, rad/s of the cascade's angle (5.7°/s).
@@ -333,38 +333,15 @@ pub fn stage_figure_for(
             &grip_run(how, set_n),
             run_seed(base_seed, &label),
         )?;
-        let t: Vec<f64> = ticks.iter().map(|(_, x)| x.t_s).collect();
-        let col = |f: &dyn Fn(&crate::wrist::WristTick) -> f64| -> Vec<f64> {
-            ticks.iter().map(|(_, x)| f(x)).collect()
-        };
-        panels.push(
-            Panel::new(
-                format!("{}: {} N grip, {k:.0} N/m, {}", v.name, set_n, how.label()),
-                "t [s]",
-                "force [N]",
-            )
-            .with(Series::line(
-                "true contact",
-                t.clone(),
-                col(&|x| x.contact_n),
-            ))
-            .with(Series::line(
-                "estimate (regulated)",
-                t.clone(),
-                col(&|x| gripped_force(x, how.pair).0),
-            ))
-            .with(Series::line(
-                "bound, low",
-                t.clone(),
-                col(&|x| f64::from(gripped_force(x, how.pair).1.lo)),
-            ))
-            .with(Series::line(
-                "bound, high",
-                t.clone(),
-                col(&|x| f64::from(gripped_force(x, how.pair).1.hi)),
-            ))
-            .with(Series::line("set point", t.clone(), vec![set_n; t.len()])),
+        let panel = force_panel(
+            format!("{}: {} N grip, {k:.0} N/m, {}", v.name, set_n, how.label()),
+            &ticks,
+            "estimate (regulated)",
+            &|x| gripped_force(x, how.pair),
         );
+        let t: Vec<f64> = ticks.iter().map(|(_, x)| x.t_s).collect();
+        let n = t.len();
+        panels.push(panel.with(Series::line("set point", t, vec![set_n; n])));
     }
     let stem = "fig_grip";
     stage_figure(out, &Figure::grid(panels, 1), &dir.join(stem))?;

@@ -14,7 +14,10 @@ use super::programme::run_seed;
 use super::variants::VariantResult;
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Panel, Series};
-use crate::wrist::{grasp_stats, run_grasp, Grasp, GraspStats, SoftObject, WristParams};
+use crate::wrist::{
+    grasp_stats, run_grasp, Grasp, GraspStats, Phase, SoftObject, WristParams, WristTick,
+};
+use cable_joint::wrist::Interval;
 
 /// Object stiffnesses across the jaws, N/m: tissue-soft and ten times
 /// stiffer (the "objects 10x apart in stiffness").
@@ -306,40 +309,45 @@ pub fn stage_figure_for(
             &Grasp::default(),
             run_seed(base_seed, &label),
         )?;
-        let t: Vec<f64> = ticks.iter().map(|(_, x)| x.t_s).collect();
-        let col = |f: &dyn Fn(&crate::wrist::WristTick) -> f64| -> Vec<f64> {
-            ticks.iter().map(|(_, x)| f(x)).collect()
-        };
         let mode = if probing { "probing" } else { "passive" };
-        panels.push(
-            Panel::new(
-                format!("{}: clamp force, {mode}", v.name),
-                "t [s]",
-                "force [N]",
-            )
-            .with(Series::line(
-                "true contact",
-                t.clone(),
-                col(&|x| x.contact_n),
-            ))
-            .with(Series::line(
-                "estimate (Eq. 5)",
-                t.clone(),
-                col(&|x| x.clamp_n),
-            ))
-            .with(Series::line(
-                "bound, low",
-                t.clone(),
-                col(&|x| f64::from(x.clamp_bound_n.lo)),
-            ))
-            .with(Series::line(
-                "bound, high",
-                t,
-                col(&|x| f64::from(x.clamp_bound_n.hi)),
-            )),
-        );
+        panels.push(force_panel(
+            format!("{}: clamp force, {mode}", v.name),
+            &ticks,
+            "estimate (Eq. 5)",
+            &|x| (x.clamp_n, x.clamp_bound_n),
+        ));
     }
     let stem = "fig_wrist_clamp";
     stage_figure(out, &Figure::grid(panels, 1), &dir.join(stem))?;
     Ok(Some(stem.to_owned()))
+}
+
+/// A panel of a run's true contact force against an estimate and its
+/// bound over time (`force` gives the estimate and bound of a tick).
+pub fn force_panel(
+    title: String,
+    ticks: &[(Phase, WristTick)],
+    estimate: &str,
+    force: &dyn Fn(&WristTick) -> (f64, Interval),
+) -> Panel {
+    let t: Vec<f64> = ticks.iter().map(|(_, x)| x.t_s).collect();
+    let col =
+        |f: &dyn Fn(&WristTick) -> f64| -> Vec<f64> { ticks.iter().map(|(_, x)| f(x)).collect() };
+    Panel::new(title, "t [s]", "force [N]")
+        .with(Series::line(
+            "true contact",
+            t.clone(),
+            col(&|x| x.contact_n),
+        ))
+        .with(Series::line(estimate, t.clone(), col(&|x| force(x).0)))
+        .with(Series::line(
+            "bound, low",
+            t.clone(),
+            col(&|x| f64::from(force(x).1.lo)),
+        ))
+        .with(Series::line(
+            "bound, high",
+            t,
+            col(&|x| f64::from(force(x).1.hi)),
+        ))
 }

@@ -171,6 +171,9 @@ pub struct FusionState {
     tau_err_nm: f32,
     /// `Q` of the drive torque's part above `Q`'s band, N·m.
     ripple_nm: f32,
+    /// `Q` of the point estimate (`Q²` of the force), N: its distance from
+    /// the point is the filter's lag, see [`Fusion::update`].
+    point_q_n: f32,
     primed: bool,
 }
 
@@ -287,7 +290,8 @@ impl Fusion {
                 (1.0 + rho) * self.c3_rad
             };
         let tau_err = self.torque_per_theta * theta_band;
-        if !s.primed {
+        let first = !s.primed;
+        if first {
             s.dob_friction_n = (a_lo + b_lo, a_hi + b_hi);
             s.pin_nm = (p_lo, p_hi);
             s.tau_err_nm = tau_err;
@@ -333,7 +337,7 @@ impl Fusion {
         }
         let lo = if dob_lo > str_lo { dob_lo } else { str_lo };
         let hi = if dob_hi < str_hi { dob_hi } else { str_hi };
-        if lo <= hi {
+        let mut out = if lo <= hi {
             // The stretch interval's centre (its kinetic pin friction in
             // slip), moved into the bound when the DOB rules it out.
             let stretch_n = 0.5 * (str_lo + str_hi);
@@ -351,7 +355,26 @@ impl Fusion {
                 hi_n: if dob_hi > str_hi { dob_hi } else { str_hi },
                 flags: flags | flags::INCONSISTENT,
             }
+        };
+        // Everything above bounds `Q[F]`, the force through the DOB's
+        // low-pass, not `F`. For a first-order `Q`, `F - Q[F] = Q[F]' / g`:
+        // while the force changes, it runs ahead of the bound by its rate
+        // over `g`. That lag, through `Q` once more, is `Q[F] - Q²[F]`,
+        // computed here from the point estimate without differentiating.
+        // The bound widens by it on the side the force is moving to. (It
+        // sees a ramp's lag one `1/g` late and holds it as long after the
+        // ramp ends, so it never narrows the bound, and at rest it is the
+        // point's own noise through a band-pass.)
+        if first {
+            s.point_q_n = out.f_ext_n;
         }
+        let lag_n = out.f_ext_n - self.q.update(&mut s.point_q_n, out.f_ext_n);
+        if lag_n > 0.0 {
+            out.hi_n += lag_n;
+        } else {
+            out.lo_n += lag_n;
+        }
+        out
     }
 }
 
@@ -426,6 +449,74 @@ mod tests {
         assert_eq!(out.flags, 0, "both sliders slip, consistent");
         assert!(out.lo_n <= load_n && load_n <= out.hi_n, "{out:?}");
         assert!((out.f_ext_n - load_n).abs() < 0.5 * (out.hi_n - out.lo_n) + 1e-6);
+    }
+
+    /// A force that ramps runs ahead of everything filtered by `Q` by its
+    /// rate over `g`; the bound widens by that lag on the side the force
+    /// moves to, covers the true force through the ramp, and narrows back
+    /// to the rest band once the force holds still.
+    #[test]
+    fn a_ramping_force_stays_inside_the_bound_despite_the_filter_lag() {
+        let (f, c) = fusion();
+        let m = &c.machine;
+        let g = c.dob.cutoff_rad_s;
+        let dt = c.period_s();
+        let q = LowPass1::new(g, dt);
+        let rest = |s: &mut FusionState| {
+            let mut out = FusionOut::default();
+            for _ in 0..1000 {
+                out = f.update(
+                    s,
+                    &FusionIn {
+                        tension1_dob_n: c.tension.f_0_n,
+                        tension1_model_n: c.tension.f_0_n,
+                        ..FusionIn::default()
+                    },
+                );
+            }
+            out
+        };
+        let mut s = FusionState::default();
+        let band = rest(&mut s);
+        let half_n = band.hi_n;
+        // Lag at the ramp's steady state: four half bands.
+        let rate_n_s = 4.0 * half_n * g;
+        let ramp_ticks = (8.0 / (g * dt)) as usize;
+        let mut q_force_n = 0.0;
+        let mut out = band;
+        let mut beyond_filtered_band = 0;
+        for k in 0..ramp_ticks + (20.0 / (g * dt)) as usize {
+            let force_n = rate_n_s * dt * k.min(ramp_ticks) as f32;
+            let filtered_n = q.update(&mut q_force_n, force_n);
+            out = f.update(
+                &mut s,
+                &FusionIn {
+                    tension1_dob_n: c.tension.f_0_n
+                        + filtered_n * m.gripper_length_m / m.pulley_radius_m,
+                    tension1_model_n: c.tension.f_0_n,
+                    joint_torque_nm: filtered_n * m.gripper_length_m,
+                    ..FusionIn::default()
+                },
+            );
+            if k as f32 * g * dt > 3.0 {
+                assert!(
+                    out.lo_n <= force_n && force_n <= out.hi_n,
+                    "tick {k}: {force_n} N outside {out:?}"
+                );
+                if force_n > filtered_n + half_n {
+                    beyond_filtered_band += 1;
+                }
+            }
+        }
+        assert!(
+            beyond_filtered_band > ramp_ticks / 2,
+            "the ramp must outrun the unwidened bound ({beyond_filtered_band} ticks)"
+        );
+        let held_n = rate_n_s * dt * ramp_ticks as f32;
+        assert!(
+            (out.hi_n - out.lo_n - (band.hi_n - band.lo_n)).abs() < 1e-3 * held_n,
+            "{out:?} against the rest band {band:?}"
+        );
     }
 
     /// Two intervals that do not overlap: the bound is the hull and the flag

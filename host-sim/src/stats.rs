@@ -5,7 +5,9 @@
 //!   [`Acc::merge`] or, from summaries alone, [`band`];
 //! * [`ErrorStats`]: a fitted model's error over the rows of a fit, with its
 //!   unit (`identify`, the residual loop);
-//! * [`correlation_time`]: the integrated autocorrelation time of a residual.
+//! * [`correlation_time`]: the integrated autocorrelation time of a residual;
+//! * [`GripStats`]: a grip under force control judged on the true force
+//!   ([`grip_stats_of`]; the single joint's `grip` scenario and the wrist).
 
 use serde::Serialize;
 
@@ -253,6 +255,87 @@ pub fn correlation_time(x: &[f64]) -> f64 {
         len *= 2;
     }
     tau
+}
+
+/// What a grip under force control measured, judged on the true contact
+/// force.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct GripStats {
+    /// Set point, N.
+    pub set_n: f64,
+    /// Mean true contact force over the grip's last second, N.
+    pub steady_true_n: f64,
+    /// Its error, `100 (true - set) / set`, %.
+    pub steady_error_pct: f64,
+    /// Largest true contact force under force control above the set point,
+    /// `100 (max - set) / set` (0 if never above), %.
+    pub overshoot_pct: f64,
+    /// Time from the grip command until the true force enters ±5 % of the
+    /// set point for good, s (`None`: it never does).
+    pub settling_s: Option<f64>,
+    /// Mean of the regulated estimate over the last second, N.
+    pub steady_est_n: f64,
+    /// Mean bound over the last second, N: the true force the estimate can
+    /// promise at the set point.
+    pub steady_lo_n: f64,
+    /// Its upper end, N.
+    pub steady_hi_n: f64,
+    /// Share of the last second's ticks whose true force lies in the bound.
+    pub steady_coverage: f64,
+    /// The first fault latched (which joint, on the wrist), if any.
+    pub fault: Option<String>,
+}
+
+/// One tick of a grip: the true force, the regulated estimate and its bound,
+/// in the set point's direction.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GripSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// True contact force, N.
+    pub true_n: f64,
+    /// The estimate the grip law regulates, N.
+    pub est_n: f64,
+    /// Lower end of its bound, N.
+    pub lo_n: f64,
+    /// Upper end of its bound, N.
+    pub hi_n: f64,
+}
+
+/// Judge the ticks under force control (`grip`, in time order) against a
+/// positive set point `set_n`; the fault is the caller's to fill in.
+pub fn grip_stats_of(grip: &[GripSample], set_n: f64) -> GripStats {
+    let (t0, t_end) = match (grip.first(), grip.last()) {
+        (Some(a), Some(b)) => (a.t_s, b.t_s),
+        _ => return GripStats::default(),
+    };
+    let last: Vec<&GripSample> = grip.iter().filter(|t| t.t_s > t_end - 1.0).collect();
+    let n = last.len().max(1) as f64;
+    let mean = |f: &dyn Fn(&GripSample) -> f64| last.iter().map(|t| f(t)).sum::<f64>() / n;
+    let steady_true_n = mean(&|t| t.true_n);
+    let peak = grip.iter().map(|t| t.true_n).fold(0.0, f64::max);
+    let band = 0.05 * set_n;
+    let settling_s = match grip.iter().rposition(|t| (t.true_n - set_n).abs() > band) {
+        Some(k) if k + 1 < grip.len() => Some(grip[k + 1].t_s - t0),
+        Some(_) => None,
+        None => Some(0.0),
+    };
+    GripStats {
+        set_n,
+        steady_true_n,
+        steady_error_pct: 100.0 * (steady_true_n - set_n) / set_n,
+        overshoot_pct: (100.0 * (peak - set_n) / set_n).max(0.0),
+        settling_s,
+        steady_est_n: mean(&|t| t.est_n),
+        steady_lo_n: mean(&|t| t.lo_n),
+        steady_hi_n: mean(&|t| t.hi_n),
+        steady_coverage: last
+            .iter()
+            .filter(|t| t.lo_n <= t.true_n + 1e-6 && t.true_n - 1e-6 <= t.hi_n)
+            .count() as f64
+            / n,
+        fault: None,
+    }
 }
 
 #[cfg(test)]

@@ -38,7 +38,9 @@ use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::{self, Geometry, Interval};
 use cable_joint::{Command, Config, Controller, Mode, Output, RawSample};
 
-use crate::plant::{Plant, PlantParams};
+use crate::plant::{contact_push_n, Plant, PlantParams};
+pub use crate::stats::GripStats;
+use crate::stats::{grip_stats_of, GripSample};
 
 /// Joint indices.
 pub const ROLL: usize = 0;
@@ -152,11 +154,12 @@ pub struct WristSim {
 
 /// The contact force of `object` at gap `gap_m` closing at `gap_rate`, N.
 fn contact(object: &SoftObject, gap_m: f64, gap_rate_m_s: f64) -> f64 {
-    let penetration = object.width_m - gap_m;
-    if penetration <= 0.0 {
-        return 0.0;
-    }
-    (object.stiffness_n_m * penetration - object.damping_n_s_m * gap_rate_m_s).max(0.0)
+    contact_push_n(
+        object.stiffness_n_m,
+        object.damping_n_s_m,
+        object.width_m - gap_m,
+        -gap_rate_m_s,
+    )
 }
 
 impl WristSim {
@@ -519,83 +522,25 @@ pub fn run_grip(
     Ok(out)
 }
 
-/// What a grip under force control measured, judged on the true contact
-/// force.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
-pub struct GripStats {
-    /// Set point, N.
-    pub set_n: f64,
-    /// Mean true contact force over the grip's last second, N.
-    pub steady_true_n: f64,
-    /// Its error, `100 (true - set) / set`, %.
-    pub steady_error_pct: f64,
-    /// Largest true contact force under force control above the set point,
-    /// `100 (max - set) / set` (0 if never above), %.
-    pub overshoot_pct: f64,
-    /// Time from the grip command until the true force enters ±5 % of the
-    /// set point for good, s (`None`: it never does).
-    pub settling_s: Option<f64>,
-    /// Mean of the regulated estimate over the last second, N.
-    pub steady_est_n: f64,
-    /// Mean bound over the last second, N: the true force the estimate can
-    /// promise at the set point.
-    pub steady_lo_n: f64,
-    /// Its upper end, N.
-    pub steady_hi_n: f64,
-    /// Share of the last second's ticks whose true force lies in the bound.
-    pub steady_coverage: f64,
-    /// The first fault a joint latched (joint and fault), if any.
-    pub fault: Option<String>,
-}
-
 /// Summarise a grip run (`pair` as it ran).
 pub fn grip_stats(ticks: &[(Phase, WristTick)], set_n: f64, pair: bool) -> GripStats {
-    let grip: Vec<&WristTick> = ticks
+    let grip: Vec<GripSample> = ticks
         .iter()
         .filter(|(p, _)| *p == Phase::Grasp)
-        .map(|(_, t)| t)
+        .map(|(_, t)| {
+            let (est_n, bound) = gripped_force(t, pair);
+            GripSample {
+                t_s: t.t_s,
+                true_n: t.contact_n,
+                est_n,
+                lo_n: f64::from(bound.lo),
+                hi_n: f64::from(bound.hi),
+            }
+        })
         .collect();
-    let (t0, t_end) = match (grip.first(), grip.last()) {
-        (Some(a), Some(b)) => (a.t_s, b.t_s),
-        _ => return GripStats::default(),
-    };
-    let last: Vec<&WristTick> = grip
-        .iter()
-        .copied()
-        .filter(|t| t.t_s > t_end - 1.0)
-        .collect();
-    let n = last.len().max(1) as f64;
-    let mean = |f: &dyn Fn(&WristTick) -> f64| last.iter().map(|t| f(t)).sum::<f64>() / n;
-    let steady_true_n = mean(&|t| t.contact_n);
-    let peak = grip.iter().map(|t| t.contact_n).fold(0.0, f64::max);
-    let band = 0.05 * set_n;
-    let settling_s = match grip
-        .iter()
-        .rposition(|t| (t.contact_n - set_n).abs() > band)
-    {
-        Some(k) if k + 1 < grip.len() => Some(grip[k + 1].t_s - t0),
-        Some(_) => None,
-        None => Some(0.0),
-    };
     GripStats {
-        set_n,
-        steady_true_n,
-        steady_error_pct: 100.0 * (steady_true_n - set_n) / set_n,
-        overshoot_pct: (100.0 * (peak - set_n) / set_n).max(0.0),
-        settling_s,
-        steady_est_n: mean(&|t| gripped_force(t, pair).0),
-        steady_lo_n: mean(&|t| f64::from(gripped_force(t, pair).1.lo)),
-        steady_hi_n: mean(&|t| f64::from(gripped_force(t, pair).1.hi)),
-        steady_coverage: last
-            .iter()
-            .filter(|t| {
-                let b = gripped_force(t, pair).1;
-                let c = t.contact_n as f32;
-                b.lo <= c + 1e-6 && c - 1e-6 <= b.hi
-            })
-            .count() as f64
-            / n,
         fault: first_fault(ticks),
+        ..grip_stats_of(&grip, set_n)
     }
 }
 

@@ -138,6 +138,77 @@ pub struct Tensions {
     pub spring_n: f64,
 }
 
+/// The force of a spring–damper contact that can only push: stiffness
+/// times penetration plus damping times its rate, never below zero, and zero
+/// without contact, N. One law for every object the simulator grips (the
+/// single joint's [`TipObject`], the wrist's object between the jaws).
+pub fn contact_push_n(
+    stiffness_n_m: f64,
+    damping_n_s_m: f64,
+    penetration_m: f64,
+    penetration_rate_m_s: f64,
+) -> f64 {
+    if penetration_m <= 0.0 {
+        return 0.0;
+    }
+    (stiffness_n_m * penetration_m + damping_n_s_m * penetration_rate_m_s).max(0.0)
+}
+
+/// Damping of the simulator's soft objects, N·s/m: against 1000 N/m a time
+/// constant of 0.5 ms, against 10 000 N/m 0.05 ms. Tissue's own loss is not
+/// known here, so the contact is lightly damped.
+pub const OBJECT_DAMPING_N_S_M: f64 = 0.5;
+
+/// A soft object at the tip of the single joint, for grips: its surface
+/// sits at `surface_rad` and the object fills the side away from zero
+/// (`theta > surface_rad` for a positive surface, `theta < surface_rad` for
+/// a negative one). Its push opposes the motion into it, so it adds to the
+/// external force with the surface's sign (> 0 opposes positive rotation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TipObject {
+    /// Joint angle at which the tip touches the object, rad (not zero).
+    pub surface_rad: f64,
+    /// Stiffness at the tip, N/m.
+    pub stiffness_n_m: f64,
+    /// Damping at the tip, N·s/m.
+    pub damping_n_s_m: f64,
+}
+
+impl TipObject {
+    /// An object whose surface is at `surface_deg`, `stiffness_n_m` at the
+    /// tip and [`OBJECT_DAMPING_N_S_M`]. Refuses a surface at zero or
+    /// beyond ±90°, and a stiffness that is not positive.
+    pub fn new(surface_deg: f64, stiffness_n_m: f64) -> anyhow::Result<Self> {
+        anyhow::ensure!(
+            surface_deg.is_finite() && surface_deg != 0.0 && surface_deg.abs() < 90.0,
+            "the object's surface must be at a joint angle other than 0 and within ±90°, got {surface_deg}°"
+        );
+        anyhow::ensure!(
+            stiffness_n_m.is_finite() && stiffness_n_m > 0.0,
+            "the object's stiffness must be > 0 N/m, got {stiffness_n_m}"
+        );
+        Ok(Self {
+            surface_rad: surface_deg.to_radians(),
+            stiffness_n_m,
+            damping_n_s_m: OBJECT_DAMPING_N_S_M,
+        })
+    }
+
+    /// The object's push at joint angle `theta_rad` moving at
+    /// `theta_vel_rad_s`, as an external tip force (sign convention of
+    /// [`Plant::set_external_force`]), for a tip `gripper_length_m` long.
+    pub fn force_n(&self, gripper_length_m: f64, theta_rad: f64, theta_vel_rad_s: f64) -> f64 {
+        let side = self.surface_rad.signum();
+        let push = contact_push_n(
+            self.stiffness_n_m,
+            self.damping_n_s_m,
+            side * gripper_length_m * (theta_rad - self.surface_rad),
+            side * gripper_length_m * theta_vel_rad_s,
+        );
+        side * push
+    }
+}
+
 /// The simulated prototype (configuration, derived constants, state, noise).
 #[derive(Clone, Debug)]
 pub struct Plant {
@@ -148,6 +219,7 @@ pub struct Plant {
     current_cmd_a: f64,
     f_ext_n: f64,
     tip_mass_kg: f64,
+    object: Option<TipObject>,
 }
 
 impl Plant {
@@ -165,6 +237,7 @@ impl Plant {
             current_cmd_a: 0.0,
             f_ext_n: 0.0,
             tip_mass_kg: 0.0,
+            object: None,
         };
         let ambient = params.effects.thermal.map_or(25.0, |t| t.ambient_c);
         plant.s.winding_c = ambient;
@@ -234,9 +307,28 @@ impl Plant {
         self.f_ext_n = f_ext_n;
     }
 
-    /// External tip force in force, N.
+    /// The applied external tip force in force, N (without an object's
+    /// push: [`Plant::contact_force_n`]).
     pub fn external_force_n(&self) -> f64 {
         self.f_ext_n
+    }
+
+    /// Put an object at the tip (or take it away): from now on its push
+    /// adds to the applied external force at every step.
+    pub fn set_object(&mut self, object: Option<TipObject>) {
+        self.object = object;
+    }
+
+    /// The object's push on the tip in this state, N (0 without an object
+    /// or contact; sign convention of [`Plant::set_external_force`]).
+    pub fn contact_force_n(&self) -> f64 {
+        self.object.map_or(0.0, |o| {
+            o.force_n(
+                self.p.joint.gripper_length_m,
+                self.s.theta_rad,
+                self.s.theta_vel_rad_s,
+            )
+        })
     }
 
     /// Mass hanging from the tip, kg: adds `m l_e²` to the joint inertia (a
@@ -323,6 +415,7 @@ impl Plant {
             self.s.housing_c += dt * (q_wh - q_ha) / c_h;
         }
         let k_m = self.torque_constant_nm_a();
+        let f_tip_n = self.f_ext_n + self.contact_force_n();
 
         let t = self.tensions();
         let s = &mut self.s;
@@ -338,7 +431,7 @@ impl Plant {
             let le = p.joint.gripper_length_m;
             let j_e = p.joint.inertia_kg_m2 + self.tip_mass_kg * le * le;
             let f1 = t.rope_n - t.cable1_n;
-            let tj = (t.cable1_n - t.cable2_n) * r - self.f_ext_n * le;
+            let tj = (t.cable1_n - t.cable2_n) * r - f_tip_n * le;
             let f2 = t.cable2_n - t.spring_n;
             match &d.bristles {
                 None => {

@@ -26,8 +26,8 @@ pub const STIFFNESS_N_M: [f64; 2] = [1000.0, 10_000.0];
 pub const TARGETS_N: [f64; 3] = [1.0, 2.0, 4.0];
 /// The object's width at rest, m (the open jaws' tips are 13.7 mm apart).
 pub const OBJECT_WIDTH_M: f64 = 10e-3;
-/// The object's damping across the jaws, N·s/m.
-pub const OBJECT_DAMPING_N_S_M: f64 = 0.5;
+/// The object's damping across the jaws, N·s/m (the simulator's).
+pub use crate::plant::OBJECT_DAMPING_N_S_M;
 
 /// One grasp on one variant.
 #[derive(Clone, Debug, Serialize)]

@@ -24,7 +24,7 @@
 
 use cable_joint::{Command, Config, Controller, Output, RawSample};
 
-use crate::plant::{Plant, PlantParams, PlantState, Tensions};
+use crate::plant::{Plant, PlantParams, PlantState, Tensions, TipObject};
 
 mod record;
 pub use record::{AngleErrors, LogRecorder, RawRecord, RawTrace, Table, LOG_COLUMNS, RAW_COLUMNS};
@@ -117,7 +117,8 @@ pub struct TickRecord {
     pub tensions: Tensions,
     /// True torque constant at the sample instant, N·m/A.
     pub torque_constant_nm_a: f64,
-    /// Applied external tip force at the sample instant, N.
+    /// True external tip force at the sample instant (the applied profile
+    /// and an object's push), N.
     pub f_ext_n: f64,
     /// Phase tag set by the scenario ([`Sim::set_phase`]).
     pub phase: u32,
@@ -251,6 +252,12 @@ impl Sim {
         self.plant.set_tip_mass(mass_kg);
     }
 
+    /// An object at the tip from now on, or none ([`Plant::set_object`]):
+    /// its push is part of the true external force the ticks record.
+    pub fn set_object(&mut self, object: Option<TipObject>) {
+        self.plant.set_object(object);
+    }
+
     /// Tag recorded with every following tick (scenario phase).
     pub fn set_phase(&mut self, phase: u32) {
         self.phase = phase;
@@ -333,7 +340,7 @@ impl Sim {
             state,
             tensions,
             torque_constant_nm_a: self.plant.torque_constant_nm_a(),
-            f_ext_n: self.force.at(t_s - self.force_start_s),
+            f_ext_n: self.force.at(t_s - self.force_start_s) + self.plant.contact_force_n(),
             phase: self.phase,
             origin: self.origin,
         };

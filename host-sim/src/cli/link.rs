@@ -19,12 +19,13 @@ use cable_joint::telemetry::Record;
 use cable_joint::trajectory::Trajectory;
 
 use crate::cli;
+use crate::cli::simulate::GripArgs;
 use crate::ident::excite::{self, Design};
 use crate::ingest::{to_log, LogOptions};
 use crate::live::{Live, Screen, ViewArg};
 use crate::operator::{open, Client};
 use crate::output::Outputs;
-use crate::scenario::{plan, ScenarioOptions};
+use crate::scenario::{plan, GripOptions, ScenarioOptions};
 
 /// Arguments of `host-sim link`.
 #[derive(clap::Args, Debug, Clone)]
@@ -55,6 +56,9 @@ pub struct LinkArgs {
     /// --out`; default: the design for `jae-ident`'s envelope).
     #[arg(long)]
     pub excitation: Option<PathBuf>,
+    /// `--scenario grip`: the set point, and where the object is.
+    #[command(flatten)]
+    pub grip: GripArgs,
     /// Scale of every segment of `--scenario` (1 = the full programme; the
     /// same scale as `host-sim simulate --duration-scale`).
     #[arg(long, default_value_t = 1.0, value_parser = cli::f64_above(0.0, 1e3))]
@@ -93,10 +97,12 @@ fn schedule(
     name: &str,
     duration_scale: f64,
     excitation: Option<Design>,
+    grip: GripOptions,
 ) -> anyhow::Result<Schedule> {
     let opts = ScenarioOptions {
         duration_scale,
         excitation,
+        grip,
         ..ScenarioOptions::default()
     };
     let p = plan(name, &opts)?;
@@ -133,7 +139,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let scenario = args
         .scenario
         .as_deref()
-        .map(|name| schedule(name, args.duration_scale, excitation))
+        .map(|name| schedule(name, args.duration_scale, excitation, args.grip.options()))
         .transpose()?;
     let mut client = Client::new(open(&args.port)?)?;
     // First, always: a frame the firmware could take for a resend of the

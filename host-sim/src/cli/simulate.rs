@@ -24,7 +24,7 @@ use cable_joint::Config;
 
 use crate::cli;
 use crate::output::Outputs;
-use crate::scenario::{simulate, Direction, SimulateOptions, SCENARIOS};
+use crate::scenario::{simulate, Direction, GripOptions, SimulateOptions, SCENARIOS};
 use crate::stats::Summary;
 
 /// `--direction` of `host-sim simulate` ([`Direction`]).
@@ -99,6 +99,9 @@ pub struct SimulateArgs {
     /// the design for `jae-ident`'s envelope).
     #[arg(long)]
     pub excitation: Option<PathBuf>,
+    /// `grip`: the set point and the object.
+    #[command(flatten)]
+    pub grip: GripArgs,
     /// List the scenarios and exit.
     #[arg(long)]
     pub list: bool,
@@ -129,7 +132,40 @@ impl SimulateArgs {
             tuned_gains: self.tuned_gains,
             raw_trace: self.raw_out.is_some(),
             excitation,
+            grip: self.grip.options(),
         })
+    }
+}
+
+/// `--scenario grip`'s set point and object (`host-sim simulate`, `host-sim
+/// link`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct GripArgs {
+    /// `grip`: the tip-force set point, N (its sign is the side the object
+    /// is on; |F| at most 10 N).
+    #[arg(long, default_value_t = GripOptions::default().force_n, allow_negative_numbers = true,
+          value_parser = cli::f64_in(-10.0, 10.0))]
+    pub grip_n: f64,
+    /// `grip`: the object's surface, degrees from 0 on the set point's side
+    /// (the simulator's object; on a rig, where the object is, so that the
+    /// jaw opens from there).
+    #[arg(long, default_value_t = GripOptions::default().object_deg,
+          value_parser = cli::f64_above(0.0, 80.0))]
+    pub object_deg: f64,
+    /// `grip`: the object's stiffness at the tip, N/m (the simulator's).
+    #[arg(long, default_value_t = GripOptions::default().object_n_m,
+          value_parser = cli::f64_above(0.0, 1e6))]
+    pub object_n_m: f64,
+}
+
+impl GripArgs {
+    /// The options these arguments ask for.
+    pub fn options(&self) -> GripOptions {
+        GripOptions {
+            force_n: self.grip_n,
+            object_deg: self.object_deg,
+            object_n_m: self.object_n_m,
+        }
     }
 }
 
@@ -210,6 +246,24 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     if let Some((mean, max)) = summary.force_stretch_error_n {
         println!(
             "  force estimate (stretch) in stable regions: mean error {mean:+.3} N, max |error| {max:.3} N"
+        );
+    }
+    if let Some(g) = &summary.grip {
+        println!(
+            "  grip at {:.2} N, true force over its last second: {:.3} N ({:+.1} %), overshoot {:.1} %, within ±5 % {}",
+            g.set_n,
+            g.steady_true_n,
+            g.steady_error_pct,
+            g.overshoot_pct,
+            g.settling_s
+                .map_or("never".to_owned(), |t| format!("after {t:.2} s")),
+        );
+        println!(
+            "  grip: fused estimate {:.3} N, bound [{:.3}, {:.3}] N, covers the true force on {:.0} % of that second",
+            g.steady_est_n,
+            g.steady_lo_n,
+            g.steady_hi_n,
+            100.0 * g.steady_coverage
         );
     }
     if let Some(f) = summary.fault {

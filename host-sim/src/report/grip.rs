@@ -18,10 +18,7 @@ use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Series};
 use crate::wrist::{grip_stats, gripped_force, run_grip, GripRun, GripStats, WristParams};
 
-/// Closing speed before contact, rad/s of the cascade's angle (5.7°/s).
-pub const APPROACH_RAD_S: f64 = 0.1;
-/// Force control per run, s (the approach included).
-pub const GRIP_S: f64 = 8.0;
+pub use crate::scenario::{GRIP_APPROACH_RAD_S as APPROACH_RAD_S, GRIP_S};
 
 /// How a grip ran: the cascade's mode and whether both jaws grip as a pair.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -38,11 +38,11 @@ use cable_joint::{Config, Fault};
 use crate::ident::excite::Design;
 use crate::plant::PlantParams;
 use crate::sim::{AngleErrors, Recorder, Sim, TickRecord};
-use crate::stats::Summary;
+use crate::stats::{grip_stats_of, GripSample, GripStats, Summary};
 
 pub use plan::{
     default_excitation, excitation_replacing, plan, Plan, ScenarioInfo, Segment,
-    LOADING_ANGLES_DEG, LOADING_MASSES_G, SCENARIOS,
+    GRIP_APPROACH_RAD_S, GRIP_S, LOADING_ANGLES_DEG, LOADING_MASSES_G, SCENARIOS,
 };
 pub use simulate::{simulate, SimulateOptions, Simulation};
 
@@ -69,6 +69,8 @@ pub enum Phase {
     Unloading = 6,
     /// Tracking a trajectory.
     Track = 7,
+    /// Under grip-force control (`Trajectory::Grip`), the approach included.
+    Grip = 8,
 }
 
 impl Phase {
@@ -88,6 +90,7 @@ impl Phase {
             Phase::Stable => "stable",
             Phase::Unloading => "unloading",
             Phase::Track => "track",
+            Phase::Grip => "grip",
         }
     }
 }
@@ -131,6 +134,32 @@ pub struct ScenarioOptions {
     /// `excite` only: run this designed series (`None`:
     /// [`default_excitation`] by least `%sigma`).
     pub excitation: Option<Design>,
+    /// `grip` only: the set point and the object.
+    pub grip: GripOptions,
+}
+
+/// The `grip` scenario's set point and object.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GripOptions {
+    /// The tip-force set point, N; its sign is the side the object is on
+    /// (> 0: the joint closes in the positive direction).
+    pub force_n: f64,
+    /// The object's surface, degrees from 0 on the set point's side.
+    pub object_deg: f64,
+    /// The object's stiffness at the tip, N/m.
+    pub object_n_m: f64,
+}
+
+impl Default for GripOptions {
+    /// 2 N on a 1000 N/m object 10° away (the report's grips run 1, 2 and
+    /// 4 N on 1000 and 10 000 N/m).
+    fn default() -> Self {
+        Self {
+            force_n: 2.0,
+            object_deg: 10.0,
+            object_n_m: 1000.0,
+        }
+    }
 }
 
 impl Default for ScenarioOptions {
@@ -142,6 +171,7 @@ impl Default for ScenarioOptions {
             direction: None,
             tip_inertia: false,
             excitation: None,
+            grip: GripOptions::default(),
         }
     }
 }
@@ -173,8 +203,34 @@ pub struct RunSummary {
     /// Share of the `Stable` samples whose applied force lies inside the
     /// fused bound `[f_ext_lo_n, f_ext_hi_n]`.
     pub force_bound_coverage: Option<f64>,
+    /// `grip`: the grip judged on the true force over its `Grip` phase, in
+    /// the set point's direction (magnitudes), with the fused estimate.
+    pub grip: Option<GripStats>,
     /// Latched fault at the end, if any.
     pub fault: Option<Fault>,
+}
+
+/// The `Grip` phase's ticks, in the set point's direction (`sign`).
+struct GripAcc {
+    sign: f64,
+    samples: Vec<GripSample>,
+}
+
+impl Recorder for GripAcc {
+    fn record(&mut self, r: &TickRecord) {
+        if r.phase == Phase::Grip.code() {
+            let e = &r.output.est;
+            let (lo, hi) = (f64::from(e.f_ext_lo_n), f64::from(e.f_ext_hi_n));
+            let s = self.sign;
+            self.samples.push(GripSample {
+                t_s: r.t_s,
+                true_n: s * r.f_ext_n,
+                est_n: s * f64::from(e.f_ext_fused_n),
+                lo_n: if s > 0.0 { lo } else { -hi },
+                hi_n: if s > 0.0 { hi } else { -lo },
+            });
+        }
+    }
 }
 
 #[derive(Default)]
@@ -234,7 +290,12 @@ pub fn run<R: Recorder + ?Sized>(
         errors.phases = vec![Phase::Track.code()];
     }
     let mut force = ForceAcc::default();
-    plan.run_on(&mut sim, &mut (&mut errors, &mut force, rec));
+    let mut grip = GripAcc {
+        sign: opts.grip.force_n.signum(),
+        samples: Vec::new(),
+    };
+    plan.run_on(&mut sim, &mut (&mut errors, &mut force, (&mut grip, rec)));
+    let fault = sim.output().fault;
     Ok(RunSummary {
         name: plan.name,
         seed,
@@ -248,7 +309,11 @@ pub fn run<R: Recorder + ?Sized>(
         force_fused_error_n: (force.n > 0)
             .then(|| (force.fused_sum / force.n as f64, force.fused_max_abs)),
         force_bound_coverage: (force.n > 0).then(|| force.inside_bound as f64 / force.n as f64),
-        fault: sim.output().fault,
+        grip: (!grip.samples.is_empty()).then(|| GripStats {
+            fault: fault.map(|f| f.to_string()),
+            ..grip_stats_of(&grip.samples, opts.grip.force_n.abs())
+        }),
+        fault,
     })
 }
 

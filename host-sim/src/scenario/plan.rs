@@ -11,7 +11,7 @@ use cable_joint::{Command, Mode};
 
 use super::{Direction, Phase, ScenarioOptions, G_M_S2};
 use crate::ident::excite::{self, Criterion, Design, DesignOptions};
-use crate::plant::PlantParams;
+use crate::plant::{PlantParams, TipObject};
 use crate::sim::{ForceProfile, Recorder, Sim};
 
 /// One step of a scenario.
@@ -27,6 +27,9 @@ pub struct Segment {
     pub force: Option<ForceProfile>,
     /// New tip mass at its start, kg (`None`: keep).
     pub tip_mass_kg: Option<f64>,
+    /// An object placed at the tip at its start (`None`: keep what is
+    /// there); it stays for the rest of the run.
+    pub object: Option<TipObject>,
 }
 
 /// A scenario ready to run.
@@ -84,6 +87,9 @@ impl Plan {
             if let Some(m) = seg.tip_mass_kg {
                 sim.set_tip_mass(m);
             }
+            if seg.object.is_some() {
+                sim.set_object(seg.object);
+            }
             sim.set_phase(seg.phase.code());
             sim.run_for(seg.duration_s, rec);
         }
@@ -102,7 +108,7 @@ pub struct ScenarioInfo {
 }
 
 /// Every scenario.
-pub const SCENARIOS: [ScenarioInfo; 8] = [
+pub const SCENARIOS: [ScenarioInfo; 9] = [
     ScenarioInfo {
         name: "bm-noload",
         seed: 101,
@@ -137,6 +143,11 @@ pub const SCENARIOS: [ScenarioInfo; 8] = [
         name: "loading",
         seed: 107,
         description: "held at 0°, 30°, -40°; 30/50/100/200/250 g at the tip, both directions (seed Fig. 20-26)",
+    },
+    ScenarioInfo {
+        name: "grip",
+        seed: 109,
+        description: "close onto a soft object at the tip and regulate its force (Trajectory::Grip, motor angle), then open (--grip-n, --object-deg, --object-n-m)",
     },
     ScenarioInfo {
         name: "excite",
@@ -176,6 +187,7 @@ impl Builder {
             command,
             force: None,
             tip_mass_kg: None,
+            object: None,
         });
         let last = self.segments.len() - 1;
         &mut self.segments[last]
@@ -235,6 +247,12 @@ fn complex(amplitude_deg: f64, base_freq_hz: f32) -> Trajectory {
 
 /// `excite`'s hold before the series and its return to 0 after it, s each.
 const EXCITE_SETTLE_S: f64 = 1.0;
+
+/// `grip`: closing speed before contact, rad/s of the cascade's angle
+/// (5.7°/s; the report's grips close at it too).
+pub const GRIP_APPROACH_RAD_S: f64 = 0.1;
+/// `grip`: force control, s (the approach included).
+pub const GRIP_S: f64 = 8.0;
 
 /// The design options of an `excite` run as long as `hand_made` and within
 /// its reference's limits, and the series' length (`hand_made`'s less
@@ -328,6 +346,33 @@ pub fn plan(name: &str, opts: &ScenarioOptions) -> anyhow::Result<Plan> {
             b.track(jc, complex(30.0, 0.2), 20.0);
         }
         "loading" => loading(&mut b, opts)?,
+        "grip" => {
+            // From rest at 0, close at the approach speed onto an object on
+            // the set point's side and regulate its force, then open to 0
+            // from the object's surface (the reference steps back by the
+            // squeeze's depth, which the plan cannot know).
+            let g = &opts.grip;
+            let surface_deg = g.force_n.signum() * g.object_deg.abs();
+            let object = TipObject::new(surface_deg, g.object_n_m)?;
+            let grip = Trajectory::Grip {
+                force_n: g.force_n as f32,
+                approach_rad_s: GRIP_APPROACH_RAD_S as f32,
+            };
+            grip.validate()
+                .map_err(|e| anyhow::anyhow!("--grip-n {} N: {e}", g.force_n))?;
+            b.hold(Phase::Hold, mp, 1.0).object = Some(object);
+            b.seg(
+                Phase::Grip,
+                GRIP_S,
+                Some(Command {
+                    mode: mp,
+                    trajectory: grip,
+                }),
+            );
+            b.angle_rad = deg(surface_deg);
+            b.move_to(mp, 0.0, 1.0);
+            b.hold(Phase::Hold, mp, 1.0);
+        }
         "excite" => {
             // jae-ident's set-up (motor closed loop, joint open loop) and
             // length: 1 s hold, the series, 1 s back to 0.

@@ -6,7 +6,9 @@
 use anyhow::Result;
 use cable_joint::Config;
 
-use super::{oracle_config, plan, run, tuned_gains, Direction, RunSummary, ScenarioOptions};
+use super::{
+    oracle_config, plan, run, tuned_gains, Direction, GripOptions, RunSummary, ScenarioOptions,
+};
 use crate::ident::excite::Design;
 use crate::plant::PlantParams;
 use crate::sim::{check_ticks, LogRecorder, RawTrace};
@@ -43,6 +45,8 @@ pub struct SimulateOptions {
     pub raw_trace: bool,
     /// `excite`: the designed series ([`ScenarioOptions::excitation`]).
     pub excitation: Option<Design>,
+    /// `grip`: the set point and the object ([`ScenarioOptions::grip`]).
+    pub grip: GripOptions,
 }
 
 impl SimulateOptions {
@@ -59,6 +63,7 @@ impl SimulateOptions {
             direction: self.direction,
             tip_inertia: self.tip_inertia,
             excitation: self.excitation,
+            grip: self.grip,
             ..ScenarioOptions::default()
         };
         if let Some(s) = self.duration_scale {

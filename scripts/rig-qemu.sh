@@ -17,7 +17,11 @@
 #      the live view on (in a tmux pane, read back into live-view.txt, and
 #      closed with q as a person would);
 #   5. read the recorded log back: host-sim estimate replays it from where
-#      homing ended, with the fused force and its bound.
+#      homing ended, with the fused force and its bound;
+#   6. power on with a soft object at the tip (10° out, 1000 N/m), load
+#      identified.toml and run the grip scenario's commands: the firmware
+#      closes onto the object and regulates its force estimate to 2 N, then
+#      opens; recorded.
 #
 # Outputs in $RIG_OUT (default target/rig). Usage: scripts/rig-qemu.sh
 set -euo pipefail
@@ -101,4 +105,10 @@ RIG=""
 say "5. the recorded log, replayed through the core from where homing ended"
 "$HOST_SIM" estimate --log "$OUT/loading.csv" --config "$OUT/identified.toml" \
   --out "$OUT/loading-estimate.csv"
+say "6. a grip over the link: an object 10° out, 2 N, with identified.toml"
+power_on 16 pil-grip --object-at-deg 10 --drive-fault-at-s -1 --load-n 0
+"$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --config "$OUT/identified.toml" \
+  --decimation 1 --scenario grip --record "$OUT/grip.csv"
+wait "$RIG"
+RIG=""
 say "rig workflow under QEMU passed ($OUT)"

@@ -182,3 +182,79 @@ fn pil_requests_over_rtt_act_at_the_same_tick_as_on_the_host() {
         ..pil_options("pil-operator-rtt")
     });
 }
+
+/// An operator who, once the joint holds 30°, asks for a 1 N grip on the
+/// motor's angle.
+struct Gripper;
+
+const GRIP_TICK: usize = 5400;
+const GRIP_N: f32 = 1.0;
+
+impl Inject for Gripper {
+    fn request(&mut self, tick: usize) -> Option<Request> {
+        match tick {
+            0 => Some(Request::Program(Program::default())),
+            GRIP_TICK => Some(Request::SetCommand(Command {
+                mode: Mode::MotorPosition,
+                trajectory: Trajectory::Grip {
+                    force_n: GRIP_N,
+                    approach_rad_s: 0.1,
+                },
+            })),
+            _ => None,
+        }
+    }
+}
+
+/// The grip law in the binary: a soft object 2° beyond the held 30°, a
+/// grip command over the link; the binary closes onto the object and
+/// regulates its fused estimate as the host run does, bit for bit.
+#[test]
+#[ignore = "needs QEMU and the PIL firmware: .ci/qemu.sh"]
+fn pil_grips_an_object_as_the_host_run_bit_for_bit() {
+    let opts = TraceOptions {
+        duration_s: 8.0,
+        drive_fault_at_s: -1.0,
+        load_n: 0.0,
+        object: Some(host_sim::plant::TipObject::new(32.0, 1000.0).unwrap()),
+        ..loading()
+    };
+    let cmp = compare_with(
+        PlantParams::default(),
+        &opts,
+        &pil_options("pil-grip"),
+        &|| Box::new(Gripper),
+        &mut |_, _, _| Ok(()),
+    )
+    .unwrap();
+    check_identical(&cmp);
+    let run = &cmp.pil;
+    let last_s = (run.control_rate_hz * 0.5) as usize;
+    let tail = &run.outcomes[run.outcomes.len() - last_s..];
+    assert!(tail.iter().all(|o| o.record.fault == 0 && o.drive_enabled));
+    let mean = |f: &dyn Fn(usize) -> f64| {
+        (run.outcomes.len() - last_s..run.outcomes.len())
+            .map(f)
+            .sum::<f64>()
+            / last_s as f64
+    };
+    let est_n = mean(&|k| f64::from(run.outcomes[k].record.f_ext_fused_n));
+    let true_n = mean(&|k| run.f_ext_true_n[k]);
+    let trace: Vec<String> = (0..16)
+        .map(|k| {
+            let o = &run.outcomes[k * run.outcomes.len() / 16];
+            format!(
+                "{:.2} s: est {:.3} N, true {:.3} N",
+                o.record.tick as f32 / run.control_rate_hz,
+                o.record.f_ext_fused_n,
+                run.f_ext_true_n[k * run.outcomes.len() / 16]
+            )
+        })
+        .collect();
+    eprintln!("PIL grip, last 0.5 s: estimate {est_n:.3} N, true {true_n:.3} N; {trace:#?}");
+    assert!(
+        (est_n - f64::from(GRIP_N)).abs() < 0.1,
+        "the binary's grip holds its estimate at {est_n:.3} N: {trace:#?}"
+    );
+    assert!(true_n > 0.5, "the object pushes back with {true_n:.3} N");
+}

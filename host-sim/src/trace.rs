@@ -38,7 +38,7 @@ use cable_joint::telemetry::{Inputs, OriginRecord, Record, TickRecord};
 use cable_joint::units::{GratingCount, MagneticCount, MotorCount};
 use cable_joint::RawSample;
 
-use crate::plant::{PlantParams, Tensions};
+use crate::plant::{PlantParams, Tensions, TipObject};
 use crate::sim::check_ticks;
 use crate::sim::{NullRecorder, Sim};
 
@@ -63,6 +63,10 @@ pub struct TraceOptions {
     /// header says so, and the QEMU firmware replays it with the same
     /// configuration.
     pub probing: bool,
+    /// An object at the tip for the whole run (for a grip sent over the
+    /// link, `host-sim link --scenario grip`); its push is part of the
+    /// recorded true force.
+    pub object: Option<TipObject>,
 }
 
 impl Default for TraceOptions {
@@ -75,6 +79,7 @@ impl Default for TraceOptions {
             drive_fault_at_s: 2.5,
             seed: 1,
             probing: false,
+            object: None,
         }
     }
 }
@@ -296,6 +301,7 @@ pub fn record_on(
     let substeps = sim.substeps();
     let scales = sim.plant().params().sensors.scales;
     let plant = sim.plant_mut();
+    plant.set_object(opts.object);
 
     let boot = plant.sample();
     let n = (opts.duration_s / period_s).round() as usize;
@@ -332,7 +338,8 @@ pub fn record_on(
         progress(k + 1, n, &outcome)?;
         rec.outcomes.push(outcome);
         rec.theta_true_rad.push(theta);
-        rec.f_ext_true_n.push(plant.external_force_n());
+        rec.f_ext_true_n
+            .push(plant.external_force_n() + plant.contact_force_n());
         rec.tensions_true.push(plant.tensions());
         plant.set_current_command(current_a);
         let dt = period_s / substeps as f64;

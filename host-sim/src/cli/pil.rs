@@ -44,7 +44,7 @@ pub struct PilArgs {
 /// `host-sim pil`.
 pub fn run(args: PilArgs) -> anyhow::Result<()> {
     let plant = crate::io::config::load_plant(args.run.plant.as_deref())?;
-    let opts = args.run.options();
+    let opts = args.run.options()?;
     let pil = PilOptions {
         link_port: args.link_port,
         gdb_port: args.gdb_port,

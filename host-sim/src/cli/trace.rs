@@ -10,6 +10,8 @@ use crate::cli;
 use crate::output::Outputs;
 
 use crate::live::{ViewArg, Watch};
+use crate::plant::TipObject;
+use crate::scenario::GripOptions;
 use crate::trace::{record_watched, NoInjection, TraceOptions};
 
 /// Arguments of `host-sim trace`.
@@ -64,12 +66,26 @@ pub struct RunArgs {
     /// trace's header tells the QEMU firmware to run the same way.
     #[arg(long)]
     pub probe: bool,
+    /// Put a soft object at the tip, its surface at this joint angle,
+    /// degrees (not 0; the object fills the side away from 0), for a grip
+    /// sent over the link (`host-sim link --scenario grip`).
+    #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-80.0, 80.0))]
+    pub object_at_deg: Option<f64>,
+    /// The object's stiffness at the tip, N/m (with `--object-at-deg`).
+    #[arg(long, requires = "object_at_deg", default_value_t = GripOptions::default().object_n_m,
+          value_parser = cli::f64_above(0.0, 1e6))]
+    pub object_n_m: f64,
 }
 
 impl RunArgs {
-    /// The run these arguments ask for.
-    pub fn options(&self) -> TraceOptions {
-        TraceOptions {
+    /// The run these arguments ask for (refused: an object at 0°).
+    pub fn options(&self) -> anyhow::Result<TraceOptions> {
+        let object = self
+            .object_at_deg
+            .map(|deg| TipObject::new(deg, self.object_n_m))
+            .transpose()
+            .context("--object-at-deg")?;
+        Ok(TraceOptions {
             duration_s: self.duration_s,
             relax_s: self.relax_s,
             load_n: self.load_n,
@@ -77,14 +93,15 @@ impl RunArgs {
             drive_fault_at_s: self.drive_fault_at_s,
             seed: self.seed,
             probing: self.probe,
-        }
+            object,
+        })
     }
 }
 
 /// `host-sim trace`.
 pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let plant = crate::io::config::load_plant(args.run.plant.as_deref())?;
-    let opts = args.run.options();
+    let opts = args.run.options()?;
     let config = opts.config();
     let mut watch = Watch::new(
         args.view,

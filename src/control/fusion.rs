@@ -28,9 +28,10 @@
 //!
 //! The fused estimate is the intersection of the DOB's and the stretch
 //! interval (the set of forces both agree on). Its point estimate is the
-//! stretch interval's centre projected onto the intersection: the stretch
-//! estimate (with the pin's kinetic friction while the chain slips) unless
-//! the DOB rules that value out. The report measures it against the
+//! stretch estimate projected onto the intersection: the pin's friction at
+//! its kinetic level while both sliders slip one way (at any speeds: the
+//! point's best guess of the sign) and zero otherwise, unless the bound
+//! rules that value out. The report measures it against the
 //! intersection's midpoint (the minimax point) on every plant variant. When the two intervals do not overlap the models disagree
 //! (an unmodelled effect, a wrong parameter): the bound becomes the hull of
 //! both, the point the middle of the gap, and [`flags::INCONSISTENT`] is set,
@@ -175,6 +176,8 @@ pub struct FusionState {
     dob_friction_n: (f32, f32),
     /// `Q` of the lower and upper pin-friction bound, N·m.
     pin_nm: (f32, f32),
+    /// `Q` of the pin friction the point estimate assumes, N·m.
+    pin_point_nm: f32,
     /// `Q` of the stretch torque's error bound from the JAE, N·m.
     tau_err_nm: f32,
     /// `Q` of the drive torque's part above `Q`'s band, N·m.
@@ -294,7 +297,11 @@ impl Fusion {
         let v2 = math::abs(i.x2_vel_m_s);
         let together = (v1 <= TOGETHER_RATIO * v2 && v2 <= TOGETHER_RATIO * v1)
             || (v1 < self.v1_m_s && v2 < self.v2_m_s);
-        let coherent = s1 != 0.0 && s1 == s2 && together;
+        // The point estimate takes the pin's kinetic level whenever both
+        // sliders slip one way (its best guess of the sign); only the bound
+        // needs them to slip together.
+        let one_way = s1 != 0.0 && s1 == s2;
+        let coherent = one_way && together;
 
         // Instantaneous friction bounds; `Q` (a positive filter) of a bound
         // bounds `Q` of the friction, so they are filtered like the signals.
@@ -308,10 +315,12 @@ impl Fusion {
                 (1.0 + rho) * self.c3_rad
             };
         let tau_err = self.torque_per_theta * theta_band;
+        let (pp_lo, pp_hi) = band(one_way, s2, self.pin_nm, rho, kappa);
         let first = !s.primed;
         if first {
             s.dob_friction_n = (a_lo + b_lo, a_hi + b_hi);
             s.pin_nm = (p_lo, p_hi);
+            s.pin_point_nm = 0.5 * (pp_lo + pp_hi);
             s.tau_err_nm = tau_err;
             s.ripple_nm = 0.0;
             s.primed = true;
@@ -321,6 +330,7 @@ impl Fusion {
         let f_hi = q.update(&mut s.dob_friction_n.1, a_hi + b_hi);
         let pin_lo = q.update(&mut s.pin_nm.0, p_lo);
         let pin_hi = q.update(&mut s.pin_nm.1, p_hi);
+        let pin_point_nm = q.update(&mut s.pin_point_nm, 0.5 * (pp_lo + pp_hi));
         let tau_err = q.update(&mut s.tau_err_nm, tau_err);
         // Drive torque above Q's band mostly accelerates the rotor, and the
         // DOB's inertial term sees that through a differentiator: while the
@@ -356,9 +366,10 @@ impl Fusion {
         let lo = if dob_lo > str_lo { dob_lo } else { str_lo };
         let hi = if dob_hi < str_hi { dob_hi } else { str_hi };
         let mut out = if lo <= hi {
-            // The stretch interval's centre (its kinetic pin friction in
-            // slip), moved into the bound when the DOB rules it out.
-            let stretch_n = 0.5 * (str_lo + str_hi);
+            // The stretch estimate with the pin's friction at its point
+            // value (its kinetic level in a one-way slip, else zero), moved
+            // into the bound when the bound rules it out.
+            let stretch_n = (i.joint_torque_nm - pin_point_nm) * self.tip_per_torque;
             FusionOut {
                 f_ext_n: math::clamp(stretch_n, lo, hi),
                 lo_n: lo,

@@ -230,10 +230,14 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         },
         out.display()
     );
-    println!(
-        "  tracking (desired - magnetic): {}",
-        fmt_stats(&summary.tracking)
-    );
+    // Under a grip the reference is the force law's, not a trajectory:
+    // its distance from the joint says nothing about tracking.
+    if summary.grip.is_none() {
+        println!(
+            "  tracking (desired - magnetic): {}",
+            fmt_stats(&summary.tracking)
+        );
+    }
     println!(
         "  JAE (estimate - magnetic):     {}",
         fmt_stats(&summary.jae)

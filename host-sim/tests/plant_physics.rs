@@ -1,7 +1,7 @@
 //! Mechanics of the simulated prototype: rest with preload, static equilibrium
 //! under a tip force against the analytic stiffness chain, stick-slip.
 
-use host_sim::plant::{Plant, PlantParams};
+use host_sim::plant::{Plant, PlantParams, TipObject};
 
 fn frictionless() -> PlantParams {
     let mut p = PlantParams::default();
@@ -192,4 +192,48 @@ fn stiffest_mode_is_resolved() {
     assert!(Plant::new(q, 1).is_ok());
     q.joint.inertia_kg_m2 = 1e-10;
     assert!(Plant::new(q, 1).is_err());
+}
+
+/// A soft object at the tip pushes only where the tip has entered it, with
+/// its stiffness times the penetration, against the motion into it: a tip
+/// force that would turn the frictionless joint far past the object's
+/// surface settles where the chain's compliance and the object's push
+/// balance, as the linear chain predicts.
+#[test]
+fn a_tip_object_pushes_back_in_proportion_to_its_penetration() {
+    let p = frictionless();
+    let le = p.joint.gripper_length_m;
+    let f_ext = 0.3;
+    // The chain's compliance from a free run: joint angle per newton.
+    let mut free = Plant::new(p, 1).unwrap();
+    free.set_external_force(f_ext);
+    free.advance(15.0);
+    let c = free.state().theta_rad / f_ext;
+    assert!(c < 0.0);
+
+    let object = TipObject::new(-10.0, 500.0).unwrap();
+    let mut plant = Plant::new(p, 1).unwrap();
+    plant.set_object(Some(object));
+    plant.advance(1.0);
+    assert_eq!(plant.contact_force_n(), 0.0, "at rest outside the object");
+    plant.set_external_force(f_ext);
+    plant.advance(15.0);
+    // theta = c (f_ext - k l_e (theta_s - theta)), the push opposing the
+    // negative rotation.
+    let (k, ts) = (object.stiffness_n_m, object.surface_rad);
+    let theta = (c * f_ext - c * k * le * ts) / (1.0 - c * k * le);
+    let got = plant.state().theta_rad;
+    assert!(
+        (got - theta).abs() < 1e-3 * theta.abs(),
+        "settled at {got} rad, the linear chain says {theta} rad"
+    );
+    let push = k * le * (ts - got);
+    assert!(push > 0.0, "the tip entered the object");
+    assert!(
+        (plant.contact_force_n() + push).abs() < 1e-9,
+        "push {push} N, recorded {} N",
+        plant.contact_force_n()
+    );
+    assert!(TipObject::new(0.0, 500.0).is_err());
+    assert!(TipObject::new(10.0, 0.0).is_err());
 }

@@ -483,12 +483,6 @@ impl Controller {
         self.state.grip_partner
     }
 
-    /// The grip law's state (contact, measured contact stiffness), for
-    /// telemetry and the host's report.
-    pub fn grip_state(&self) -> &GripState {
-        &self.state.grip
-    }
-
     /// Latch an external fault (drive fault line, overrun, origin switch).
     /// The next step outputs zero current with the drive disabled.
     pub fn report_fault(&mut self, fault: Fault) {

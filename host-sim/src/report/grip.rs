@@ -13,12 +13,12 @@ use serde::Serialize;
 
 use super::programme::run_seed;
 use super::variants::VariantResult;
-use super::wrist::{force_panel, object, STIFFNESS_N_M, TARGETS_N};
+use super::wrist::{force_panel, object, section_tail, STIFFNESS_N_M, TARGETS_N};
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Series};
 use crate::wrist::{grip_stats, gripped_force, run_grip, GripRun, GripStats, WristParams};
 
-pub use crate::scenario::{GRIP_APPROACH_RAD_S as APPROACH_RAD_S, GRIP_S};
+use crate::scenario::{GRIP_APPROACH_RAD_S, GRIP_S};
 
 /// How a grip ran: the cascade's mode and whether both jaws grip as a pair.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -96,7 +96,7 @@ pub struct GripSection {
 /// runs.
 pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<GripSection> {
     let mut sec = GripSection {
-        approach_rad_s: APPROACH_RAD_S,
+        approach_rad_s: GRIP_APPROACH_RAD_S,
         rows: Vec::new(),
         skipped: Vec::new(),
     };
@@ -135,7 +135,7 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<GripSection
 fn grip_run(how: How, set_n: f64) -> GripRun {
     GripRun {
         set_n,
-        approach_rad_s: APPROACH_RAD_S,
+        approach_rad_s: GRIP_APPROACH_RAD_S,
         pair: how.pair,
         mode: how.mode(),
         grip_s: GRIP_S,
@@ -293,15 +293,12 @@ pub fn markdown(sec: &GripSection, figure: Option<&str>) -> String {
             s.fault.as_deref().unwrap_or("-")
         );
     }
-    for s in &sec.skipped {
-        let _ = writeln!(o, "\nNot run: {s}");
-    }
-    if let Some(stem) = figure {
-        let _ = writeln!(
-            o,
-            "\n![grip force: true contact force, estimate and bound against the set point]({stem}.svg)\n"
-        );
-    }
+    section_tail(
+        &mut o,
+        &sec.skipped,
+        figure,
+        "grip force: true contact force, estimate and bound against the set point",
+    );
     o
 }
 

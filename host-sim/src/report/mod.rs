@@ -381,6 +381,23 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
     })
 }
 
+/// A section's goal lines on the terminal under `title`, each marked met or
+/// not, or why the section could not run.
+fn goal_block(text: &mut String, title: &str, lines: Result<Vec<(String, bool)>, &String>) {
+    text.push_str(&format!("\n{title}\n"));
+    match lines {
+        Ok(lines) => {
+            for (g, ok) in lines {
+                text.push_str(&format!(
+                    "  {} {g}\n",
+                    if ok { "met    " } else { "NOT met" }
+                ));
+            }
+        }
+        Err(e) => text.push_str(&format!("  could not run: {e}\n")),
+    }
+}
+
 /// Write report.md, report.json, the configurations and the staged figures
 /// into the output directory, all or none; returns the terminal text
 /// (comparison, goals, step 7).
@@ -435,42 +452,21 @@ pub fn write(r: &mut Report) -> Result<String> {
             text.push_str(&format!("      NOT met: {g}\n"));
         }
     }
-    text.push_str("\nDesigned excitations against jae-ident (JAE fit)\n");
-    match &r.excitation {
-        Ok(x) => {
-            for (g, ok) in excitation::goal_lines(x) {
-                text.push_str(&format!(
-                    "  {} {g}\n",
-                    if ok { "met    " } else { "NOT met" }
-                ));
-            }
-        }
-        Err(e) => text.push_str(&format!("  could not run: {e}\n")),
-    }
-    text.push_str("\nThe wrist's clamp force (Eq. 4-5) on plant variants\n");
-    match &r.wrist {
-        Ok(w) => {
-            for (g, ok) in wrist::goal_lines(w) {
-                text.push_str(&format!(
-                    "  {} {g}\n",
-                    if ok { "met    " } else { "NOT met" }
-                ));
-            }
-        }
-        Err(e) => text.push_str(&format!("  could not run: {e}\n")),
-    }
-    text.push_str("\nGrip-force control on plant variants\n");
-    match &r.grip {
-        Ok(g) => {
-            for (g, ok) in grip::goal_lines(g) {
-                text.push_str(&format!(
-                    "  {} {g}\n",
-                    if ok { "met    " } else { "NOT met" }
-                ));
-            }
-        }
-        Err(e) => text.push_str(&format!("  could not run: {e}\n")),
-    }
+    goal_block(
+        &mut text,
+        "Designed excitations against jae-ident (JAE fit)",
+        r.excitation.as_ref().map(excitation::goal_lines),
+    );
+    goal_block(
+        &mut text,
+        "The wrist's clamp force (Eq. 4-5) on plant variants",
+        r.wrist.as_ref().map(wrist::goal_lines),
+    );
+    goal_block(
+        &mut text,
+        "Grip-force control on plant variants",
+        r.grip.as_ref().map(grip::goal_lines),
+    );
     text.push('\n');
     text.push_str(&seed::terminal_table(&rows));
     text.push_str("\nWhere we stand\n");

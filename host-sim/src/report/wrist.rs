@@ -273,15 +273,12 @@ pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
             s.fault.as_deref().unwrap_or("-")
         );
     }
-    for s in &sec.skipped {
-        let _ = writeln!(o, "\nNot run: {s}");
-    }
-    if let Some(stem) = figure {
-        let _ = writeln!(
-            o,
-            "\n![clamp force estimate and bound against the true contact force]({stem}.svg)\n"
-        );
-    }
+    section_tail(
+        &mut o,
+        &sec.skipped,
+        figure,
+        "clamp force estimate and bound against the true contact force",
+    );
     o
 }
 
@@ -320,6 +317,17 @@ pub fn stage_figure_for(
     let stem = "fig_wrist_clamp";
     stage_figure(out, &Figure::grid(panels, 1), &dir.join(stem))?;
     Ok(Some(stem.to_owned()))
+}
+
+/// A wrist section's end in report.md: the variants that could not run,
+/// and its figure under `caption`.
+pub fn section_tail(o: &mut String, skipped: &[String], figure: Option<&str>, caption: &str) {
+    for s in skipped {
+        let _ = writeln!(o, "\nNot run: {s}");
+    }
+    if let Some(stem) = figure {
+        let _ = writeln!(o, "\n![{caption}]({stem}.svg)\n");
+    }
 }
 
 /// A panel of a run's true contact force against an estimate and its

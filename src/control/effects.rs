@@ -139,10 +139,51 @@ pub enum EffectKind {
         /// Decay time constant, s.
         tau_s: f32,
     },
+    /// The load measured on the last stroke: a first-order lag of `u`,
+    /// `u sgn(v)` or `sgn(v)` ([`StrokePart`]) that moves only while the
+    /// velocity `v` (the second signal, `aux`) exceeds `v_min` in
+    /// magnitude, and holds through reversals and rest; 0 until the first
+    /// such sample, then started there. A transmission whose efficiency
+    /// differs between the driven and the back-driven stroke maps the load
+    /// to the current with a gain and an offset that depend on the
+    /// direction: the three parts together carry `a u + b u sgn(v) +
+    /// c sgn(v)`, the load as the strokes measured it.
+    StrokeHold {
+        /// Speed below which the state holds (unit of `aux`).
+        v_min: f32,
+        /// Time constant of the lag while moving, s.
+        tau_s: f32,
+        /// What the state follows.
+        part: StrokePart,
+    },
     /// `u |u|`: quadratic stiffening, odd in `u`.
     SignedSquare,
     /// `u^3`: cubic stiffening.
     Cube,
+}
+
+/// What an [`EffectKind::StrokeHold`] state follows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum StrokePart {
+    /// The input `u` (the load's common part).
+    Level,
+    /// `u sgn(v)`: the gain that differs between the strokes.
+    Signed,
+    /// `sgn(v)`: the offset that differs between the strokes.
+    Direction,
+}
+
+impl StrokePart {
+    /// Short name for labels.
+    pub const fn name(self) -> &'static str {
+        match self {
+            StrokePart::Level => "u",
+            StrokePart::Signed => "u*sgn",
+            StrokePart::Direction => "sgn",
+        }
+    }
 }
 
 /// One candidate column: a kind, its input signal index and (for
@@ -260,6 +301,7 @@ impl EffectKind {
             EffectKind::Creep { .. } => "creep",
             EffectKind::Thermal { .. } => "thermal",
             EffectKind::LoadMemory { .. } => "load_memory",
+            EffectKind::StrokeHold { .. } => "stroke_load",
             EffectKind::SignedSquare => "sqr_sign",
             EffectKind::Cube => "cube",
         }
@@ -303,6 +345,9 @@ impl EffectKind {
             EffectKind::LoadMemory { .. } => {
                 "load remembered from the driven stroke (peak of |u|, slowly decaying): carries the load through a back-driven stroke"
             }
+            EffectKind::StrokeHold { .. } => {
+                "load as the last stroke measured it (held through reversals): a direction-dependent efficiency"
+            }
             EffectKind::SignedSquare => "odd quadratic stiffening",
             EffectKind::Cube => "cubic stiffening",
         }
@@ -320,7 +365,10 @@ impl EffectKind {
     pub const fn uses_aux(&self) -> bool {
         matches!(
             self,
-            EffectKind::Product | EffectKind::LoadCoulomb { .. } | EffectKind::LoadDahl { .. }
+            EffectKind::Product
+                | EffectKind::LoadCoulomb { .. }
+                | EffectKind::LoadDahl { .. }
+                | EffectKind::StrokeHold { .. }
         )
     }
 
@@ -338,6 +386,7 @@ impl EffectKind {
                 [("v_eps", v_eps), NONE]
             }
             EffectKind::Stribeck { v_s, v_eps } => [("v_s", v_s), ("v_eps", v_eps)],
+            EffectKind::StrokeHold { v_min, tau_s, .. } => [("v_min", v_min), ("tau_s", tau_s)],
             EffectKind::Play { half_width } | EffectKind::Stop { half_width } => {
                 [("half_width", half_width), NONE]
             }
@@ -521,6 +570,9 @@ impl Term {
                 };
                 state.y as f32
             }
+            EffectKind::StrokeHold { v_min, tau_s, part } => {
+                stroke_hold(state, u, a, v_min, tau_s, part, dt_s) as f32
+            }
             EffectKind::SignedSquare => u * math::abs(u),
             EffectKind::Cube => u * u * u,
         }
@@ -536,6 +588,34 @@ fn lag(state: &mut TermState, y: f64, x: f64, dt_s: f32, tau_s: f32) -> f64 {
         state.alpha = one_minus_exp_neg(f64::from(dt_s) / f64::from(tau_s));
     }
     y + state.alpha * (x - y)
+}
+
+/// [`EffectKind::StrokeHold`]: the lag moves only while `|v| > v_min`
+/// (`aux` counts the moving samples: 0 means not started yet).
+fn stroke_hold(
+    state: &mut TermState,
+    u: f32,
+    v: f32,
+    v_min: f32,
+    tau_s: f32,
+    part: StrokePart,
+    dt_s: f32,
+) -> f64 {
+    if math::abs(v) > v_min {
+        let s = if v > 0.0 { 1.0 } else { -1.0 };
+        let x = match part {
+            StrokePart::Level => f64::from(u),
+            StrokePart::Signed => f64::from(u) * s,
+            StrokePart::Direction => s,
+        };
+        state.y = if state.aux == 0.0 {
+            x
+        } else {
+            lag(state, state.y, x, dt_s, tau_s)
+        };
+        state.aux = 1.0;
+    }
+    state.y
 }
 
 /// Dahl state `z` of the position `u`: `dz/dx = (1 - z sgn(dx)) / L`, solved
@@ -604,6 +684,13 @@ impl fmt::Display for Term {
             | EffectKind::Creep { tau_s }
             | EffectKind::Thermal { tau_s }
             | EffectKind::LoadMemory { tau_s } => write!(f, "{n}[{}](tau={tau_s}s)", self.input),
+            EffectKind::StrokeHold { v_min, tau_s, part } => write!(
+                f,
+                "{n}[{}: {}, v {}](vmin={v_min:e},tau={tau_s}s)",
+                part.name(),
+                self.input,
+                self.aux
+            ),
         }
     }
 }
@@ -725,6 +812,71 @@ mod tests {
             "{after_1s} vs {expected}"
         );
         assert_eq!(y[1100], 2.0, "a larger load at once");
+    }
+
+    /// The stroke hold is 0 until the velocity first exceeds `v_min`, starts
+    /// at that sample's value, follows its part with the lag while moving
+    /// and keeps its value through a reversal (`|v| <= v_min`).
+    #[test]
+    fn the_stroke_load_follows_while_moving_and_holds_through_a_reversal() {
+        let dt = 1e-3;
+        let term = |part| {
+            Term::with_aux(
+                EffectKind::StrokeHold {
+                    v_min: 0.5,
+                    tau_s: 0.1,
+                    part,
+                },
+                0,
+                1,
+            )
+        };
+        // (current, velocity): at rest, a driven stroke at -1 with 0.3 A
+        // settling for 1 s, a reversal at rest with the current at 0, a
+        // back stroke at +1 with -0.1 A.
+        let samples: heapless::Vec<(f32, f32), 4096> = core::iter::repeat_n((0.7, 0.0), 10)
+            .chain(core::iter::repeat_n((0.3, -1.0), 1000))
+            .chain(core::iter::repeat_n((0.0, 0.2), 200))
+            .chain(core::iter::repeat_n((-0.1, 1.0), 1000))
+            .collect();
+        let run2 = |part| {
+            let (t, mut st) = (term(part), TermState::default());
+            let y: heapless::Vec<f32, 4096> = samples
+                .iter()
+                .map(|&(i, v)| t.update(&mut st, &[i, v], dt))
+                .collect();
+            y
+        };
+        let (level, signed, dir) = (
+            run2(StrokePart::Level),
+            run2(StrokePart::Signed),
+            run2(StrokePart::Direction),
+        );
+        assert_eq!(
+            (level[9], signed[9], dir[9]),
+            (0.0, 0.0, 0.0),
+            "not started"
+        );
+        assert_eq!(
+            (level[10], signed[10], dir[10]),
+            (0.3, -0.3, -1.0),
+            "started"
+        );
+        let held = 10 + 1000 + 199;
+        assert_eq!(level[held], level[1009], "held through the reversal");
+        assert_eq!(dir[held], -1.0);
+        let end = samples.len() - 1;
+        assert!((level[end] + 0.1).abs() < 1e-4, "follows: {}", level[end]);
+        assert!((signed[end] + 0.1).abs() < 1e-4, "{}", signed[end]);
+        assert!((dir[end] - 1.0).abs() < 1e-4, "{}", dir[end]);
+        // The lag: one time constant into the back stroke, 63 % of the way.
+        let k = held + 100;
+        let expected = 0.3 + (-0.1 - 0.3) * (1.0 - (-1.0f32).exp());
+        assert!(
+            (level[k] - expected).abs() < 5e-3,
+            "{} vs {expected}",
+            level[k]
+        );
     }
 
     #[test]

@@ -173,7 +173,14 @@ fn candidates(
         // back-driven, so the current stops carrying the load on one stroke
         // (the da Vinci tool). The prototype's drive is back-drivable (the
         // DOB rests on it): its current carries the load on both strokes.
-        lib.retain(|t| !matches!(t.kind, EffectKind::LoadMemory { .. }));
+        // The stroke hold stands for the same drive's efficiency that differs
+        // between its strokes.
+        lib.retain(|t| {
+            !matches!(
+                t.kind,
+                EffectKind::LoadMemory { .. } | EffectKind::StrokeHold { .. }
+            )
+        });
     }
     if *kind == ModelKind::Jae {
         // The JAE maps slider 2 to the joint through cable 2 and the return

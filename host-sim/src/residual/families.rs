@@ -1,7 +1,7 @@
 //! Effect terms by physical family: their names with signal names, their
 //! family, and their columns over a run.
 
-use cable_joint::effects::{EffectKind, Term, TermState};
+use cable_joint::effects::{EffectKind, StrokePart, Term, TermState};
 use cable_joint::filter::LowPass1;
 
 use crate::derive::low_pass_column;
@@ -57,7 +57,8 @@ pub fn effect_class(t: &Term, names: &[String], other: &[u8]) -> String {
         | EffectKind::Stop { .. }
         | EffectKind::Dahl { .. }
         | EffectKind::LoadDahl { .. }
-        | EffectKind::LoadMemory { .. } => "hysteresis",
+        | EffectKind::LoadMemory { .. }
+        | EffectKind::StrokeHold { .. } => "hysteresis",
         EffectKind::Relaxation { .. } | EffectKind::Creep { .. } => "creep / relaxation",
         EffectKind::Thermal { .. } => "thermal",
         EffectKind::Product => "load",
@@ -103,6 +104,14 @@ pub fn term_label(t: &Term, names: &[String]) -> String {
         | EffectKind::Creep { tau_s }
         | EffectKind::Thermal { tau_s }
         | EffectKind::LoadMemory { tau_s } => format!("{n}[{}](tau={tau_s:.4}s)", sig(t.input)),
+        EffectKind::StrokeHold { v_min, tau_s, part } => {
+            let held = match part {
+                StrokePart::Level => sig(t.input),
+                StrokePart::Signed => format!("{}*sgn({})", sig(t.input), sig(t.aux)),
+                StrokePart::Direction => format!("sgn({})", sig(t.aux)),
+            };
+            format!("{n}[{held}](vmin={v_min:.3e},tau={tau_s:.4}s)")
+        }
     }
 }
 

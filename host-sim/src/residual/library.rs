@@ -3,7 +3,7 @@
 //! Widths and time constants are computed in `f32` through the core's
 //! `math` module, as the core computes its terms.
 
-use cable_joint::effects::{EffectKind, Term};
+use cable_joint::effects::{EffectKind, StrokePart, Term};
 use cable_joint::math;
 
 /// A signal of the log for the [`candidate_library`]: its index and the range
@@ -51,6 +51,11 @@ pub struct LibrarySpec {
     pub duration_s: f32,
 }
 
+/// A stroke ([`EffectKind::StrokeHold`]) is a motion faster than this share
+/// of the log's largest speed: slow enough to count most of a sine's
+/// stroke, fast enough that encoder noise at rest does not.
+pub const STROKE_SPEED_SHARE: f32 = 0.05;
+
 /// The standard candidate set for a log, with widths scaled to each signal's
 /// range and time constants spread between the sample rate and the log length:
 ///
@@ -62,8 +67,9 @@ pub struct LibrarySpec {
 ///   of the largest speed;
 /// * current: linear, `thermal` at three time constants;
 /// * load: linear, `load x position`, `load^2`, `creep` at three time constants;
-///   with a velocity, `load_coulomb` at the `coulomb` widths; with a
-///   position, `load_dahl` at the `dahl` lengths.
+///   with a velocity, `load_coulomb` at the `coulomb` widths and the
+///   `stroke_load` parts (load, load x direction, direction) at the three
+///   time constants; with a position, `load_dahl` at the `dahl` lengths.
 ///
 /// Time constants are `tau_lo = max(20 dt, T/100)`, `tau_hi = T/3` and their
 /// geometric mean. `play` and `relax` are left out because with the linear
@@ -161,6 +167,13 @@ pub fn candidate_library(spec: &LibrarySpec) -> Vec<Term> {
                 };
                 add(Term::with_aux(kind, w.index, s.index));
             }
+            let v_min = STROKE_SPEED_SHARE * w.magnitude();
+            for tau_s in taus {
+                for part in [StrokePart::Level, StrokePart::Signed, StrokePart::Direction] {
+                    let kind = EffectKind::StrokeHold { v_min, tau_s, part };
+                    add(Term::with_aux(kind, s.index, w.index));
+                }
+            }
         }
         if let Some(p) = pos {
             let span = p.span().unwrap_or(1.0);
@@ -205,7 +218,7 @@ mod tests {
             duration_s: 60.0,
         };
         let lib = candidate_library(&spec);
-        assert_eq!(lib.len(), 42);
+        assert_eq!(lib.len(), 51);
         let bank = EffectBank::<64>::new(&lib, 4);
         assert!(bank.is_ok(), "{:?}", bank.err());
         for t in &lib {
@@ -224,6 +237,11 @@ mod tests {
                     assert!((0.6 * 0.99..=20.0 * 1.01).contains(&tau_s), "tau {tau_s}")
                 }
                 EffectKind::DeadZone { center, .. } => assert_eq!(center, 0.0),
+                EffectKind::StrokeHold { v_min, tau_s, .. } => {
+                    assert_eq!((t.input, t.aux), (3, 1), "load held by velocity");
+                    assert!((v_min - STROKE_SPEED_SHARE * 0.02).abs() < 1e-9);
+                    assert!((0.6 * 0.99..=20.0 * 1.01).contains(&tau_s), "tau {tau_s}")
+                }
                 _ => {}
             }
             assert!(!t.name().is_empty() && t.meaning().len() > 10);

@@ -12,6 +12,7 @@ use crate::import::MrdlabZero;
 use crate::output::Outputs;
 use crate::residual::{
     analyse, config_with, read_logs, report, BuildOptions, ModelKind, SelectOptions,
+    GENERIC_MAX_TERMS,
 };
 
 /// Model choice on the command line.
@@ -58,9 +59,10 @@ pub struct ResidualArgs {
     /// Write the configuration with the fitted model (jae, tension, force).
     #[arg(long = "config-out")]
     pub config_out: Option<PathBuf>,
-    /// Most effects added.
-    #[arg(long, default_value_t = MAX_TERMS, value_parser = cli::usize_in(0, MAX_TERMS))]
-    pub max_terms: usize,
+    /// Most effects added (default and limit: the core's capacity per
+    /// estimator for jae, tension and force, 24 for a generic fit)
+    #[arg(long, value_parser = cli::usize_in(0, GENERIC_MAX_TERMS))]
+    pub max_terms: Option<usize>,
     /// Smallest relative cut of the validation RMSE that keeps an effect.
     #[arg(long, default_value_t = 0.01, value_parser = cli::f64_in(0.0, 1.0))]
     pub min_gain: f64,
@@ -120,7 +122,11 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     let fit = read_logs(&args.logs, project, zero, args.t_max_s)?;
     let validate = read_logs(&args.validate, project, zero, args.t_max_s)?;
     let options = SelectOptions {
-        max_terms: args.max_terms,
+        max_terms: args.max_terms.unwrap_or(if project {
+            MAX_TERMS
+        } else {
+            GENERIC_MAX_TERMS
+        }),
         min_gain: args.min_gain,
         patience: args.patience,
         decimate: args.decimate.unwrap_or(0),

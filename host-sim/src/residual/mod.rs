@@ -109,6 +109,13 @@ pub fn read_logs(
         .collect()
 }
 
+/// Most effects a generic fit (`--target`) adds. It writes no
+/// configuration, so the estimators' [`MAX_TERMS`] does not bind it; its
+/// terms are the core's and run on the MCU in an
+/// [`EffectBank`](cable_joint::effects::EffectBank) of this size. With a
+/// baseline of a few inputs it stays within [`select::MAX_COLUMNS`].
+pub const GENERIC_MAX_TERMS: usize = 24;
+
 /// Run the whole loop on logs already read. `options.decimate == 0` means
 /// automatic ([`AUTO_FIT_ROWS`]).
 pub fn analyse(
@@ -119,9 +126,20 @@ pub fn analyse(
     build_opts: BuildOptions,
     mut options: SelectOptions,
 ) -> Result<Analysis> {
+    let generic = matches!(kind, ModelKind::Generic { .. });
+    let cap = if generic {
+        GENERIC_MAX_TERMS
+    } else {
+        MAX_TERMS
+    };
     ensure!(
-        options.max_terms <= MAX_TERMS,
-        "at most {MAX_TERMS} effects (the core's capacity), got {}",
+        options.max_terms <= cap,
+        "at most {cap} effects ({}), got {}",
+        if generic {
+            "a generic fit's limit"
+        } else {
+            "the core's capacity per estimator"
+        },
         options.max_terms
     );
     let (problem, _) = build(&kind, fit, validate, config, build_opts)?;
@@ -130,7 +148,7 @@ pub fn analyse(
         ModelKind::Force => config.tension.added.len as usize,
         _ => problem.kept.len(),
     };
-    options.max_terms = options.max_terms.min(MAX_TERMS.saturating_sub(used));
+    options.max_terms = options.max_terms.min(cap.saturating_sub(used));
     if options.decimate == 0 {
         let rows: usize = problem.runs.iter().map(|r| r.fit_rows.len()).sum();
         options.decimate = rows.div_ceil(AUTO_FIT_ROWS).max(1);

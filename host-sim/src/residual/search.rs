@@ -5,7 +5,7 @@
 
 use super::outcome::ModelFit;
 use super::select::COLLINEAR_REL;
-use super::split::{dot, residual, run_rmses, Split};
+use super::split::{dot, residual, Split};
 
 /// The forward selection's state: the model so far, an orthonormal basis of
 /// its columns on the fitting rows (modified Gram-Schmidt, re-orthogonalised
@@ -24,8 +24,8 @@ pub(super) struct Search {
     pub(super) names: Vec<String>,
     pub(super) current: ModelFit,
     pub(super) params: Vec<f64>,
-    /// The current model's validation RMSE per run.
-    pub(super) current_runs: Vec<f64>,
+    /// The current model's validation residual, row by row.
+    pub(super) current_e: Vec<f64>,
 }
 
 /// Remove from `v` its parts along every vector of `basis`, twice.
@@ -75,7 +75,7 @@ impl Search {
                 project_out(w, &basis);
             }
         }
-        let current_runs = run_rmses(val, &residual(val, &[], &base_params));
+        let current_e = residual(val, &[], &base_params);
         Self {
             basis,
             r,
@@ -86,7 +86,7 @@ impl Search {
             names,
             current: baseline,
             params: base_params,
-            current_runs,
+            current_e,
         }
     }
 
@@ -123,9 +123,9 @@ impl Search {
         names: Vec<String>,
         fit: ModelFit,
         params: Vec<f64>,
-        runs: Vec<f64>,
+        e: Vec<f64>,
     ) {
-        self.current_runs = runs;
+        self.current_e = e;
         self.chosen.push(k);
         self.names = names;
         self.current = fit;

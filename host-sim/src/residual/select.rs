@@ -34,7 +34,7 @@ use cable_joint::filter::LowPass1;
 use super::families::{effect_class, term_label};
 use super::outcome::{Outcome, Rival, RunError, RunTrace, Step};
 use super::search::{best, Search};
-use super::split::{check, corr, diagnostics, gather, model_fit, residual, run_rmses, Split};
+use super::split::{check, corr, diagnostics, gather, model_fit, residual, Split};
 use crate::stats::rms;
 
 /// Largest number of regressors (baseline plus effects) in one fit.
@@ -151,6 +151,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     let (baseline, base_params) = model_fit(&fit, &val, &[], &names)
         .map_err(|e| anyhow::anyhow!("fitting the baseline model [{}]: {e}", names.join(", ")))?;
     let mut search = Search::new(&fit, &val, names, baseline.clone(), base_params.clone());
+    let base_e = search.current_e.clone();
     let mut accepted: Vec<Step> = Vec::new();
     let mut rejected: Vec<Step> = Vec::new();
     let mut set_aside = vec![false; problem.candidates.len()];
@@ -179,14 +180,11 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             continue;
         };
         let gain = (search.current.val_rmse - mf.val_rmse) / search.current.val_rmse;
-        let cand_runs = run_rmses(&val, &residual(&val, &idx, &p));
-        let harm = worst_harm(
-            problem,
-            &val,
-            &cand_runs,
-            &search.current_runs,
-            opts.min_gain,
-        );
+        let cand_e = residual(&val, &idx, &p);
+        // Against the model so far and against the baseline: steps that
+        // each harm nothing significant may still add up to harm.
+        let harm = worst_harm(problem, &val, &cand_e, &search.current_e, opts.min_gain)
+            .or_else(|| worst_harm(problem, &val, &cand_e, &base_e, opts.min_gain));
         let term = problem.candidates[k];
         let mut step = Step {
             term,
@@ -202,7 +200,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             evidence: None,
         };
         if gain >= opts.min_gain && harm.is_none() {
-            search.accept(k, nm, mf, p, cand_runs);
+            search.accept(k, nm, mf, p, cand_e);
             misses = 0;
             accepted.push(step);
         } else {
@@ -240,22 +238,47 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     })
 }
 
-/// Do no harm: the validation run (regime) a candidate makes worse by more
-/// than `min_gain`, the smallest gain that keeps a term, the worst first.
+/// Batches a validation run is cut into for the standard error of its
+/// change in squared error (batch means: each batch, a tenth of a run, is
+/// longer than the residual's correlation time on the logs at hand, about
+/// 1 s on 20 s runs, so the batch means are nearly independent).
+pub const HARM_BATCHES: usize = 10;
+
+/// Student's t for `HARM_BATCHES - 1` degrees of freedom at 95 %
+/// (two-sided): a rise smaller than this many standard errors is within
+/// what the run's own noise and start-up state make of any refit.
+pub const HARM_T: f64 = 2.262;
+
+/// Do no harm: the validation run (regime) a candidate makes worse, the
+/// worst first, with its relative rise of the RMSE. A run counts as made
+/// worse when its RMSE rises by more than `min_gain` (the smallest gain that
+/// keeps a term) and the rise of its mean squared error is significant:
+/// more than [`HARM_T`] standard errors of the paired change `e_cand^2 -
+/// e_now^2`, estimated by batch means over [`HARM_BATCHES`] batches. A
+/// 1 % rise of one run among four, on 20 samples' worth of independent
+/// error, is noise; a term that moves one regime's error systematically is
+/// not.
 fn worst_harm(
     problem: &Problem,
     val: &Split,
-    cand_runs: &[f64],
-    current_runs: &[f64],
+    cand_e: &[f64],
+    current_e: &[f64],
     min_gain: f64,
 ) -> Option<(String, f64)> {
     val.runs
         .iter()
-        .zip(cand_runs.iter().zip(current_runs))
-        .map(|((ri, _, _), (&after, &before))| {
-            (problem.runs[*ri].name.clone(), after / before - 1.0)
+        .filter_map(|(ri, first, rows)| {
+            let seg = *first..*first + rows.len();
+            let (after, before) = (&cand_e[seg.clone()], &current_e[seg]);
+            let rise = rms(after) / rms(before) - 1.0;
+            let d: Vec<f64> = after
+                .iter()
+                .zip(before)
+                .map(|(a, b)| a * a - b * b)
+                .collect();
+            let (mean, se) = batch_mean_se(&d, HARM_BATCHES)?;
+            (rise > min_gain && mean > HARM_T * se).then(|| (problem.runs[*ri].name.clone(), rise))
         })
-        .filter(|(_, rise)| *rise > min_gain)
         .fold(None, |w: Option<(String, f64)>, (n, rise)| {
             if w.as_ref().is_none_or(|(_, r)| rise > *r) {
                 Some((n, rise))
@@ -263,6 +286,31 @@ fn worst_harm(
                 w
             }
         })
+}
+
+/// Mean of `d` and its standard error by batch means (`batches` equal
+/// contiguous batches; the remainder rows go to the last); `None` for fewer
+/// rows than batches or fewer than two batches.
+fn batch_mean_se(d: &[f64], batches: usize) -> Option<(f64, f64)> {
+    if batches < 2 || d.len() < batches {
+        return None;
+    }
+    let n = d.len() / batches;
+    let means: Vec<f64> = (0..batches)
+        .map(|b| {
+            let end = if b + 1 == batches {
+                d.len()
+            } else {
+                (b + 1) * n
+            };
+            let s = &d[b * n..end];
+            s.iter().sum::<f64>() / s.len() as f64
+        })
+        .collect();
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let m = means.iter().sum::<f64>() / batches as f64;
+    let var = means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (batches - 1) as f64;
+    Some((mean, (var / batches as f64).sqrt()))
 }
 
 /// Each validation run's errors before and after, and its traces for the
@@ -475,6 +523,31 @@ mod tests {
 
     /// A drift over time and a signal that happens to be a ramp explain the
     /// residual equally: the kept one names the other family as a rival.
+    /// The batch-means test behind do no harm: a rise of one run's squared
+    /// error that flips sign from batch to batch (what another refit makes
+    /// of a run's noise) is not significant; the same mean rise held in
+    /// every batch is.
+    #[test]
+    fn a_rise_within_a_runs_noise_is_not_harm_and_a_steady_one_is() {
+        let n = 1000;
+        // Batches alternate between +3 and -1: mean +1, standard error 0.67.
+        let noisy: Vec<f64> = (0..n)
+            .map(|k| if (k / 100) % 2 == 0 { 3.0 } else { -1.0 })
+            .collect();
+        let (mean, se) = batch_mean_se(&noisy, HARM_BATCHES).unwrap();
+        assert!(
+            (mean - 1.0).abs() < 1e-12 && mean < HARM_T * se,
+            "{mean} {se}"
+        );
+        let steady: Vec<f64> = (0..n).map(|k| 1.0 + 0.1 * ((k % 7) as f64 - 3.0)).collect();
+        let (mean, se) = batch_mean_se(&steady, HARM_BATCHES).unwrap();
+        assert!(mean > HARM_T * se, "{mean} {se}");
+        assert!(
+            batch_mean_se(&steady[..5], HARM_BATCHES).is_none(),
+            "too few rows"
+        );
+    }
+
     #[test]
     fn two_families_that_explain_the_residual_equally_are_named() {
         let n = 3000;

@@ -58,14 +58,6 @@ fn why_unusable(problem: &Problem, run: &RunData, k: usize) -> String {
     })
 }
 
-/// RMSE of `e` (over the validation rows) on each validation run.
-pub(super) fn run_rmses(val: &Split, e: &[f64]) -> Vec<f64> {
-    val.runs
-        .iter()
-        .map(|(_, first, rows)| rms(&e[*first..*first + rows.len()]))
-        .collect()
-}
-
 /// Rows of `range` that are finite in the target, fixed part, baseline and
 /// every signal, every `decimate`-th.
 fn rows_of(run: &RunData, range: &Range<usize>, decimate: usize) -> Vec<usize> {

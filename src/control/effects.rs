@@ -591,7 +591,7 @@ fn lag(state: &mut TermState, y: f64, x: f64, dt_s: f32, tau_s: f32) -> f64 {
 }
 
 /// [`EffectKind::StrokeHold`]: the lag moves only while `|v| > v_min`
-/// (`aux` counts the moving samples: 0 means not started yet).
+/// (`aux` is 1 once a moving sample has started the state, 0 before).
 fn stroke_hold(
     state: &mut TermState,
     u: f32,

@@ -4,7 +4,6 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use cable_joint::model::MAX_TERMS;
 use cable_joint::Config;
 
 use crate::cli;
@@ -122,11 +121,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     let fit = read_logs(&args.logs, project, zero, args.t_max_s)?;
     let validate = read_logs(&args.validate, project, zero, args.t_max_s)?;
     let options = SelectOptions {
-        max_terms: args.max_terms.unwrap_or(if project {
-            MAX_TERMS
-        } else {
-            GENERIC_MAX_TERMS
-        }),
+        max_terms: args.max_terms.unwrap_or(kind.max_terms().0),
         min_gain: args.min_gain,
         patience: args.patience,
         decimate: args.decimate.unwrap_or(0),

@@ -126,24 +126,14 @@ pub fn analyse(
     build_opts: BuildOptions,
     mut options: SelectOptions,
 ) -> Result<Analysis> {
-    let generic = matches!(kind, ModelKind::Generic { .. });
-    let cap = if generic {
-        GENERIC_MAX_TERMS
-    } else {
-        MAX_TERMS
-    };
+    let (cap, why) = kind.max_terms();
     ensure!(
         options.max_terms <= cap,
-        "at most {cap} effects ({}), got {}",
-        if generic {
-            "a generic fit's limit"
-        } else {
-            "the core's capacity per estimator"
-        },
+        "at most {cap} effects ({why}), got {}",
         options.max_terms
     );
     let (problem, _) = build(&kind, fit, validate, config, build_opts)?;
-    // The core holds MAX_TERMS run-time terms per estimator.
+    // The limit counts the terms the model already keeps.
     let used = match kind {
         ModelKind::Force => config.tension.added.len as usize,
         _ => problem.kept.len(),

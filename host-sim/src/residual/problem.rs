@@ -59,6 +59,20 @@ pub enum ModelKind {
 }
 
 impl ModelKind {
+    /// Most effects the loop may add for this model, and why: the core's
+    /// capacity per estimator (jae, tension, force: the terms go into the
+    /// configuration), or [`GENERIC_MAX_TERMS`](super::GENERIC_MAX_TERMS) for
+    /// a generic fit, which writes no configuration.
+    pub fn max_terms(&self) -> (usize, &'static str) {
+        match self {
+            ModelKind::Generic { .. } => (super::GENERIC_MAX_TERMS, "a generic fit's limit"),
+            _ => (
+                cable_joint::model::MAX_TERMS,
+                "the core's capacity per estimator",
+            ),
+        }
+    }
+
     /// Short name.
     pub fn name(&self) -> &'static str {
         match self {

@@ -521,8 +521,6 @@ mod tests {
         );
     }
 
-    /// A drift over time and a signal that happens to be a ramp explain the
-    /// residual equally: the kept one names the other family as a rival.
     /// The batch-means test behind do no harm: a rise of one run's squared
     /// error that flips sign from batch to batch (what another refit makes
     /// of a run's noise) is not significant; the same mean rise held in
@@ -548,6 +546,8 @@ mod tests {
         );
     }
 
+    /// A drift over time and a signal that happens to be a ramp explain the
+    /// residual equally: the kept one names the other family as a rival.
     #[test]
     fn two_families_that_explain_the_residual_equally_are_named() {
         let n = 3000;

@@ -311,9 +311,12 @@ pub struct FusionConfig {
     /// Relative uncertainty of an identified Coulomb level while its element
     /// slips (0.25 = ±25 %).
     pub kinetic_tolerance: f32,
-    /// JAE error that is not slider 2's friction (model error), rad. The
-    /// default is the seed's mean JAE identification error, 0.275°;
-    /// `identify` writes the 95th percentile of its own residual.
+    /// JAE error beyond the sign band the bound builds on `|c3|`, rad:
+    /// model error, and the uncertainty of `c3` itself. The default is the
+    /// seed's mean JAE identification error, 0.275°; `identify` writes two
+    /// RMS of its own residual plus `2 (1 + static_over_kinetic)` effective
+    /// standard deviations of `c3` (a run that cannot pin `c3` down widens
+    /// the bound instead of narrowing it).
     pub jae_error_rad: f32,
     /// Window over which a net displacement counts as a slow slip (creep), s.
     pub creep_window_s: f32,

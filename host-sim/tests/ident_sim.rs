@@ -226,6 +226,38 @@ fn the_spring_rate_is_measured_through_the_motor_on_plants_whose_spring_is_not_t
     }
 }
 
+/// Slider 2 with eight times its friction (0.9 N, 1.1° at the joint): the
+/// calibration run's sweeps leave the JAE's sign term `c3` free (the viscous
+/// `c2` takes up most of the Coulomb level, and stick at the reversals
+/// pulls `c3` down), so its effective standard deviation exceeds its value.
+/// The identification flags it and widens the force bound's JAE floor
+/// (`fusion.jae_error_rad`) by two effective standard deviations per unit
+/// of the sign band's width, on top of two RMS of the residual.
+#[test]
+fn a_sign_term_the_run_cannot_pin_down_widens_the_force_bound() {
+    let mut plant = PlantParams::default();
+    plant.slider2.coulomb_n *= 8.0;
+    plant.slider2.static_n *= 8.0;
+    let base = Config::default();
+    let log = simulate_on(plant, "jae-ident", &base, None, 42.0);
+    let r = identify_jae_with(&[("jae", &log)], &base, &IdentOptions::default()).unwrap();
+    let std = r.sign_term_std_eff_rad();
+    let c3 = r.chi_s[2];
+    let physical = plant.jae_coefficients()[2];
+    assert!(
+        !r.sign_term_identified() && c3.abs() < 0.5 * physical,
+        "c3 {c3} rad (physical {physical}), effective std {std}"
+    );
+    let mut cfg = base;
+    r.apply(&mut cfg);
+    let rho = f64::from(base.fusion.static_over_kinetic);
+    let widening = f64::from(cfg.fusion.jae_error_rad) - 2.0 * r.error_deg.rmse.to_radians();
+    assert!(
+        (widening - 2.0 * (1.0 + rho) * std).abs() < 1e-6 && widening > 0.5 * physical,
+        "floor widened by {widening} rad for c3's std {std} rad (physical c3 {physical})"
+    );
+}
+
 /// On the default plant, whose spring is the datasheet's, the measured rate
 /// does no harm: whatever is written stays within 5 % of the plant's.
 #[test]

@@ -274,12 +274,30 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let _ = writeln!(s, "  identification error: {}", format_stats(&j.error_deg));
         let _ = writeln!(
             s,
-            "  -> jae: chi_s = [{}, {}, {}, {}], offset {} rad (seed: [0.0805, 0.5225, 0.0025, 264.356], error mean 0.275°, max 0.836°)\n",
+            "  -> jae: chi_s = [{}, {}, {}, {}], offset {} rad (seed: [0.0805, 0.5225, 0.0025, 264.356], error mean 0.275°, max 0.836°)",
             fmt_num(j.chi_s[0]),
             fmt_num(j.chi_s[1]),
             fmt_num(j.chi_s[2]),
             fmt_num(j.chi_s[3]),
             fmt_num(j.offset_rad)
+        );
+        let c3_std = j.sign_term_std_eff_rad();
+        let _ = writeln!(
+            s,
+            "  -> fusion.jae_error_rad: 2 RMS of the residual ({} rad) plus 2 (1 + fusion.static_over_kinetic) times the sign term's effective std ({} rad){}\n",
+            fmt_num(2.0 * j.error_deg.rmse.to_radians()),
+            fmt_num(c3_std),
+            if j.sign_term_identified() {
+                String::new()
+            } else {
+                format!(
+                    ". This run does not identify slider 2's sign term: c3 = {} rad with an effective std of {} rad; \
+                     the force bound widens by its uncertainty. Sweeps at several speeds, or longer holds between \
+                     reversals, separate c3 from the viscous c2",
+                    fmt_num(j.chi_s[2]),
+                    fmt_num(c3_std)
+                )
+            }
         );
         let sp = &j.spring;
         let _ = writeln!(

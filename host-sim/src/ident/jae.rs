@@ -78,6 +78,33 @@ pub fn validate_jae(
 }
 
 impl JaeResult {
+    /// The sign term `c3`'s standard deviation with the residual's
+    /// correlation taken into account (`std sqrt(tau)`, the `%sigma eff`
+    /// column), rad.
+    pub fn sign_term_std_eff_rad(&self) -> f64 {
+        self.fit.param(Regressor::SgnX2Vel).map_or(f64::NAN, |p| {
+            p.std * self.fit.residual_corr_ticks.max(1.0).sqrt()
+        })
+    }
+
+    /// Whether the run pins `c3` down: its effective `%sigma` below 100 %.
+    /// Stick-slip at the reversals and a viscous term that takes up the
+    /// Coulomb level at near-constant sweep speeds can leave it free.
+    pub fn sign_term_identified(&self) -> bool {
+        self.sign_term_std_eff_rad() < self.chi_s[2].abs()
+    }
+
+    /// The JAE error the force bound allows beyond the sign band it builds
+    /// on `|c3|` (`fusion.jae_error_rad`), rad: two RMS of the
+    /// identification residual, plus two effective standard deviations of
+    /// `c3` times `1 + static_over_kinetic` (the band's widest width per
+    /// unit of `c3`, a stuck slider 2), so that a sign term the run could
+    /// not pin down widens the bound instead of narrowing it.
+    pub fn bound_error_rad(&self, static_over_kinetic: f64) -> f64 {
+        2.0 * self.error_deg.rmse.to_radians()
+            + 2.0 * (1.0 + static_over_kinetic) * self.sign_term_std_eff_rad()
+    }
+
     /// Write `chi_s` and the offset into the configuration.
     pub fn apply(&self, config: &mut Config) {
         let j = &mut config.jae;
@@ -98,9 +125,7 @@ impl JaeResult {
         ) {
             config.stretch = s;
         }
-        // The JAE's error beyond slider 2's friction, for the force bound:
-        // two RMS of the identification residual.
-        let err_rad = 2.0 * self.error_deg.rmse.to_radians();
+        let err_rad = self.bound_error_rad(f64::from(config.fusion.static_over_kinetic));
         if err_rad.is_finite() {
             config.fusion.jae_error_rad = err_rad as f32;
         }

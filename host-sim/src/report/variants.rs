@@ -382,7 +382,7 @@ fn identified_vs_plant(c: &Config, p: &PlantParams) -> String {
     format!(
         "identified pin Coulomb {:.2} mN·m (plant {:.2} kinetic, {:.2} static); \
          K_w1 {:.0} N/m, K_w2 {:.0} N/m (plant {:.0}, {:.0}) from {spring}, {:.0} N/m (plant {:.0}); \
-         JAE sign term {:.3}°, model error {:.3}°",
+         JAE sign term {:.3}°, JAE floor {:.3}° (model error and the sign term's uncertainty)",
         1e3 * c.fusion.pin_coulomb_nm,
         1e3 * p.joint.coulomb_nm,
         1e3 * p.joint.static_nm,

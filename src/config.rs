@@ -318,6 +318,16 @@ pub struct FusionConfig {
     /// standard deviations of `c3` (a run that cannot pin `c3` down widens
     /// the bound instead of narrowing it).
     pub jae_error_rad: f32,
+    /// Relative uncertainty of the stretch estimate's force scale, the
+    /// cables' stiffnesses (0.10 = ±10 %). They rest on the spring rate and
+    /// on `c4` (Eq. 16, `K_w2 = K_s / (c4 r - 1)`), so a spring softer or
+    /// stiffer than its datasheet scales every tension the stretch reads:
+    /// the bound widens by this share of the stretch torque. The default is
+    /// a stock compression spring's usual rate tolerance, ±10 %; `identify`
+    /// writes the spring rate's uncertainty as the calibration run measured
+    /// it (no wider than this when the datasheet's rate stands) plus two
+    /// effective standard deviations of `c4` carried through `c4 r - 1`.
+    pub stiffness_tolerance: f32,
     /// Window over which a net displacement counts as a slow slip (creep), s.
     pub creep_window_s: f32,
     /// Net displacement within the window that counts as creep, m (three
@@ -336,6 +346,7 @@ impl Default for FusionConfig {
             static_over_kinetic: 1.5,
             kinetic_tolerance: 0.25,
             jae_error_rad: 0.275 * crate::math::PI / 180.0,
+            stiffness_tolerance: 0.10,
             creep_window_s: 0.1,
             creep_distance_m: 3e-6,
         }
@@ -1099,6 +1110,12 @@ impl Config {
             f.jae_error_rad,
             0.0..=1.0,
             "within 0..=1 rad",
+        )?;
+        within(
+            "fusion.stiffness_tolerance",
+            f.stiffness_tolerance,
+            0.0..=1.0,
+            "within 0..=1",
         )?;
         within(
             "fusion.creep_window_s",

@@ -35,12 +35,13 @@ use crate::config::{Config, ConfigError};
 use crate::controller::{Command, PreparedConfig};
 
 /// Version of the wire format. Raise it on any change of the frame layout
-/// or of a message's encoding (2: `Trajectory::Grip`).
-pub const LINK_VERSION: u8 = 2;
+/// or of a message's encoding (2: `Trajectory::Grip`; 3: the
+/// configuration's `fusion.stiffness_tolerance`).
+pub const LINK_VERSION: u8 = 3;
 
 /// Largest decoded frame, bytes (version, seq, body and CRC): a whole
-/// [`Config`] takes 377 on the wire (measured in a test that keeps it
-/// below [`MAX_WIRE_LEN`]).
+/// [`Config`] with an added term in each model takes 381 on the wire
+/// (measured in a test that keeps it below [`MAX_WIRE_LEN`]).
 pub const MAX_FRAME_LEN: usize = 1024;
 
 /// Largest encoded frame on the wire, bytes: COBS adds one byte per 254 and

@@ -209,6 +209,14 @@ fn the_spring_rate_is_measured_through_the_motor_on_plants_whose_spring_is_not_t
             "{:?}",
             r.spring
         );
+        // The force bound's stiffness scale covers the written rate's error.
+        let tol = f64::from(cfg.fusion.stiffness_tolerance);
+        assert!(
+            rel(k, truth) <= tol && tol < 0.5,
+            "spring x{spring_scale}: rate off by {:.3}, tolerance {tol:.3} ({:?})",
+            rel(k, truth),
+            r.stiffness_tolerance
+        );
         // Cable 2 from c4 with the measured spring, against c4 with the
         // datasheet's (c4 r - 1 = K_s / K_w2 is small, so c4's own error
         // weighs on both).

@@ -99,6 +99,9 @@ pub struct Fusion {
     theta_floor_rad: f32,
     rho: f32,
     kappa: f32,
+    /// Relative uncertainty of the stretch torque's scale (the cables'
+    /// stiffnesses).
+    scale_tol: f32,
     v1_m_s: f32,
     v2_m_s: f32,
     creep_ticks: u32,
@@ -257,6 +260,7 @@ impl Fusion {
             c3_rad: math::abs(c.jae.c_sign_rad),
             theta_floor_rad: f.jae_error_rad + c.jae.c_pos_rad_m * c.scales.grating_m_per_count,
             rho: f.static_over_kinetic,
+            scale_tol: f.stiffness_tolerance,
             kappa: f.kinetic_tolerance,
             v1_m_s: c.tension.sign_switch_x1_m_s,
             v2_m_s: c.jae.sign_switch_m_s,
@@ -349,7 +353,9 @@ impl Fusion {
         let dob_hi = (base_n - f_lo + ripple_n) * self.tip_per_tension;
 
         // Stretch interval: F_ext = (tau - pin friction) / l_e, with tau's own
-        // error from the JAE band (slider 2's friction and the model floor).
+        // error from the JAE band (slider 2's friction and the model floor)
+        // and from the cables' stiffness scale (a share of tau itself).
+        let tau_err = tau_err + self.scale_tol * math::abs(i.joint_torque_nm);
         let str_lo = (i.joint_torque_nm - tau_err - pin_hi) * self.tip_per_torque;
         let str_hi = (i.joint_torque_nm + tau_err - pin_lo) * self.tip_per_torque;
 
@@ -449,6 +455,59 @@ mod tests {
         assert!(out.f_ext_n.abs() < 1e-5);
     }
 
+    /// A held load: the stretch interval widens by the stiffness scale's
+    /// share of the stretch torque, `tol |tau| / l_e` on each side, and not
+    /// at all without a load; the point estimate does not move. A stretch
+    /// that reads a load 10 % high (a spring 10 % stiffer than the plant's)
+    /// is still bounded with the default ±10 %.
+    #[test]
+    fn the_stretch_interval_widens_by_the_stiffness_scale_under_a_load() {
+        let held = |tol: f32, load_n: f32| {
+            let mut c = Config::default();
+            c.fusion.stiffness_tolerance = tol;
+            // A DOB interval wide enough that the stretch interval decides,
+            // and no friction or JAE band: the scale's share stands alone.
+            c.tension.f_sc1_n = 50.0;
+            c.fusion.pin_coulomb_nm = 0.0;
+            c.fusion.jae_error_rad = 0.0;
+            c.jae.c_sign_rad = 0.0;
+            let f = Fusion::new(&c, c.period_s());
+            let mut s = FusionState::default();
+            let mut out = FusionOut::default();
+            for _ in 0..2000 {
+                out = f.update(
+                    &mut s,
+                    &FusionIn {
+                        tension1_dob_n: c.tension.f_0_n,
+                        tension1_model_n: c.tension.f_0_n,
+                        joint_torque_nm: load_n * c.machine.gripper_length_m,
+                        ..FusionIn::default()
+                    },
+                );
+            }
+            out
+        };
+        let c = Config::default();
+        let tol = c.fusion.stiffness_tolerance;
+        assert!(tol > 0.0);
+        let (bare, scaled) = (held(0.0, 2.0), held(tol, 2.0));
+        let widened = (scaled.hi_n - bare.hi_n, bare.lo_n - scaled.lo_n);
+        assert!(
+            (widened.0 - tol * 2.0).abs() < 1e-4 && (widened.1 - tol * 2.0).abs() < 1e-4,
+            "{widened:?} for {tol} of 2 N"
+        );
+        assert!((scaled.f_ext_n - bare.f_ext_n).abs() < 1e-6);
+        let (bare0, scaled0) = (held(0.0, 0.0), held(tol, 0.0));
+        assert!(
+            (scaled0.hi_n - bare0.hi_n).abs() < 1e-6 && (scaled0.lo_n - bare0.lo_n).abs() < 1e-6
+        );
+        // A stretch reading 10 % high: the true 2 N is outside the bare
+        // interval and inside the scaled one.
+        assert!(held(0.0, 2.2).lo_n > 2.0);
+        let high = held(tol, 2.2);
+        assert!(high.lo_n <= 2.0, "{high:?}");
+    }
+
     /// A load seen by both estimates: the bound contains it, and where the
     /// DOB is narrow (slider 1 slipping) the intersection is tighter than
     /// either interval alone.
@@ -486,7 +545,11 @@ mod tests {
     /// to the rest band once the force holds still.
     #[test]
     fn a_ramping_force_stays_inside_the_bound_despite_the_filter_lag() {
-        let (f, c) = fusion();
+        // The lag alone: without the stiffness scale's share of the held
+        // torque, the bound at the held force is the rest band again.
+        let mut c = Config::default();
+        c.fusion.stiffness_tolerance = 0.0;
+        let f = Fusion::new(&c, c.period_s());
         let m = &c.machine;
         let g = c.dob.cutoff_rad_s;
         let dt = c.period_s();

@@ -310,6 +310,11 @@ pub fn format_report(r: &IdentifyReport) -> String {
             fmt_num(sp.residual_rms_n),
             sp.note
         );
+        let [tol, tol_spring, tol_c4] = j.stiffness_tolerance;
+        let _ = writeln!(
+            s,
+            "  -> fusion.stiffness_tolerance = {tol:.3}: the spring rate's relative uncertainty {tol_spring:.3} plus c4's through c4 r - 1, {tol_c4:.3}"
+        );
         let jf = &j.joint;
         let _ = writeln!(
             s,

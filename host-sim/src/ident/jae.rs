@@ -44,7 +44,7 @@ pub fn identify_jae_with(
     if joint.note.is_empty() {
         joint.note = joint.apply(&mut measured);
     }
-    Ok(JaeResult {
+    let mut result = JaeResult {
         spring,
         joint,
         chi_s: [
@@ -56,7 +56,13 @@ pub fn identify_jae_with(
         offset_rad: fit.value(Regressor::One),
         error_deg,
         fit,
-    })
+        stiffness_tolerance: [f64::NAN; 3],
+    };
+    result.stiffness_tolerance = result.scale_tolerance(
+        f64::from(config.fusion.stiffness_tolerance),
+        f64::from(config.machine.pulley_radius_m),
+    );
+    Ok(result)
 }
 
 /// Errors of an identified JAE on another log with the magnetic encoder (deg).
@@ -94,6 +100,29 @@ impl JaeResult {
         self.sign_term_std_eff_rad() < self.chi_s[2].abs()
     }
 
+    /// Relative uncertainty of the cables' stiffnesses, the stretch
+    /// estimate's force scale (`fusion.stiffness_tolerance`), given the
+    /// spring datasheet's tolerance: the spring rate's
+    /// ([`SpringFit::relative_uncertainty`](super::SpringFit::relative_uncertainty))
+    /// plus `c4`'s carried through `K_w2 = K_s / (c4 r - 1)`, two effective
+    /// standard deviations, `2 r std_eff(c4) / (c4 r - 1)`. Returns the
+    /// tolerance and its two parts ([`JaeResult::stiffness_tolerance`]).
+    fn scale_tolerance(&self, datasheet_tol: f64, pulley_radius_m: f64) -> [f64; 3] {
+        let spring = self.spring.relative_uncertainty(datasheet_tol);
+        let c4 = self.chi_s[3];
+        let excess = c4 * pulley_radius_m - 1.0;
+        let c4_part = self
+            .fit
+            .param(Regressor::X2)
+            .map(|p| {
+                2.0 * pulley_radius_m * p.std * self.fit.residual_corr_ticks.max(1.0).sqrt()
+                    / excess
+            })
+            .filter(|v| excess > 0.0 && v.is_finite())
+            .unwrap_or(0.0);
+        [(spring + c4_part).min(1.0), spring, c4_part]
+    }
+
     /// The JAE error the force bound allows beyond the sign band it builds
     /// on `|c3|` (`fusion.jae_error_rad`), rad: two RMS of the
     /// identification residual, plus two effective standard deviations of
@@ -124,6 +153,10 @@ impl JaeResult {
             m.pulley_radius_m,
         ) {
             config.stretch = s;
+        }
+        let tol = self.stiffness_tolerance[0];
+        if tol.is_finite() {
+            config.fusion.stiffness_tolerance = tol as f32;
         }
         let err_rad = self.bound_error_rad(f64::from(config.fusion.static_over_kinetic));
         if err_rad.is_finite() {

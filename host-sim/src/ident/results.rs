@@ -113,6 +113,10 @@ pub struct JaeResult {
     /// The joint's torque balance on the same runs (cable 1's stiffness and
     /// the pin's friction, for the stretch and fused force estimates).
     pub joint: JointFit,
+    /// The cables' stiffness scale's relative uncertainty
+    /// (`fusion.stiffness_tolerance`) and its two parts: `[total, spring
+    /// rate, c4]`.
+    pub stiffness_tolerance: [f64; 3],
 }
 
 /// Result of [`identify_tension`](super::identify_tension).

@@ -236,14 +236,13 @@ pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
     }
     let _ = writeln!(
         o,
-        "\nWhere the bound misses: each joint's estimate and bound pass through the DOB's \
-         low-pass `Q` (`cable_joint::fusion`), so they bound the force as `Q` lets it through. \
-         While the squeeze rises or falls (closing and opening) the true force runs ahead of \
-         both by about `F'/g`, and the bound misses it. The hold's coverage counts \
-         its first ticks, right after the closing move, where the lag still shows (not traced \
-         further); on slider-2 friction the bound misses the whole hold, as the single \
-         joint's does there (the JAE's sign term identified 22 % low, README \"Force at \
-         standstill\"). Widening the bound by the estimate's own rate over `g` was not tried yet."
+        "\nWhat the bound allows for: each joint's estimate and bound pass through the DOB's \
+         low-pass `Q` (`cable_joint::fusion`), so while the squeeze rises or falls the true \
+         force runs ahead of both by about `F'/g`; the bound widens by that lag \
+         (`Q[F] - Q^2[F]`) on the side the force moves to. It also carries the JAE sign term's \
+         own uncertainty (`fusion.jae_error_rad`) and the cables' stiffness scale, a share \
+         `fusion.stiffness_tolerance` of each joint's stretch torque, which is why it widens \
+         with the squeeze. What still escapes is in the coverage columns."
     );
     let _ = writeln!(
         o,

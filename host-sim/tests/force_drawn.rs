@@ -1,0 +1,59 @@
+//! The fused force bound and the slack check on drawn plants the project
+//! was not tuned on (every force-path parameter ±30 %, `report::variants::
+//! drawn`), identified from their own calibration runs and run through the
+//! seed's loading protocol, passive and with probing, as the report does.
+//!
+//! Draws 25 and 39 come from a set of twenty (21 to 40) run after the ten
+//! report variants, to test the bound out of sample. With the cables'
+//! stiffness scale taken as exact, draw 25's bound covered 90.1 % of the hold
+//! samples and draw 39 latched two false slack faults (cable 1 read below
+//! its limit while it carried 8.1 and 8.4 N): its spring is 28 % softer than
+//! the datasheet, and the calibration run's spring fit (479 N/m, %sigma 5.1)
+//! was too loose to replace it.
+
+use host_sim::report::programme::Settings;
+use host_sim::report::progress::Progress;
+use host_sim::report::variants::{drawn, run_variant, Variant};
+
+fn run(seed: u64) -> host_sim::report::variants::VariantResult {
+    let v = Variant {
+        name: format!("draw {seed}"),
+        what: "every parameter ±30 %".into(),
+        plant: drawn(seed),
+        rate_hz: 2000.0,
+    };
+    let s = Settings {
+        seed: 1,
+        scale: 1.0,
+        progress: Progress::new(true),
+    };
+    let r = run_variant(&v, &s);
+    assert_eq!(r.error, None, "draw {seed}: identification failed");
+    r
+}
+
+/// The bound carries the stiffness scale's uncertainty (the datasheet
+/// spring's tolerance, widened to the calibration fit's disagreement with
+/// it): it covers the load in at least 95 % of the hold samples, passive and
+/// with probing, and no fault latches that the plant's state does not
+/// confirm.
+#[test]
+fn on_drawn_plants_the_bound_covers_the_load_and_no_fault_is_false() {
+    for seed in [25, 39] {
+        let r = run(seed);
+        let probing = r.probing.as_ref().expect("probing ran");
+        for (mode, p) in [("passive", &r.passive), ("probing", probing)] {
+            assert!(
+                p.coverage >= 0.95,
+                "draw {seed} {mode}: coverage {:.1} %; notes {:?}",
+                100.0 * p.coverage,
+                r.notes
+            );
+            assert_eq!(
+                p.false_faults, 0,
+                "draw {seed} {mode}: false faults {:?}",
+                p.faults
+            );
+        }
+    }
+}

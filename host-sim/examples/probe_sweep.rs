@@ -48,6 +48,7 @@ fn main() -> Result<()> {
         seed: 1,
         scale: 1.0,
         progress: Progress::new(true),
+        draws: None,
     };
     let pairs = settings(&args[1])?;
     println!("| variant | f [Hz] | A [°] | fused worst ≥1 N [%] | worst 0.3 N [%] | static no-load [N] | coverage [%] | tip motion [°] | faults |");

@@ -3,8 +3,9 @@
 //! drawn`), identified from their own calibration runs and run through the
 //! seed's loading protocol, passive and with probing, as the report does.
 //!
-//! Draws 25 and 39 come from a set of twenty (21 to 40) run after the ten
-//! report variants, to test the bound out of sample. With the cables'
+//! Draws 25 and 39 come from a set of twenty (`host-sim report --draws
+//! 21-40`) run after the ten report variants, to test the bound out of
+//! sample. With the cables'
 //! stiffness scale taken as exact, draw 25's bound covered 90.1 % of the hold
 //! samples and draw 39 latched two false slack faults (cable 1 read below
 //! its limit while it carried 8.1 and 8.4 N): its spring is 28 % softer than
@@ -13,21 +14,19 @@
 
 use host_sim::report::programme::Settings;
 use host_sim::report::progress::Progress;
-use host_sim::report::variants::{drawn, run_variant, Variant};
+use host_sim::report::variants::{drawn_variants, run_variant, VariantResult};
 
-fn run(seed: u64) -> host_sim::report::variants::VariantResult {
-    let v = Variant {
-        name: format!("draw {seed}"),
-        what: "every parameter ±30 %".into(),
-        plant: drawn(seed),
-        rate_hz: 2000.0,
-    };
+/// One drawn plant as `host-sim report --draws N-N` runs it (odd seeds at
+/// 2 kHz).
+fn run(seed: u64) -> VariantResult {
+    let v = &drawn_variants(seed, seed)[0];
     let s = Settings {
         seed: 1,
         scale: 1.0,
         progress: Progress::new(true),
+        draws: None,
     };
-    let r = run_variant(&v, &s);
+    let r = run_variant(v, &s);
     assert_eq!(r.error, None, "draw {seed}: identification failed");
     r
 }

@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::experiments::logged_with;
 use super::programme::{run_seed, Settings};
-use super::variants::{variants, Variant};
+use super::variants::{for_settings, Variant};
 use crate::ident::excite::{self, Criterion, Design, PREDICTION_RATE_HZ};
 use crate::ident::{identify_jae_with, validate_jae, IdentOptions};
 use crate::log::Log;
@@ -148,7 +148,7 @@ pub fn run_all(s: &Settings) -> Result<ExcitationSection> {
         .collect::<Result<Vec<_>>>()?;
     let mut rows = Vec::new();
     let mut validation_faults = Vec::new();
-    for v in variants() {
+    for v in for_settings(s) {
         s.progress.line(
             &format!("excitation {}", v.name),
             "jae-ident vs designed series",

@@ -90,6 +90,9 @@ pub struct ReportOptions {
     pub serial: bool,
     /// No progress lines on stderr.
     pub quiet: bool,
+    /// Run the force sections (plant variants, excitation, wrist, grip) on
+    /// drawn plants `first..=last` instead of the ten variants.
+    pub draws: Option<(u64, u64)>,
 }
 
 impl Default for ReportOptions {
@@ -102,6 +105,7 @@ impl Default for ReportOptions {
             effect: Vec::new(),
             serial: false,
             quiet: false,
+            draws: None,
         }
     }
 }
@@ -296,6 +300,7 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         seed: args.seed,
         scale: args.duration_scale,
         progress,
+        draws: args.draws,
     };
     let dir = &args.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

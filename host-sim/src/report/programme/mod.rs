@@ -50,6 +50,10 @@ pub struct Settings {
     pub scale: f64,
     /// Progress output.
     pub progress: Progress,
+    /// Run the force sections on drawn plants `first..=last`
+    /// ([`crate::report::variants::drawn_variants`]) instead of the report's
+    /// ten variants.
+    pub draws: Option<(u64, u64)>,
 }
 
 /// Logs of the identification runs (kept for the figures and the residual

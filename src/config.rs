@@ -325,8 +325,9 @@ pub struct FusionConfig {
     /// the bound widens by this share of the stretch torque. The default is
     /// a stock compression spring's usual rate tolerance, ±10 %; `identify`
     /// writes the spring rate's uncertainty as the calibration run measured
-    /// it (no wider than this when the datasheet's rate stands) plus two
-    /// effective standard deviations of `c4` carried through `c4 r - 1`.
+    /// it when the measurement replaced the datasheet, else this tolerance
+    /// widened to the measurement's disagreement with the datasheet, plus
+    /// two effective standard deviations of `c4` carried through `c4 r - 1`.
     pub stiffness_tolerance: f32,
     /// Window over which a net displacement counts as a slow slip (creep), s.
     pub creep_window_s: f32,

@@ -88,9 +88,7 @@ impl JaeResult {
     /// correlation taken into account (`std sqrt(tau)`, the `%sigma eff`
     /// column), rad.
     pub fn sign_term_std_eff_rad(&self) -> f64 {
-        self.fit.param(Regressor::SgnX2Vel).map_or(f64::NAN, |p| {
-            p.std * self.fit.residual_corr_ticks.max(1.0).sqrt()
-        })
+        self.fit.std_eff(Regressor::SgnX2Vel).unwrap_or(f64::NAN)
     }
 
     /// Whether the run pins `c3` down: its effective `%sigma` below 100 %.
@@ -113,11 +111,8 @@ impl JaeResult {
         let excess = c4 * pulley_radius_m - 1.0;
         let c4_part = self
             .fit
-            .param(Regressor::X2)
-            .map(|p| {
-                2.0 * pulley_radius_m * p.std * self.fit.residual_corr_ticks.max(1.0).sqrt()
-                    / excess
-            })
+            .std_eff(Regressor::X2)
+            .map(|std| 2.0 * pulley_radius_m * std / excess)
             .filter(|v| excess > 0.0 && v.is_finite())
             .unwrap_or(0.0);
         [(spring + c4_part).min(1.0), spring, c4_part]

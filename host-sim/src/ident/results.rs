@@ -56,6 +56,14 @@ impl FitReport {
         self.params.iter().find(|p| p.regressor == regressor)
     }
 
+    /// Standard deviation of the parameter of `regressor` with the
+    /// residual's correlation taken into account, `std sqrt(tau)` (the
+    /// `%sigma eff` column in the parameter's unit), if the model has it.
+    pub fn std_eff(&self, regressor: Regressor) -> Option<f64> {
+        self.param(regressor)
+            .map(|p| p.std * self.residual_corr_ticks.max(1.0).sqrt())
+    }
+
     /// Value of the parameter of `regressor`, 0 if the model lacks it.
     pub fn value(&self, regressor: Regressor) -> f64 {
         self.param(regressor).map_or(0.0, |p| p.value)

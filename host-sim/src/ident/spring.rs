@@ -184,9 +184,6 @@ impl SpringFit {
         (pinned && (k - self.datasheet_n_m).abs() > self.uncertainty_n_m()).then_some(k)
     }
 
-    /// How far the rate may be off, N/m: two standard deviations, or the
-    /// disagreement of the earlier and later half of the sweeps (a machine
-    /// constant does not depend on the trajectory) when that is larger.
     /// Relative uncertainty of the spring rate the configuration ends up
     /// with, given the datasheet's own tolerance `datasheet_tol`: the
     /// measurement's ([`Self::uncertainty_n_m`] over the rate) when it
@@ -208,6 +205,9 @@ impl SpringFit {
         }
     }
 
+    /// How far the rate may be off, N/m: two standard deviations, or the
+    /// disagreement of the earlier and later half of the sweeps (a machine
+    /// constant does not depend on the trajectory) when that is larger.
     pub fn uncertainty_n_m(&self) -> f64 {
         let (k, pct) = self.k_s_n_m;
         let spread = (self.halves_n_m.0 - self.halves_n_m.1).abs();

@@ -413,6 +413,12 @@ impl Controller {
         })
     }
 
+    /// The DOB's and the cable stretch's intervals of the last step, before
+    /// the fusion intersected them ([`crate::fusion::Sources`]).
+    pub fn fusion_sources(&self) -> fusion::Sources {
+        self.state.fusion.sources
+    }
+
     /// The configuration in force.
     pub fn config(&self) -> &Config {
         &self.prepared.config

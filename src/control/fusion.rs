@@ -188,7 +188,21 @@ pub struct FusionState {
     /// `Q` of the point estimate (`Q²` of the force), N: its distance from
     /// the point is the filter's lag, see [`Fusion::update`].
     point_q_n: f32,
+    /// The two intervals this tick's bound was made of.
+    pub sources: Sources,
     primed: bool,
+}
+
+/// The interval of tip forces each estimate allows in one tick, before
+/// they are intersected (and before the bound widens by the low-pass's
+/// lag): what another way of combining them would start from, e.g. the
+/// Kalman filters the report measures this design against.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sources {
+    /// The DOB's interval `(lo, hi)`, N.
+    pub dob_n: (f32, f32),
+    /// The cable stretch's interval `(lo, hi)`, N.
+    pub stretch_n: (f32, f32),
 }
 
 /// What the fusion reads in one tick (all already computed by the step).
@@ -358,6 +372,10 @@ impl Fusion {
         let tau_err = tau_err + self.scale_tol * math::abs(i.joint_torque_nm);
         let str_lo = (i.joint_torque_nm - tau_err - pin_hi) * self.tip_per_torque;
         let str_hi = (i.joint_torque_nm + tau_err - pin_lo) * self.tip_per_torque;
+        s.sources = Sources {
+            dob_n: (dob_lo, dob_hi),
+            stretch_n: (str_lo, str_hi),
+        };
 
         let mut flags = 0;
         if s1 == 0.0 {

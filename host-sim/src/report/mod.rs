@@ -45,6 +45,7 @@ pub mod experiments;
 pub mod figures;
 pub mod goals;
 pub mod grip;
+pub mod kalman;
 pub mod keys;
 pub mod markdown;
 pub mod programme;

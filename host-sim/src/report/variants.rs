@@ -15,6 +15,7 @@ use serde::Serialize;
 
 use super::programme::{identify_config, run_seed, Settings};
 use crate::plant::PlantParams;
+use crate::report::kalman::{Design, KalmanForce, FRICTION_TAU_S};
 use crate::scenario::{self, Direction, Phase, ScenarioOptions, G_M_S2};
 use crate::sim::{Recorder, TickRecord};
 use crate::stats::Acc;
@@ -24,8 +25,30 @@ use crate::stats::DEG_PER_RAD;
 const ANGLES_DEG: [f64; 3] = [0.0, 30.0, -40.0];
 const MASSES_G: [f64; 3] = [30.0, 100.0, 250.0];
 
-/// The estimates judged.
-pub const SOURCES: [&str; 4] = ["DOB (seed)", "stretch", "fused", "fused midpoint"];
+/// The estimates judged: the DOB as published, the stretch, the fused
+/// set-membership estimate and its bound's midpoint, and the two Kalman
+/// filters the fusion's design is measured against ([`KALMAN`]).
+pub const SOURCES: [&str; 6] = [
+    "DOB (seed)",
+    "stretch",
+    "fused",
+    "fused midpoint",
+    "Kalman, white bands",
+    "Kalman, friction states",
+];
+
+/// The Kalman filters of [`SOURCES`]' last two rows, in order.
+pub const KALMAN: [Design; 2] = [
+    Design::White,
+    Design::FrictionStates {
+        tau_s: FRICTION_TAU_S,
+    },
+];
+
+/// Where the Kalman filters' rows start in [`SOURCES`].
+pub const FIRST_KALMAN: usize = 4;
+
+const N: usize = SOURCES.len();
 
 /// One plant variant.
 #[derive(Clone, Debug)]
@@ -262,15 +285,20 @@ pub fn dir_name(name: &str) -> String {
 #[derive(Default)]
 struct CaseRec {
     moved: bool,
-    stable: [Acc; 4],
-    static_noload: [Acc; 4],
+    stable: [Acc; N],
+    static_noload: [Acc; N],
     /// The current no-load region's estimates (its second half goes into
     /// `static_noload` when the region ends).
-    noload: Vec<[f64; 4]>,
-    dynamic: [Acc; 4],
+    noload: Vec<[f64; N]>,
+    dynamic: [Acc; N],
     hold_n: u64,
     hold_in: u64,
     width: Acc,
+    /// The Kalman filters ([`KALMAN`]), their hold samples inside `±2σ`
+    /// and their interval widths.
+    kalman: Vec<KalmanForce>,
+    kalman_in: [u64; 2],
+    kalman_width: [Acc; 2],
     theta_stable: Acc,
     fault: Option<String>,
     /// The plant's true state at the fault shows its cause.
@@ -358,11 +386,18 @@ impl Recorder for CaseRec {
             return;
         }
         let e = &r.output.est;
+        let kf: Vec<(f64, f64, f64)> = self
+            .kalman
+            .iter_mut()
+            .map(|k| k.update(&r.sources))
+            .collect();
         let est = [
             f64::from(e.f_ext_hat_n),
             f64::from(e.f_ext_stretch_n),
             f64::from(e.f_ext_fused_n),
             0.5 * f64::from(e.f_ext_lo_n + e.f_ext_hi_n),
+            kf.first().map_or(f64::NAN, |k| k.0),
+            kf.get(1).map_or(f64::NAN, |k| k.0),
         ];
         let p = r.phase;
         if p != Phase::NoLoad.code() && !self.noload.is_empty() {
@@ -376,6 +411,12 @@ impl Recorder for CaseRec {
                 self.hold_in += 1;
             }
             self.width.push(hi - lo);
+            for (j, &(_, lo, hi)) in kf.iter().enumerate() {
+                if lo <= r.f_ext_n && r.f_ext_n <= hi {
+                    self.kalman_in[j] += 1;
+                }
+                self.kalman_width[j].push(hi - lo);
+            }
         }
         for (k, v) in est.iter().enumerate() {
             if p == Phase::Stable.code() {
@@ -433,6 +474,11 @@ pub struct Protocol {
     pub coverage: f64,
     /// Mean width of the bound in the hold samples, N.
     pub mean_bound_width_n: f64,
+    /// The same two for the Kalman filters' `±2σ` intervals, in
+    /// [`KALMAN`] order.
+    pub kalman_coverage: Vec<f64>,
+    /// Mean width of the Kalman filters' `±2σ` intervals, N.
+    pub kalman_width_n: Vec<f64>,
     /// Largest peak-to-peak joint motion in a stable region, °.
     pub tip_motion_pp_deg: f64,
     /// Loading cases run.
@@ -456,10 +502,11 @@ pub struct Protocol {
 /// `plant` with `config`; `label` names the runs (seeds, progress).
 pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &str) -> Protocol {
     let mut out = Protocol::default();
-    let mut above: [Vec<f64>; 4] = Default::default();
-    let mut at03: [Vec<f64>; 4] = Default::default();
-    let (mut stat, mut dyn_) = ([0.0f64; 4], [0.0f64; 4]);
+    let mut above: [Vec<f64>; N] = Default::default();
+    let mut at03: [Vec<f64>; N] = Default::default();
+    let (mut stat, mut dyn_) = ([0.0f64; N], [0.0f64; N]);
     let (mut hold_n, mut hold_in, mut width, mut pp) = (0u64, 0u64, Acc::default(), 0.0f64);
+    let (mut kalman_in, mut kalman_width) = ([0u64; 2], [Acc::default(), Acc::default()]);
     for a in ANGLES_DEG {
         for m in MASSES_G {
             for d in [Direction::Pos, Direction::Neg] {
@@ -477,6 +524,7 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                     moved: a != 0.0,
                     slack_limit_n: f64::from(config.slack_limit_n()),
                     range_rad: f64::from(config.limits.max_joint_angle_rad),
+                    kalman: KALMAN.map(|d| KalmanForce::new(d, config)).to_vec(),
                     ..CaseRec::default()
                 };
                 if let Err(e) =
@@ -499,7 +547,7 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                     continue;
                 }
                 let force = d.sign() * m * 1e-3 * G_M_S2;
-                for k in 0..4 {
+                for k in 0..N {
                     let mean = rec.stable[k].summary(1.0).mean;
                     let acc = 100.0 * (1.0 - (mean - force).abs() / force.abs());
                     if m >= 100.0 {
@@ -515,6 +563,10 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                 hold_n += rec.hold_n;
                 hold_in += rec.hold_in;
                 width.merge(&rec.width);
+                for j in 0..2 {
+                    kalman_in[j] += rec.kalman_in[j];
+                    kalman_width[j].merge(&rec.kalman_width[j]);
+                }
                 let t = rec.theta_stable.summary(1.0);
                 if t.n > 0 {
                     pp = pp.max(t.max - t.min);
@@ -530,7 +582,7 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
             v.iter().sum::<f64>() / v.len() as f64
         }
     };
-    out.sources = (0..4)
+    out.sources = (0..N)
         .map(|k| SourceStats {
             above_1n_min_pct: min(&above[k]),
             above_1n_mean_pct: mean(&above[k]),
@@ -545,6 +597,15 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
         f64::NAN
     };
     out.mean_bound_width_n = width.summary(1.0).mean;
+    let share = |n: u64| {
+        if hold_n > 0 {
+            n as f64 / hold_n as f64
+        } else {
+            f64::NAN
+        }
+    };
+    out.kalman_coverage = kalman_in.map(share).to_vec();
+    out.kalman_width_n = kalman_width.map(|w| w.summary(1.0).mean).to_vec();
     out.tip_motion_pp_deg = pp;
     out
 }
@@ -628,6 +689,7 @@ mod tests {
             t_s: 1.5,
             raw: RawSample::default(),
             output: Output::default(),
+            sources: Default::default(),
             drive_ref_a: 0.0,
             state: PlantState {
                 theta_rad,

@@ -108,6 +108,9 @@ pub struct TickRecord {
     pub raw: RawSample,
     /// The controller's output.
     pub output: Output,
+    /// The DOB's and the stretch's intervals the fusion combined this tick
+    /// ([`cable_joint::fusion::Sources`]).
+    pub sources: cable_joint::fusion::Sources,
     /// Current reference the drive received for the next period, A (the DAC
     /// code's value, 0 when disabled).
     pub drive_ref_a: f64,
@@ -336,6 +339,7 @@ impl Sim {
             t_s,
             raw,
             output,
+            sources: self.controller.fusion_sources(),
             drive_ref_a,
             state,
             tensions,

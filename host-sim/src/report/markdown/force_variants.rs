@@ -2,7 +2,7 @@
 //! estimate, passive and with probing, and the goals met or not met per
 //! variant.
 
-use crate::report::variants::{Protocol, SourceStats, VariantResult, SOURCES};
+use crate::report::variants::{Protocol, SourceStats, VariantResult, FIRST_KALMAN, SOURCES};
 
 fn pct(v: f64) -> String {
     if v.is_finite() {
@@ -123,7 +123,8 @@ pub fn probing_goal_lines(r: &VariantResult) -> Vec<(String, bool)> {
 
 /// Which run-wide columns a table row fills.
 struct Row {
-    coverage: bool,
+    /// The interval's coverage and mean width, when the row has one.
+    coverage: Option<(f64, f64)>,
     tip_motion: bool,
     faults: Option<String>,
 }
@@ -161,16 +162,8 @@ fn table_row(s: &mut String, cells: [&str; 3], st: &SourceStats, p: &Protocol, r
         } else {
             "–".into()
         },
-        if row.coverage {
-            pct(100.0 * p.coverage)
-        } else {
-            blank()
-        },
-        if row.coverage {
-            format!("{:.2}", p.mean_bound_width_n)
-        } else {
-            blank()
-        },
+        row.coverage.map_or_else(blank, |(c, _)| pct(100.0 * c)),
+        row.coverage.map_or_else(blank, |(_, w)| format!("{w:.2}")),
         if row.tip_motion {
             format!("{:.3}", p.tip_motion_pp_deg)
         } else {
@@ -224,8 +217,24 @@ pub fn markdown(results: &[VariantResult]) -> String {
             } else {
                 (String::new(), String::new())
             };
+            let interval = match k {
+                2 => Some((passive.coverage, passive.mean_bound_width_n)),
+                k if k >= FIRST_KALMAN => Some((
+                    passive
+                        .kalman_coverage
+                        .get(k - FIRST_KALMAN)
+                        .copied()
+                        .unwrap_or(f64::NAN),
+                    passive
+                        .kalman_width_n
+                        .get(k - FIRST_KALMAN)
+                        .copied()
+                        .unwrap_or(f64::NAN),
+                )),
+                _ => None,
+            };
             let run = Row {
-                coverage: k == 2,
+                coverage: interval,
                 tip_motion: first,
                 faults: first.then(|| faults(passive)),
             };
@@ -233,7 +242,7 @@ pub fn markdown(results: &[VariantResult]) -> String {
         }
         if let Some(p) = r.probing.as_ref().filter(|p| p.sources.len() >= 4) {
             let run = Row {
-                coverage: true,
+                coverage: Some((p.coverage, p.mean_bound_width_n)),
                 tip_motion: true,
                 faults: Some(faults(p)),
             };
@@ -300,6 +309,17 @@ pub fn markdown(results: &[VariantResult]) -> String {
          slack (fault 18) when the motor pays out rope that slider 1 does not take up, beyond what the \
          limit or the tensions allow. \"Slack undetected\" is the longest time a cable carried no tension \
          at all with the drive on and no fault latched yet.\n"
+    );
+    let _ = writeln!(
+        s,
+        "The two Kalman rows are the comparison behind the fusion's design (`host_sim::report::kalman`, \
+         not on the MCU): each reads, every tick, the same two intervals the fusion intersects (the DOB's \
+         and the stretch's, `cable_joint::fusion::Sources`), takes each as a measurement at its centre with \
+         a uniform distribution's variance over it, and follows the force as a random walk at the DOB's \
+         bandwidth; its interval is ±2σ. \"White bands\" takes the bands for white noise; \"friction \
+         states\" gives each source's friction a state of its own (Gauss–Markov, the band's variance, \
+         correlation time {} s) over one sensor count of white noise.\n",
+        crate::report::kalman::FRICTION_TAU_S
     );
     s
 }

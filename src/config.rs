@@ -167,6 +167,15 @@ pub struct CascadeConfig {
     pub hold_deadband_rad: f32,
     /// Output current limit, A (at most the drive's limit).
     pub current_limit_a: f32,
+    /// On `theta_hat` itself ([`crate::Mode::JointClosedLoop`] with
+    /// `jae_blend_hz = 0`), take the error's rate for `kd_pos` from the
+    /// grating's observer, `theta_ref' - c4 x2'`, instead of differencing
+    /// the error over one tick. One grating count of `theta_hat` is
+    /// 0.26 mrad, and differenced it steps the current by about 0.25 A at
+    /// 2 kHz: the current chatters (README, "the PD term's current
+    /// chatter", with what this option changes). Off by default: on the
+    /// simulator's plants it moves the force figures both ways.
+    pub kd_on_observer_rate: bool,
 }
 
 impl Default for CascadeConfig {
@@ -186,6 +195,7 @@ impl Default for CascadeConfig {
             jae_blend_hz: 0.0,
             hold_deadband_rad: 5e-4,
             current_limit_a: 2.0,
+            kd_on_observer_rate: false,
         }
     }
 }

@@ -36,8 +36,9 @@ use crate::controller::{Command, PreparedConfig};
 
 /// Version of the wire format. Raise it on any change of the frame layout
 /// or of a message's encoding (2: `Trajectory::Grip`; 3: the
-/// configuration's `fusion.stiffness_tolerance`).
-pub const LINK_VERSION: u8 = 3;
+/// configuration's `fusion.stiffness_tolerance`; 4: its
+/// `cascade.kd_on_observer_rate`).
+pub const LINK_VERSION: u8 = 4;
 
 /// Largest decoded frame, bytes (version, seq, body and CRC): a whole
 /// [`Config`] with an added term in each model takes 381 on the wire

@@ -3,6 +3,10 @@
 //! * Position loop in joint space: `w_joint = ff * theta_ref' + kp e + kd e'`,
 //!   `e = theta_ref - theta_fb`, where `theta_fb` is the estimated joint angle
 //!   (Fig. 11) or the motor-implied angle (motor-encoder-only, Fig. 10).
+//!   `e'` is the difference quotient of `e` over one tick, unless the caller
+//!   gives the feedback's rate from the tracking observers
+//!   ([`CascadeIn::vel_fb_rad_s`], `cascade.kd_on_observer_rate`); then it
+//!   is `theta_ref' - theta_fb'`.
 //! * The joint-rate reference becomes a motor-rate reference through the rigid
 //!   transmission ratio `z_i r / r_m`, limited to `vel_limit_rad_s`.
 //! * PI velocity loop on the motor speed; output current limited to
@@ -48,6 +52,9 @@ pub struct CascadeIn {
     pub vel_ref_rad_s: f32,
     /// Joint-angle feedback, rad.
     pub angle_fb_rad: f32,
+    /// The feedback angle's rate from the tracking observers, rad/s, for
+    /// the error's rate; `None` differences the error over one tick.
+    pub vel_fb_rad_s: Option<f32>,
     /// Motor speed, rad/s.
     pub motor_vel_rad_s: f32,
     /// Feed-forward current, A.
@@ -67,14 +74,19 @@ pub fn step(
     period_s: f32,
 ) -> CascadeOut {
     let mut e = inp.angle_ref_rad - inp.angle_fb_rad;
+    let mut inside = false;
     if inp.hold {
         // Continuous dead band: zero inside, shifted linear outside.
-        e -= clamp(e, -cfg.hold_deadband_rad, cfg.hold_deadband_rad);
+        let within = clamp(e, -cfg.hold_deadband_rad, cfg.hold_deadband_rad);
+        inside = within == e;
+        e -= within;
     }
-    let de = if s.primed {
-        (e - s.last_error_rad) / period_s
-    } else {
-        0.0
+    let de = match inp.vel_fb_rad_s {
+        // The dead-banded error does not move inside the band.
+        Some(_) if inside => 0.0,
+        Some(vel_fb) => inp.vel_ref_rad_s - vel_fb,
+        None if s.primed => (e - s.last_error_rad) / period_s,
+        None => 0.0,
     };
     s.last_error_rad = e;
     s.primed = true;
@@ -189,6 +201,59 @@ mod tests {
         assert!(
             just_out > 0.0 && just_out < cfg.kp_pos_1_s * 0.02 * db * 23.33,
             "{just_out}"
+        );
+    }
+
+    /// A joint angle creeping up one quantization step at a time: the
+    /// difference quotient turns every step into a spike of the
+    /// motor-velocity reference (`kd` times a count over one tick); with the
+    /// observer's rate only the proportional term's step is left.
+    #[test]
+    fn the_observer_rate_keeps_quantization_steps_out_of_the_damping() {
+        let cfg = CascadeConfig::default();
+        let (t, count, per_joint) = (5e-4f32, 2.6e-4f32, 23.33f32);
+        let vel = count / (10.0 * t); // one count every ten ticks
+        let largest_jump = |observer: bool| {
+            let mut s = CascadeState::default();
+            let mut last: Option<f32> = None;
+            let mut jump = 0.0f32;
+            for k in 0..200 {
+                let exact = vel * t * k as f32;
+                let quantized = count * ((exact / count) as i32) as f32;
+                let out = step(
+                    &cfg,
+                    &mut s,
+                    &CascadeIn {
+                        angle_ref_rad: exact,
+                        vel_ref_rad_s: vel,
+                        angle_fb_rad: quantized,
+                        vel_fb_rad_s: observer.then_some(vel),
+                        motor_per_joint: per_joint,
+                        ..Default::default()
+                    },
+                    t,
+                );
+                if let Some(l) = last {
+                    jump = jump.max(crate::math::abs(out.motor_vel_ref_rad_s - l));
+                }
+                last = Some(out.motor_vel_ref_rad_s);
+            }
+            jump
+        };
+        // A count's step through the proportional term, and through the
+        // difference quotient as well.
+        let proportional = cfg.kp_pos_1_s * count * per_joint;
+        let spike = proportional + cfg.kd_pos * count / t * per_joint;
+        assert!(spike > 4.0 * proportional);
+        assert!(
+            largest_jump(false) > 0.95 * spike,
+            "{}",
+            largest_jump(false)
+        );
+        assert!(
+            largest_jump(true) < 1.01 * proportional,
+            "{} against {proportional}",
+            largest_jump(true)
         );
     }
 

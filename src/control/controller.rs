@@ -881,6 +881,14 @@ impl Controller {
             Mode::JointClosedLoop => theta_motor_rad + stretch_rad,
             _ => theta_motor_rad,
         };
+        // On `theta_hat` itself, optionally, the position loop's damping
+        // takes the JAE's rate from the grating's observer (its position
+        // term, `c4 x2'`) instead of differencing a quantized angle
+        // (`cascade.kd_on_observer_rate`, [`crate::cascade`]).
+        let feedback_vel_rad_s = (cfg.cascade.kd_on_observer_rate
+            && self.command.mode == Mode::JointClosedLoop
+            && d.blend.is_none())
+        .then_some(cfg.jae.c_pos_rad_m * x2.vel);
         let gripping = self.command.trajectory.is_grip();
         let mut reference = match (self.command.mode, self.command.trajectory) {
             (Mode::Idle, _) => Reference {
@@ -948,6 +956,7 @@ impl Controller {
                 angle_ref_rad: reference.angle_rad,
                 vel_ref_rad_s: reference.vel_rad_s,
                 angle_fb_rad: feedback,
+                vel_fb_rad_s: feedback_vel_rad_s,
                 motor_vel_rad_s: phi.vel,
                 current_ff_a,
                 motor_per_joint: d.motor_per_joint,

@@ -391,8 +391,11 @@ mod app {
             super::DONE.store(true, core::sync::atomic::Ordering::SeqCst);
             queued = true;
         }
-        if queued {
-            // Fails only while the task is still draining: it will see the record.
+        if queued || !telemetry_tx.is_empty() {
+            // Fails only while the task is running or already spawned. Each
+            // run takes only what was queued when it started (`drain`), so
+            // records queued meanwhile spawn it again on a later tick, even
+            // when the queue is full and this tick's record was dropped.
             telemetry::spawn().ok();
         }
     }
@@ -513,7 +516,8 @@ mod app {
 
     /// Telemetry: encode the queued raw records and log them; report phase
     /// and fault changes as text. No deadline: when it falls behind, the
-    /// control task drops records (counted) instead of waiting.
+    /// control task drops records (counted) instead of waiting. Each run
+    /// takes the records queued when it starts ([`drain`]).
     #[task(priority = 1, shared = [links], local = [telemetry_rx, last: (u8, u8) = (u8::MAX, 0)])]
     async fn telemetry(mut cx: telemetry::Context) {
         let telemetry::LocalResources {
@@ -534,8 +538,16 @@ mod app {
         }
     }
 
+    /// Log and send the records queued when it starts, no more: records
+    /// the control task queues meanwhile wait for the next run (its spawn
+    /// on the next tick), so the task returns and a host frame waiting at
+    /// the same priority (`link_frame`) is checked in between. Draining
+    /// until the queue was empty starved it whenever the control task
+    /// queued records as fast as the link sent them (PIL under QEMU,
+    /// telemetry every tick: every host frame after the first dropped).
     fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8), links: &mut Links) {
-        while let Some(record) = rx.dequeue() {
+        for _ in 0..rx.len() {
+            let Some(record) = rx.dequeue() else { break };
             log_record(&record, Some(&mut *links));
             if let Record::Tick(t) = record {
                 if (t.phase, t.fault) != *last {

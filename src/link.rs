@@ -37,7 +37,7 @@ use crate::controller::{Command, PreparedConfig};
 /// Version of the wire format. Raise it on any change of the frame layout
 /// or of a message's encoding (2: `Trajectory::Grip`; 3: the
 /// configuration's `fusion.stiffness_tolerance`; 4: its
-/// `cascade.kd_on_observer_rate`).
+/// `cascade.kd_on_observer_rate` and the Bouc–Wen effect kind).
 pub const LINK_VERSION: u8 = 4;
 
 /// Largest decoded frame, bytes (version, seq, body and CRC): a whole

@@ -182,7 +182,7 @@ fn config() -> impl Strategy<Value = Config> {
 }
 
 /// Number of effect kinds [`effect_kind`] draws from.
-const EFFECT_KINDS: usize = 20;
+const EFFECT_KINDS: usize = 21;
 
 /// Every effect kind, its parameter set from `p` (a positive factor).
 fn effect_kind(k: usize, p: f32) -> EffectKind {
@@ -218,6 +218,11 @@ fn effect_kind(k: usize, p: f32) -> EffectKind {
         16 => EffectKind::SignedSquare,
         17 => EffectKind::Cube,
         18 => EffectKind::Time { scale_s: p },
+        20 => EffectKind::BoucWen {
+            length: 1e-4 * p,
+            shape: 0.5,
+            exponent: 3,
+        },
         _ => EffectKind::Creep { tau_s: 1e-3 * p },
     }
 }

@@ -135,7 +135,10 @@ fn is_drift(k: &EffectKind) -> bool {
 fn is_presliding(k: &EffectKind) -> bool {
     matches!(
         k,
-        EffectKind::Stop { .. } | EffectKind::Dahl { .. } | EffectKind::Play { .. }
+        EffectKind::Stop { .. }
+            | EffectKind::Dahl { .. }
+            | EffectKind::BoucWen { .. }
+            | EffectKind::Play { .. }
     )
 }
 

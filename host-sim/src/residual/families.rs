@@ -56,6 +56,7 @@ pub fn effect_class(t: &Term, names: &[String], other: &[u8]) -> String {
         EffectKind::Play { .. }
         | EffectKind::Stop { .. }
         | EffectKind::Dahl { .. }
+        | EffectKind::BoucWen { .. }
         | EffectKind::LoadDahl { .. }
         | EffectKind::LoadMemory { .. }
         | EffectKind::StrokeHold { .. } => "hysteresis",
@@ -91,6 +92,14 @@ pub fn term_label(t: &Term, names: &[String]) -> String {
             format!("{n}[{}](w={half_width:.3e})", sig(t.input))
         }
         EffectKind::Dahl { length } => format!("{n}[{}](L={length:.3e})", sig(t.input)),
+        EffectKind::BoucWen {
+            length,
+            shape,
+            exponent,
+        } => format!(
+            "{n}[{}](L={length:.3e},shape={shape},n={exponent})",
+            sig(t.input)
+        ),
         EffectKind::LoadCoulomb { v_eps } => {
             format!("{n}[{}*|{}|](eps={v_eps:.3e})", sig(t.input), sig(t.aux))
         }

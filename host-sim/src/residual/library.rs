@@ -6,6 +6,16 @@
 use cable_joint::effects::{EffectKind, StrokePart, Term};
 use cable_joint::math;
 
+/// Unloading shape of the library's Bouc–Wen candidates: 0, elastic
+/// unloading (a cable's stretch relaxes before the friction reverses; the
+/// Dahl state, shape 1, is a candidate of its own). Chosen from that
+/// physics before any fit was run with it.
+pub const BOUC_WEN_SHAPE: f32 = 0.0;
+
+/// Exponent of the library's Bouc–Wen candidates: 2, a knee between the
+/// Dahl state's (1) and the stop operator's corner.
+pub const BOUC_WEN_EXPONENT: u8 = 2;
+
 /// A signal of the log for the [`candidate_library`]: its index and the range
 /// it covers in the data at hand.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,8 +70,9 @@ pub const STROKE_SPEED_SHARE: f32 = 0.05;
 /// range and time constants spread between the sample rate and the log length:
 ///
 /// * always: `const`, `time` (per hour), `warmup` at three time constants;
-/// * position: linear, `sqr_sign`, `cube`, `stop` and `dahl` at 0.5/2/8 % of
-///   the span, `deadzone` at 1/5 % of the span (centred on 0 when the range
+/// * position: linear, `sqr_sign`, `cube`, `stop`, `dahl` and `bouc_wen`
+///   (elastic unloading, exponent 2: [`BOUC_WEN_SHAPE`],
+///   [`BOUC_WEN_EXPONENT`]) at 0.5/2/8 % of the span, `deadzone` at 1/5 % of the span (centred on 0 when the range
 ///   holds 0, else mid-range), `creep` at three time constants;
 /// * velocity: linear (viscous), `coulomb` at 0.5/2 % and `stribeck` at 5/20 %
 ///   of the largest speed;
@@ -113,6 +124,16 @@ pub fn candidate_library(spec: &LibrarySpec) -> Vec<Term> {
         }
         for f in [0.005, 0.02, 0.08] {
             add(Term::new(EffectKind::Dahl { length: f * span }, i));
+        }
+        for f in [0.005, 0.02, 0.08] {
+            add(Term::new(
+                EffectKind::BoucWen {
+                    length: f * span,
+                    shape: BOUC_WEN_SHAPE,
+                    exponent: BOUC_WEN_EXPONENT,
+                },
+                i,
+            ));
         }
         let center = if p.min < 0.0 && p.max > 0.0 {
             0.0
@@ -218,7 +239,7 @@ mod tests {
             duration_s: 60.0,
         };
         let lib = candidate_library(&spec);
-        assert_eq!(lib.len(), 51);
+        assert_eq!(lib.len(), 54);
         let bank = EffectBank::<64>::new(&lib, 4);
         assert!(bank.is_ok(), "{:?}", bank.err());
         for t in &lib {
@@ -232,6 +253,15 @@ mod tests {
                 EffectKind::LoadDahl { length } => {
                     assert!((0.005 * 8e-3 * 0.99..=0.08 * 8e-3 * 1.01).contains(&length));
                     assert_eq!((t.input, t.aux), (0, 3), "position x load");
+                }
+                EffectKind::BoucWen {
+                    length,
+                    shape,
+                    exponent,
+                } => {
+                    assert!((0.005 * 8e-3 * 0.99..=0.08 * 8e-3 * 1.01).contains(&length));
+                    assert_eq!((shape, exponent), (BOUC_WEN_SHAPE, BOUC_WEN_EXPONENT));
+                    assert_eq!(t.input, 0, "of the position");
                 }
                 EffectKind::Creep { tau_s } | EffectKind::Thermal { tau_s } => {
                     assert!((0.6 * 0.99..=20.0 * 1.01).contains(&tau_s), "tau {tau_s}")

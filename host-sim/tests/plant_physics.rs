@@ -137,6 +137,108 @@ fn joint_stiction_holds_below_breakaway_and_slips_above() {
     assert_eq!(plant.state().theta_rad, held, "holds after slipping");
 }
 
+/// The joint's first slip with the motor held and a tip force ramped slowly
+/// past the pin's breakaway (°, or `None` if it never slipped and stuck).
+fn first_pin_slip_deg(p: PlantParams) -> Option<f64> {
+    let mut plant = Plant::new(p, 1).unwrap();
+    let ramp_n_s = 0.2 * p.joint.static_nm / p.joint.gripper_length_m;
+    let mut moving = false;
+    for k in 0..(10.0 / plant.dt_s()) as usize {
+        plant.set_external_force(ramp_n_s * k as f64 * plant.dt_s());
+        plant.step();
+        let s = plant.state_mut();
+        s.phi_rad = 0.0;
+        s.phi_vel_rad_s = 0.0;
+        if s.theta_vel_rad_s != 0.0 {
+            moving = true;
+        } else if moving {
+            return Some(s.theta_rad.abs().to_degrees());
+        }
+    }
+    None
+}
+
+/// The pin's stick-slip step the report quotes as the hold's tip-motion
+/// floor (`pin_stick_slip_step_rad`): without damping the first slip lies
+/// between the stiffest chain's step (both sliders stuck) and the softest's
+/// (both free); the plant's damping shortens it.
+#[test]
+fn the_pin_slips_by_the_stick_slip_step_with_the_motor_held() {
+    for static_over_kinetic in [1.2, 1.5, 2.0] {
+        let mut p = PlantParams::default();
+        p.joint.static_nm = static_over_kinetic * p.joint.coulomb_nm;
+        let [stiffest, softest] = p.pin_stick_slip_step_rad().map(f64::to_degrees);
+        assert!(stiffest > 0.0 && stiffest < softest);
+        let mut undamped = p;
+        undamped.joint.viscous_nm_s_rad = 0.0;
+        for c in [
+            &mut undamped.cable0,
+            &mut undamped.cable1,
+            &mut undamped.cable2,
+        ] {
+            c.damping_n_s_m = 0.0;
+        }
+        for s in [&mut undamped.slider1, &mut undamped.slider2] {
+            s.viscous_n_s_m = 0.0;
+        }
+        let free = first_pin_slip_deg(undamped).expect("undamped pin slips and sticks");
+        let damped = first_pin_slip_deg(p).expect("pin slips and sticks");
+        eprintln!(
+            "static/kinetic {static_over_kinetic}: slip {free:.4}° undamped, {damped:.4}° damped \
+             (step {stiffest:.4}° to {softest:.4}°)"
+        );
+        assert!(
+            free >= 0.98 * stiffest && free <= 1.02 * softest,
+            "static/kinetic {static_over_kinetic}: undamped slip {free:.4}° outside the \
+             chain's step {stiffest:.4}° to {softest:.4}°"
+        );
+        assert!(
+            damped < free && damped > 0.5 * stiffest,
+            "static/kinetic {static_over_kinetic}: damped slip {damped:.4}° against {free:.4}° undamped"
+        );
+    }
+}
+
+/// A joint turned slowly with the motor held and the pin frictionless
+/// moves slider 2 (the JAE's only sensor) only once cable 2's tension has
+/// changed by slider 2's static friction: half the blind band the report
+/// quotes (`jae_blind_band_rad`, edge to edge of the band).
+#[test]
+fn slider_2_stays_at_rest_until_the_joint_has_turned_half_the_blind_band() {
+    for scale in [1.0, 4.0, 8.0] {
+        let mut p = PlantParams::default();
+        p.joint.coulomb_nm = 0.0;
+        p.joint.static_nm = 0.0;
+        p.slider2.coulomb_n *= scale;
+        p.slider2.static_n *= scale;
+        let half = 0.5 * p.jae_blind_band_rad();
+        let mut plant = Plant::new(p, 1).unwrap();
+        // A tip force ramp that turns the joint at about 0.5 mrad/s.
+        let k_theta =
+            (p.cable1.stiffness_n_m + p.cable2.stiffness_n_m) * p.joint.pulley_radius_m.powi(2);
+        let ramp_n_s = 5e-4 * k_theta / p.joint.gripper_length_m;
+        let mut first = None;
+        for k in 0..(4.0 * half / 5e-4 / plant.dt_s()) as usize {
+            plant.set_external_force(-ramp_n_s * k as f64 * plant.dt_s());
+            plant.step();
+            let s = plant.state_mut();
+            s.phi_rad = 0.0;
+            s.phi_vel_rad_s = 0.0;
+            if s.x2_m != 0.0 {
+                first = Some(s.theta_rad.abs());
+                break;
+            }
+        }
+        let turned = first.expect("slider 2 moved");
+        assert!(
+            (turned - half).abs() <= 0.05 * half,
+            "slider 2 x{scale}: it moved at {:.4}°, half the band is {:.4}°",
+            turned.to_degrees(),
+            half.to_degrees()
+        );
+    }
+}
+
 /// The same for slider 2 through cable 2: slider 2's breakaway is tiny
 /// (0.14 N), so a small extra spring preload moves it, a force within the
 /// static band does not.

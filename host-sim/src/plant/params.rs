@@ -467,6 +467,38 @@ impl PlantParams {
         ]
     }
 
+    /// The joint's undamped stick-slip step, rad, as `[stiffest, softest]`:
+    /// a pin stuck at its static torque `tau_s` that breaks loose slides
+    /// until its kinetic torque `tau_k` has let the cables' torque swing as
+    /// far past the balance as it started before it, `2 (tau_s - tau_k) /
+    /// k_theta`, with `k_theta = r^2 (k_1 + k_2)` the cables' rotational
+    /// stiffness about the pin with the motor held. The stiffest chain has
+    /// both sliders stuck (`k_1 = K_w1`, `k_2 = K_w2`); the softest has them
+    /// free (`k_1` = cable 1 in series with cable 0, `k_2` = cable 2 in
+    /// series with the return spring). Damping and presliding shorten the
+    /// real step; a hold that frees the pin moves the tip by about this much
+    /// whatever its estimator does.
+    pub fn pin_stick_slip_step_rad(&self) -> [f64; 2] {
+        let series = |a: f64, b: f64| a * b / (a + b);
+        let r2 = self.joint.pulley_radius_m * self.joint.pulley_radius_m;
+        let (k1, k2) = (self.cable1.stiffness_n_m, self.cable2.stiffness_n_m);
+        let k1_free = series(self.cable0.stiffness_n_m, k1);
+        let k2_free = series(k2, self.spring.stiffness_n_m);
+        let band = 2.0 * (self.joint.static_nm - self.joint.coulomb_nm).max(0.0);
+        [band / (r2 * (k1 + k2)), band / (r2 * (k1_free + k2_free))]
+    }
+
+    /// The joint angle the JAE cannot see while slider 2 sticks, rad: a
+    /// turn of the joint changes cable 2's tension by `K_w2 r` per radian
+    /// and slider 2 does not move until that change reaches its static
+    /// friction, so from one edge of its band to the other the joint turns
+    /// `2 F_s2 / (K_w2 r)` with the grating at rest (the spring side is
+    /// held by the stuck slider). A hold on `theta_hat` that has to correct
+    /// wanders across this band before its sensor answers.
+    pub fn jae_blind_band_rad(&self) -> f64 {
+        2.0 * self.slider2.static_n / (self.cable2.stiffness_n_m * self.joint.pulley_radius_m)
+    }
+
     /// Check that every value is physically possible; the error names the field.
     pub fn validate(&self) -> anyhow::Result<()> {
         fn pos(name: &str, v: f64) -> anyhow::Result<()> {

@@ -245,6 +245,14 @@ pub struct VariantResult {
     /// level) without any sensor seeing it, so it bounds what a passive
     /// estimate can resolve at standstill.
     pub pin_at_tip_n: f64,
+    /// The plant's own pin stick-slip step with the motor held, °, stiffest
+    /// and softest chain ([`PlantParams::pin_stick_slip_step_rad`]): what
+    /// a hold that frees the pin moves the tip by, from the plant's true
+    /// parameters (no estimator sees them).
+    pub pin_stick_slip_step_deg: [f64; 2],
+    /// The plant's JAE blind band while slider 2 sticks, °
+    /// ([`PlantParams::jae_blind_band_rad`]).
+    pub jae_blind_band_deg: f64,
     /// The loading protocol, passive (its fields appear at this level in
     /// the JSON).
     #[serde(flatten)]
@@ -621,6 +629,8 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
         error: None,
         notes: Vec::new(),
         pin_at_tip_n: f64::NAN,
+        pin_stick_slip_step_deg: v.plant.pin_stick_slip_step_rad().map(|r| r * DEG_PER_RAD),
+        jae_blind_band_deg: v.plant.jae_blind_band_rad() * DEG_PER_RAD,
         passive: Protocol {
             coverage: f64::NAN,
             mean_bound_width_n: f64::NAN,

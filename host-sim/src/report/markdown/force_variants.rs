@@ -286,6 +286,15 @@ pub fn markdown(results: &[VariantResult]) -> String {
         for (text, ok) in probing_goal_lines(r) {
             let _ = writeln!(s, "  * {}: {text}", if ok { "met" } else { "NOT met" });
         }
+        let [stiffest, softest] = r.pin_stick_slip_step_deg;
+        let _ = writeln!(
+            s,
+            "  * what moves the held tip, from the plant's true parameters: the JAE is blind over \
+             {:.3}° while slider 2 sticks (`2 F_s2 / (K_w2 r)`), so a hold on `theta_hat` that corrects \
+             crosses that band before its sensor answers; the pin's own stick-slip step with the motor \
+             held is {stiffest:.3}° (both sliders stuck) to {softest:.3}° (both free), undamped",
+            r.jae_blind_band_deg
+        );
         if let Some(p) = &r.probing {
             for f in &p.faults {
                 let _ = writeln!(s, "  * fault with probing: {f}");

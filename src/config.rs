@@ -112,6 +112,15 @@ pub struct JaeConfig {
     /// last sign is held (stiction keeps the presliding direction), so the sign
     /// term does not chatter at standstill.
     pub sign_switch_m_s: f32,
+    /// Slider-2 travel, m, that must confirm a reversal before the sign
+    /// switches (from its furthest point in the held direction); 0 switches
+    /// on the speed alone. The grating's velocity estimate rings after a
+    /// stop and can cross `sign_switch_m_s` with slider 2 at rest, which
+    /// flips the sign term (`2 c3`, about 0.3°) with nothing moving and
+    /// makes a hold on `theta_hat` hunt (README, "Tip motion"). One grating
+    /// count (`scales.grating_m_per_count`) is the least travel a reversal
+    /// shows. Off by default until the report's figures are rerun with it.
+    pub sign_travel_m: f32,
     /// Effect terms added by the residual loop (rad per term unit); not written to a
     /// file when there are none.
     pub added: AddedTerms,
@@ -127,6 +136,7 @@ impl Default for JaeConfig {
             c_pos_rad_m: 264.356,
             offset_rad: 0.0,
             sign_switch_m_s: 2e-4,
+            sign_travel_m: 0.0,
             added: AddedTerms::default(),
         }
     }
@@ -926,6 +936,12 @@ impl Config {
             j.sign_switch_m_s,
             1e-9..=1.0,
             "between 1e-9 and 1 m/s",
+        )?;
+        within(
+            "jae.sign_travel_m",
+            j.sign_travel_m,
+            0.0..=1e-3,
+            "between 0 and 1e-3 m (one grating count is 1e-6)",
         )?;
         if let Err(expected) = j.added.validate() {
             return Err(ConfigError {

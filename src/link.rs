@@ -37,7 +37,8 @@ use crate::controller::{Command, PreparedConfig};
 /// Version of the wire format. Raise it on any change of the frame layout
 /// or of a message's encoding (2: `Trajectory::Grip`; 3: the
 /// configuration's `fusion.stiffness_tolerance`; 4: its
-/// `cascade.kd_on_observer_rate` and the Bouc–Wen effect kind).
+/// `cascade.kd_on_observer_rate`, `jae.sign_travel_m` and the Bouc–Wen
+/// effect kind).
 pub const LINK_VERSION: u8 = 4;
 
 /// Largest decoded frame, bytes (version, seq, body and CRC): a whole

@@ -45,6 +45,25 @@ pub fn held_sign(vel: impl IntoIterator<Item = f32>, switch_speed: f32) -> Vec<f
         .collect()
 }
 
+/// The JAE's held sign of `x2'` (`SignMemory::update_travelled`): as
+/// [`held_sign`], and a reversal needs slider 2 to travel `min_travel` m
+/// (`jae.sign_travel_m`) as well. `vel` and `pos` are the log's columns.
+pub fn held_sign_travelled(
+    vel: &[f64],
+    pos: &[f64],
+    switch_speed: f32,
+    min_travel: f32,
+) -> Vec<f64> {
+    let memory = cable_joint::filter::SignMemory { switch_speed };
+    let mut held = cable_joint::filter::HeldSign::default();
+    vel.iter()
+        .zip(pos)
+        .map(|(v, x)| {
+            f64::from(memory.update_travelled(&mut held, *v as f32, *x as f32, min_travel))
+        })
+        .collect()
+}
+
 /// A first-order low-pass (the core's [`LowPass1`](cable_joint::filter::LowPass1),
 /// e.g. the DOB's `Q`) over a whole column, started settled at its first
 /// value (as the observer's reset does), in the core's `f32` arithmetic. The

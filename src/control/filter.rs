@@ -258,12 +258,96 @@ impl SignMemory {
         }
         *state
     }
+
+    /// The same, and the sign switches only once the position `pos` has
+    /// also travelled `min_travel` from its extreme in the held direction
+    /// (`state.anchor`): a differentiator that rings after a stop can cross
+    /// the switching speed with the slider at rest, and only travel shows a
+    /// reversal. `min_travel <= 0` is [`SignMemory::update`] exactly; the
+    /// first sign (from 0) needs the speed alone.
+    #[inline]
+    pub fn update_travelled(
+        &self,
+        state: &mut HeldSign,
+        vel: f32,
+        pos: f32,
+        min_travel: f32,
+    ) -> f32 {
+        let held = state.sign;
+        if min_travel <= 0.0 || held == 0.0 {
+            self.update(&mut state.sign, vel);
+        } else if held < 0.0 && vel > self.switch_speed && pos - state.anchor >= min_travel {
+            state.sign = 1.0;
+        } else if held > 0.0 && vel < -self.switch_speed && state.anchor - pos >= min_travel {
+            state.sign = -1.0;
+        }
+        state.anchor = if state.sign != held {
+            pos
+        } else if state.sign > 0.0 {
+            state.anchor.max(pos)
+        } else if state.sign < 0.0 {
+            state.anchor.min(pos)
+        } else {
+            pos
+        };
+        state.sign
+    }
+}
+
+/// A [`SignMemory`]'s state with the position it has reached in the held
+/// direction ([`SignMemory::update_travelled`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HeldSign {
+    /// Held sign (±1, or 0 before the first motion).
+    pub sign: f32,
+    /// Furthest position in the held direction since the sign was taken.
+    pub anchor: f32,
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::math::PI;
+
+    /// A velocity that rings past the switching speed with the position at
+    /// rest flips the plain sign and not the travelled one; a real reversal
+    /// flips both, the travelled one once the slider has moved `min_travel`.
+    #[test]
+    fn a_ringing_velocity_at_rest_does_not_flip_the_travelled_sign() {
+        let m = SignMemory { switch_speed: 2e-4 };
+        let (mut plain, mut held) = (0.0f32, HeldSign::default());
+        // Moving down 10 counts, then stopped at -10 um while the velocity
+        // estimate overshoots to +2.4e-4 m/s.
+        for k in 0..10 {
+            let pos = -1e-6 * k as f32;
+            m.update(&mut plain, -1e-3);
+            m.update_travelled(&mut held, -1e-3, pos, 1e-6);
+        }
+        for v in [-5e-4, -1e-4, 1e-4, 2.4e-4, 1e-4, 0.0] {
+            m.update(&mut plain, v);
+            m.update_travelled(&mut held, v, -9e-6, 1e-6);
+        }
+        assert_eq!(plain, 1.0, "the plain sign follows the ringing");
+        assert_eq!(held.sign, -1.0, "the travelled sign holds at rest");
+        // A real reversal: up by half a count (held), then one count (flips).
+        m.update_travelled(&mut held, 5e-4, -8.5e-6, 1e-6);
+        assert_eq!(held.sign, -1.0);
+        m.update_travelled(&mut held, 5e-4, -8e-6, 1e-6);
+        assert_eq!(held.sign, 1.0);
+        assert_eq!(held.anchor, -8e-6);
+        // With no travel asked it is the plain sign, tick for tick.
+        let (mut a, mut b) = (0.0f32, HeldSign::default());
+        for (k, v) in [3e-4, -1e-4, -3e-4, 2.5e-4, 0.0, -2.1e-4]
+            .iter()
+            .enumerate()
+        {
+            let pos = 1e-6 * k as f32;
+            assert_eq!(
+                m.update(&mut a, *v),
+                m.update_travelled(&mut b, *v, pos, 0.0)
+            );
+        }
+    }
 
     #[test]
     fn low_pass_step_matches_analytic_response() {

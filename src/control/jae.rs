@@ -7,13 +7,14 @@
 //! below it, so the `c3` term does not chatter at standstill.
 
 use crate::config::JaeConfig;
-use crate::filter::{Kinematics, SignMemory};
+use crate::filter::{HeldSign, Kinematics, SignMemory};
 
 /// State of the estimator: the held friction sign.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct JaeState {
-    /// Held sign of `x2'` (±1, or 0 before the first motion).
-    pub sign: f32,
+    /// Held sign of `x2'` (±1, or 0 before the first motion) and how far
+    /// slider 2 has gone in its direction.
+    pub sign: HeldSign,
 }
 
 /// Estimate the joint angle, rad, from slider 2's kinematics: `x2_m` is the
@@ -23,7 +24,7 @@ pub fn estimate(cfg: &JaeConfig, state: &mut JaeState, x2_m: f32, k: &Kinematics
     let sign = SignMemory {
         switch_speed: cfg.sign_switch_m_s,
     }
-    .update(&mut state.sign, k.vel);
+    .update_travelled(&mut state.sign, k.vel, x2_m, cfg.sign_travel_m);
     cfg.c_acc_rad_s2_m * k.acc
         + cfg.c_vel_rad_s_m * k.vel
         + cfg.c_sign_rad * sign
@@ -59,7 +60,7 @@ mod tests {
             } else if v < -cfg.sign_switch_m_s {
                 -1.0
             } else {
-                st.sign
+                st.sign.sign
             };
             let want = cfg.c_acc_rad_s2_m * a
                 + cfg.c_vel_rad_s_m * v
@@ -100,6 +101,6 @@ mod tests {
             prev = Some(th);
         }
         assert!(first > 0.0);
-        assert_eq!(st.sign, 1.0);
+        assert_eq!(st.sign.sign, 1.0);
     }
 }

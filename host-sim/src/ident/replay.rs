@@ -5,7 +5,7 @@ use cable_joint::filter::{Kinematics, LowPass1, TrackingObserver};
 use cable_joint::Config;
 
 use super::{IdentOptions, Regressor};
-use crate::derive::{config_for_log, derive, held_sign, low_pass_column};
+use crate::derive::{config_for_log, derive, held_sign, held_sign_travelled, low_pass_column};
 use crate::log::Log;
 
 /// A log replayed through the core, with the columns the models need (the
@@ -215,13 +215,18 @@ impl Prepared {
             Regressor::X1 => self.col("x1_m")?,
             Regressor::X2Acc => self.col("x2_acc_m_s2")?,
             Regressor::X2Vel => self.col("x2_vel_m_s")?,
-            Regressor::SgnX2Vel => {
-                let sw = match x2_switch {
-                    X2Switch::Jae => c.jae.sign_switch_m_s,
-                    X2Switch::Tension => c.tension.sign_switch_x2_m_s,
-                };
-                held_sign(self.col("x2_vel_m_s")?.iter().map(|v| *v as f32), sw)
-            }
+            Regressor::SgnX2Vel => match x2_switch {
+                X2Switch::Jae => held_sign_travelled(
+                    &self.col("x2_vel_m_s")?,
+                    &self.col("x2_m")?,
+                    c.jae.sign_switch_m_s,
+                    c.jae.sign_travel_m,
+                ),
+                X2Switch::Tension => held_sign(
+                    self.col("x2_vel_m_s")?.iter().map(|v| *v as f32),
+                    c.tension.sign_switch_x2_m_s,
+                ),
+            },
             Regressor::X2 => self.col("x2_m")?,
             Regressor::PhiVel => self.col("phi_vel_rad_s")?,
             Regressor::SgnPhiVel => {

@@ -36,7 +36,9 @@ use super::candidates::offer_candidates;
 use super::families::{term_column, term_label};
 use super::generic::{generic_columns, generic_run};
 use super::select::{Problem, RunData};
-use crate::derive::{config_for_log, derive, held_sign, low_pass_column, median_period_s};
+use crate::derive::{
+    config_for_log, derive, held_sign, held_sign_travelled, low_pass_column, median_period_s,
+};
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
 use crate::log::{Log, Schema};
 
@@ -344,7 +346,12 @@ fn core_run(
     let (mut target, fixed, mut baseline, names) = match kind {
         ModelKind::Jae => {
             let target = need("theta_rad", "the magnetic encoder of a calibration run")?;
-            let sign = held_sign(s(sig::X2_VEL_M_S).iter().copied(), cfg.jae.sign_switch_m_s);
+            let sign = held_sign_travelled(
+                &to64(s(sig::X2_VEL_M_S)),
+                &to64(s(sig::X2_M)),
+                cfg.jae.sign_switch_m_s,
+                cfg.jae.sign_travel_m,
+            );
             (
                 target,
                 vec![0.0; n],

@@ -263,8 +263,9 @@ impl SignMemory {
     /// also travelled `min_travel` from its extreme in the held direction
     /// (`state.anchor`): a differentiator that rings after a stop can cross
     /// the switching speed with the slider at rest, and only travel shows a
-    /// reversal. `min_travel <= 0` is [`SignMemory::update`] exactly; the
-    /// first sign (from 0) needs the speed alone.
+    /// reversal. `min_travel <= 0` is [`SignMemory::update`] exactly (the
+    /// anchor is then not kept); the first sign (from 0) needs the speed
+    /// alone.
     #[inline]
     pub fn update_travelled(
         &self,
@@ -273,8 +274,13 @@ impl SignMemory {
         pos: f32,
         min_travel: f32,
     ) -> f32 {
+        if min_travel <= 0.0 {
+            // Off: the plain sign, and the anchor is not kept (the JAE stage
+            // costs what it did without the option).
+            return self.update(&mut state.sign, vel);
+        }
         let held = state.sign;
-        if min_travel <= 0.0 || held == 0.0 {
+        if held == 0.0 {
             self.update(&mut state.sign, vel);
         } else if held < 0.0 && vel > self.switch_speed && pos - state.anchor >= min_travel {
             state.sign = 1.0;

@@ -137,6 +137,17 @@ fn joint_stiction_holds_below_breakaway_and_slips_above() {
     assert_eq!(plant.state().theta_rad, held, "holds after slipping");
 }
 
+/// One plant step under the tip force `f_ext_n` with the motor shaft held
+/// at its rest angle (what the two stick-slip bands below assume).
+fn step_with_motor_held(plant: &mut Plant, f_ext_n: f64) -> host_sim::plant::PlantState {
+    plant.set_external_force(f_ext_n);
+    plant.step();
+    let s = plant.state_mut();
+    s.phi_rad = 0.0;
+    s.phi_vel_rad_s = 0.0;
+    *s
+}
+
 /// The joint's first slip with the motor held and a tip force ramped slowly
 /// past the pin's breakaway (°, or `None` if it never slipped and stuck).
 fn first_pin_slip_deg(p: PlantParams) -> Option<f64> {
@@ -144,11 +155,8 @@ fn first_pin_slip_deg(p: PlantParams) -> Option<f64> {
     let ramp_n_s = 0.2 * p.joint.static_nm / p.joint.gripper_length_m;
     let mut moving = false;
     for k in 0..(10.0 / plant.dt_s()) as usize {
-        plant.set_external_force(ramp_n_s * k as f64 * plant.dt_s());
-        plant.step();
-        let s = plant.state_mut();
-        s.phi_rad = 0.0;
-        s.phi_vel_rad_s = 0.0;
+        let f_ext_n = ramp_n_s * k as f64 * plant.dt_s();
+        let s = step_with_motor_held(&mut plant, f_ext_n);
         if s.theta_vel_rad_s != 0.0 {
             moving = true;
         } else if moving {
@@ -219,11 +227,8 @@ fn slider_2_stays_at_rest_until_the_joint_has_turned_half_the_blind_band() {
         let ramp_n_s = 5e-4 * k_theta / p.joint.gripper_length_m;
         let mut first = None;
         for k in 0..(4.0 * half / 5e-4 / plant.dt_s()) as usize {
-            plant.set_external_force(-ramp_n_s * k as f64 * plant.dt_s());
-            plant.step();
-            let s = plant.state_mut();
-            s.phi_rad = 0.0;
-            s.phi_vel_rad_s = 0.0;
+            let f_ext_n = -ramp_n_s * k as f64 * plant.dt_s();
+            let s = step_with_motor_held(&mut plant, f_ext_n);
             if s.x2_m != 0.0 {
                 first = Some(s.theta_rad.abs());
                 break;

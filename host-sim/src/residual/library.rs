@@ -6,6 +6,10 @@
 use cable_joint::effects::{EffectKind, StrokePart, Term};
 use cable_joint::math;
 
+/// Lengths (half-widths) of the hysteresis candidates (`stop`, `dahl`,
+/// `bouc_wen`, `load_dahl`) as fractions of the input's span.
+const HYSTERESIS_SPAN_FRACTIONS: [f32; 3] = [0.005, 0.02, 0.08];
+
 /// Unloading shape of the library's Bouc–Wen candidates: 0, elastic
 /// unloading (a cable's stretch relaxes before the friction reverses; the
 /// Dahl state, shape 1, is a candidate of its own). Chosen from that
@@ -114,7 +118,7 @@ pub fn candidate_library(spec: &LibrarySpec) -> Vec<Term> {
         add(Term::new(EffectKind::Linear, i));
         add(Term::new(EffectKind::SignedSquare, i));
         add(Term::new(EffectKind::Cube, i));
-        for f in [0.005, 0.02, 0.08] {
+        for f in HYSTERESIS_SPAN_FRACTIONS {
             add(Term::new(
                 EffectKind::Stop {
                     half_width: f * span,
@@ -122,10 +126,10 @@ pub fn candidate_library(spec: &LibrarySpec) -> Vec<Term> {
                 i,
             ));
         }
-        for f in [0.005, 0.02, 0.08] {
+        for f in HYSTERESIS_SPAN_FRACTIONS {
             add(Term::new(EffectKind::Dahl { length: f * span }, i));
         }
-        for f in [0.005, 0.02, 0.08] {
+        for f in HYSTERESIS_SPAN_FRACTIONS {
             add(Term::new(
                 EffectKind::BoucWen {
                     length: f * span,
@@ -198,7 +202,7 @@ pub fn candidate_library(spec: &LibrarySpec) -> Vec<Term> {
         }
         if let Some(p) = pos {
             let span = p.span().unwrap_or(1.0);
-            for f in [0.005, 0.02, 0.08] {
+            for f in HYSTERESIS_SPAN_FRACTIONS {
                 let kind = EffectKind::LoadDahl { length: f * span };
                 add(Term::with_aux(kind, p.index, s.index));
             }

@@ -119,7 +119,7 @@ pub struct JaeConfig {
     /// flips the sign term (`2 c3`, about 0.3°) with nothing moving and
     /// makes a hold on `theta_hat` hunt (README, "Tip motion"). One grating
     /// count (`scales.grating_m_per_count`) is the least travel a reversal
-    /// shows. Off by default until the report's figures are rerun with it.
+    /// shows; the default is one count of the default grating, 1 µm.
     pub sign_travel_m: f32,
     /// Effect terms added by the residual loop (rad per term unit); not written to a
     /// file when there are none.
@@ -136,7 +136,7 @@ impl Default for JaeConfig {
             c_pos_rad_m: 264.356,
             offset_rad: 0.0,
             sign_switch_m_s: 2e-4,
-            sign_travel_m: 0.0,
+            sign_travel_m: crate::units::Scales::default().grating_m_per_count,
             added: AddedTerms::default(),
         }
     }

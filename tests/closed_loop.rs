@@ -4,11 +4,11 @@
 //! three held angles. Everything the controller uses is identified from logs;
 //! the plant's true parameters are never read.
 
-use cable_joint::Config;
+use cable_joint::{Config, Fault};
 use host_sim::ident::{decoupled, identify_bm, identify_jae, identify_tension};
 use host_sim::plant::PlantParams;
 use host_sim::scenario::{self, Direction, ScenarioOptions, G_M_S2};
-use host_sim::sim::{LogRecorder, NullRecorder};
+use host_sim::sim::{FnRecorder, LogRecorder, NullRecorder, TickRecord};
 
 fn log_of(name: &str, config: &Config, scale: f64) -> host_sim::log::Log {
     let mut rec = LogRecorder::new(true);
@@ -94,14 +94,15 @@ fn jae_feedback_tracks_better_than_motor_encoder_feedback() {
     );
 }
 
-/// One case of the seed's loading protocol on the clean plant.
+/// One case of the seed's loading protocol on the clean plant, with the
+/// plant's true tensions (cable 0, cable 1) at the tick a fault latched.
 fn loading(
     config: &Config,
     angle_deg: f64,
     mass_g: f64,
     direction: Direction,
     duration_scale: f64,
-) -> scenario::RunSummary {
+) -> (scenario::RunSummary, Option<(f64, f64)>) {
     let opts = ScenarioOptions {
         duration_scale,
         angle_deg: Some(angle_deg),
@@ -109,15 +110,22 @@ fn loading(
         direction: Some(direction),
         ..Default::default()
     };
-    scenario::run(
+    let mut at_fault = None;
+    let mut rec = FnRecorder(|r: &TickRecord| {
+        if at_fault.is_none() && r.output.fault.is_some() {
+            at_fault = Some((r.tensions.rope_n, r.tensions.cable1_n));
+        }
+    });
+    let summary = scenario::run(
         "loading",
         PlantParams::default(),
         *config,
         None,
         &opts,
-        &mut NullRecorder,
+        &mut rec,
     )
-    .unwrap_or_else(|e| panic!("loading {angle_deg}° {mass_g} g {direction:?}: {e:#}"))
+    .unwrap_or_else(|e| panic!("loading {angle_deg}° {mass_g} g {direction:?}: {e:#}"));
+    (summary, at_fault)
 }
 
 /// The seed's loading protocol on the clean plant with the identified
@@ -139,7 +147,7 @@ fn stretch_and_fused_force_estimates_under_static_loads_at_three_angles() {
     eprintln!("pin friction band at the tip: ±{pin_tip_n:.3} N");
     for angle_deg in [0.0, 30.0, -40.0] {
         for mass_g in [100.0, 250.0] {
-            let s = loading(&config, angle_deg, mass_g, Direction::Pos, 0.6);
+            let (s, _) = loading(&config, angle_deg, mass_g, Direction::Pos, 0.6);
             let (dob_mean, dob_max) = s.force_error_n.expect("stable region present");
             let (st_mean, st_max) = s.force_stretch_error_n.expect("stable region present");
             let (fu_mean, fu_max) = s.force_fused_error_n.expect("stable region present");
@@ -180,14 +188,36 @@ fn stretch_and_fused_force_estimates_under_static_loads_at_three_angles() {
 /// -40°, light and heavy, both directions: the passive estimate misses the
 /// 0.3 N load by the pin's friction band (about 0.2 N), so a regression to
 /// passive behaviour fails. The bound must still hold the load in 95 % of
-/// the held samples.
+/// the held samples. The heavy load at -40° pulls against cable 0 and can
+/// unload it completely (the report's passive protocol faults there on four
+/// of its ten variants, every time with cable 0 at 0 N): a slack fault is
+/// accepted only if the plant's cable was below the slack limit at the tick
+/// it latched, and at most that one case may end in it.
 #[test]
 fn probing_brings_the_fused_estimate_at_rest_within_eight_percent_of_the_load_plus_50_mn() {
     let mut config = identified_config();
     config.probe.enabled = true;
+    let limit_n = f64::from(config.slack_limit_n());
+    let mut measured = 0;
     for angle_deg in [30.0, -40.0] {
         for (mass_g, direction) in [(30.0, Direction::Pos), (250.0, Direction::Neg)] {
-            let s = loading(&config, angle_deg, mass_g, direction, 1.0);
+            let (s, at_fault) = loading(&config, angle_deg, mass_g, direction, 1.0);
+            if let Some(fault) = s.fault {
+                let (cable0_n, cable1_n) = at_fault.expect("a fault has a latching tick");
+                eprintln!(
+                    "{angle_deg:>5}° {mass_g:>5} g {direction:?}, probing: {fault} \
+                     (true tensions: cable 0 {cable0_n:.2} N, cable 1 {cable1_n:.2} N, limit {limit_n:.2} N)"
+                );
+                assert!(
+                    matches!(fault, Fault::Cable0Slack | Fault::TransmissionSlack)
+                        && cable0_n.min(cable1_n) < limit_n
+                        && (angle_deg, mass_g) == (-40.0, 250.0),
+                    "{angle_deg}° {mass_g} g {direction:?}: false fault {fault} \
+                     (cable 0 {cable0_n:.2} N, cable 1 {cable1_n:.2} N, limit {limit_n:.2} N)"
+                );
+                continue;
+            }
+            measured += 1;
             let (fu_mean, fu_max) = s.force_fused_error_n.expect("stable region present");
             let coverage = s.force_bound_coverage.expect("stable region present");
             let load_n = mass_g * 1e-3 * G_M_S2;
@@ -196,7 +226,6 @@ fn probing_brings_the_fused_estimate_at_rest_within_eight_percent_of_the_load_pl
                  {fu_mean:+.3} N (max {fu_max:.3}, bound covers {:.1} %)",
                 100.0 * coverage
             );
-            assert_eq!(s.fault, None, "{angle_deg}° {mass_g} g faulted");
             let tol = 0.08 * load_n + 0.05;
             assert!(
                 fu_mean.abs() < tol,
@@ -209,4 +238,5 @@ fn probing_brings_the_fused_estimate_at_rest_within_eight_percent_of_the_load_pl
             );
         }
     }
+    assert!(measured >= 3, "only {measured} of 4 cases ran to the end");
 }

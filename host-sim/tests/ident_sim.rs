@@ -12,8 +12,9 @@ use cable_joint::config::StretchConfig;
 use cable_joint::Config;
 use host_sim::cli::identify::{identify, IdentifyArgs, Procedure};
 use host_sim::ident::{
-    decoupled, identify_bm_with, identify_jae_with, identify_tension_with, physically_required,
-    validate_bm, validate_jae, validate_tension, IdentOptions, Regressor, SIMPLIFIED_C,
+    decoupled, identify_bm_with, identify_jae_with, identify_tension_with, nonnegative_by_physics,
+    physically_required, validate_bm, validate_jae, validate_tension, IdentOptions, Regressor,
+    SIMPLIFIED_C,
 };
 use host_sim::io::config::load_config;
 use host_sim::log::Log;
@@ -234,27 +235,44 @@ fn the_spring_rate_is_measured_through_the_motor_on_plants_whose_spring_is_not_t
     }
 }
 
-/// Slider 2 with eight times its friction (0.9 N, 1.1° at the joint): the
-/// calibration run's sweeps leave the JAE's sign term `c3` free (the viscous
-/// `c2` takes up most of the Coulomb level, and stick at the reversals
-/// pulls `c3` down), so its effective standard deviation exceeds its value.
-/// The identification flags it and widens the force bound's JAE floor
+/// Slider 2 with eight times its friction (0.9 N, 1.1° at the joint). With
+/// the JAE's friction sign switching on the speed alone
+/// (`jae.sign_travel_m = 0`), the grating's velocity ringing after each
+/// stop flips the sign with slider 2 at rest, and the calibration run's
+/// sign column no longer says which way the friction holds: `c3` comes out
+/// far below its physical value with an effective standard deviation above
+/// it. The identification flags it and widens the force bound's JAE floor
 /// (`fusion.jae_error_rad`) by two effective standard deviations per unit
-/// of the sign band's width, on top of two RMS of the residual.
+/// of the sign band's width, on top of two RMS of the residual. With the
+/// default travelled sign (one grating count) the same run pins `c3` down
+/// (0.016 rad against 0.020 when this was written).
 #[test]
 fn a_sign_term_the_run_cannot_pin_down_widens_the_force_bound() {
     let mut plant = PlantParams::default();
     plant.slider2.coulomb_n *= 8.0;
     plant.slider2.static_n *= 8.0;
-    let base = Config::default();
+    let physical = plant.jae_coefficients()[2];
+
+    let travelled = Config::default();
+    assert!(travelled.jae.sign_travel_m > 0.0);
+    let log = simulate_on(plant, "jae-ident", &travelled, None, 42.0);
+    let r = identify_jae_with(&[("jae", &log)], &travelled, &IdentOptions::default()).unwrap();
+    let c3 = r.chi_s[2];
+    assert!(
+        r.sign_term_identified() && (c3 - physical).abs() < 0.3 * physical,
+        "travelled sign: c3 {c3} rad (physical {physical}), effective std {}",
+        r.sign_term_std_eff_rad()
+    );
+
+    let mut base = Config::default();
+    base.jae.sign_travel_m = 0.0;
     let log = simulate_on(plant, "jae-ident", &base, None, 42.0);
     let r = identify_jae_with(&[("jae", &log)], &base, &IdentOptions::default()).unwrap();
     let std = r.sign_term_std_eff_rad();
     let c3 = r.chi_s[2];
-    let physical = plant.jae_coefficients()[2];
     assert!(
         !r.sign_term_identified() && c3.abs() < 0.5 * physical,
-        "c3 {c3} rad (physical {physical}), effective std {std}"
+        "sign on the speed alone: c3 {c3} rad (physical {physical}), effective std {std}"
     );
     let mut cfg = base;
     r.apply(&mut cfg);
@@ -302,8 +320,10 @@ fn tension_models_prune_to_the_core_structure_with_the_plants_spring_and_preload
     assert_eq!(r.model_c.params.len(), 11);
 
     // Pruning: every kept term is determined to 5 % or required by physics
-    // (spring, preload, the guides' Coulomb friction), and the dropped ones
-    // were not; slider 1's mass (40 g, x1'' tiny) is among them.
+    // (spring, preload, the guides' Coulomb friction), none that physics
+    // makes non-negative (a mass, damping or friction) is negative, and
+    // the dropped ones were one or the other; slider 1's mass (40 g, x1''
+    // tiny) is among them.
     for p in &r.simplified.params {
         assert!(
             p.pct_sigma <= 5.0 || physically_required(p.regressor),
@@ -311,10 +331,21 @@ fn tension_models_prune_to_the_core_structure_with_the_plants_spring_and_preload
             p.symbol,
             p.pct_sigma
         );
+        assert!(
+            p.value >= 0.0
+                || !nonnegative_by_physics(p.regressor)
+                || physically_required(p.regressor),
+            "kept {} at {} (a negative mass, damping or friction)",
+            p.symbol,
+            p.value
+        );
     }
     assert!(!r.dropped.is_empty());
     for (reg, pct) in &r.dropped {
-        assert!(*pct > 5.0, "{reg:?} dropped at {pct} %");
+        assert!(
+            *pct > 5.0 || nonnegative_by_physics(*reg),
+            "{reg:?} dropped at {pct} %"
+        );
     }
     assert!(
         r.dropped.iter().any(|(reg, _)| *reg == Regressor::X1Acc),

@@ -105,6 +105,6 @@ pub use spring::{SpringFit, SPRING_MIN_TRAVEL_M};
 pub use tension::{identify_tension, identify_tension_with, validate_tension};
 use terms::term;
 pub use terms::{
-    physically_required, ModelTerm, Regressor, BM_TERMS, JAE_TERMS, MAX_REGRESSORS, MODEL_A,
-    MODEL_B, MODEL_C, SIMPLIFIED_C,
+    nonnegative_by_physics, physically_required, ModelTerm, Regressor, BM_TERMS, JAE_TERMS,
+    MAX_REGRESSORS, MODEL_A, MODEL_B, MODEL_C, SIMPLIFIED_C,
 };

@@ -4,7 +4,9 @@ use anyhow::{bail, Context, Result};
 use cable_joint::lsq::Fit;
 
 use super::design::{solve, Design};
-use super::{physically_required, IdentOptions, ModelTerm, Regressor, MAX_REGRESSORS};
+use super::{
+    nonnegative_by_physics, physically_required, IdentOptions, ModelTerm, Regressor, MAX_REGRESSORS,
+};
 
 /// What the pruning kept and dropped.
 pub(super) struct Pruned {
@@ -12,7 +14,8 @@ pub(super) struct Pruned {
     pub(super) active: Vec<usize>,
     /// The fit on them.
     pub(super) fit: Fit<MAX_REGRESSORS>,
-    /// Dropped regressors with their `%sigma` when dropped, in order.
+    /// Dropped regressors with their `%sigma` when dropped, in order (a
+    /// term of forbidden sign can go with a `%sigma` below the limit).
     pub(super) dropped: Vec<(Regressor, f64)>,
 }
 
@@ -22,6 +25,12 @@ pub(super) struct Pruned {
 /// Coulomb terms are physics the model cannot do without
 /// ([`physically_required`]): they are never pruned, whatever their
 /// `%sigma` (a poorly excited run says so in the fit's table instead).
+///
+/// A term whose value has a sign physics forbids (a negative mass, damping
+/// or friction coefficient, [`nonnegative_by_physics`]) is dropped like one
+/// above the `%sigma` limit, before any of those: a well-determined
+/// negative mass is a correlation with something the model lacks, not an
+/// effect, and keeping it would fit a term the core does not evaluate.
 pub(super) fn prune(
     d: &Design,
     terms: &[ModelTerm],
@@ -39,12 +48,21 @@ pub(super) fn prune(
             p
         }
     };
+    // The order of dropping: a forbidden sign first, then the `%sigma`.
+    let badness = |fit: &Fit<MAX_REGRESSORS>, k: usize, r: Regressor| {
+        if nonnegative_by_physics(r) && fit.params[k] < 0.0 {
+            f64::INFINITY
+        } else {
+            pct(fit, k)
+        }
+    };
     if opts.prune_all_at_once {
         // The seed: every parameter above the limit at once, then refit.
         let mut next = Vec::new();
         for (k, j) in active.iter().enumerate() {
             let p = pct(&fit, k);
-            if p > opts.max_pct_sigma && !physically_required(terms[*j].regressor) {
+            let bad = badness(&fit, k, terms[*j].regressor);
+            if bad > opts.max_pct_sigma && !physically_required(terms[*j].regressor) {
                 dropped.push((terms[*j].regressor, p));
             } else {
                 next.push(*j);
@@ -61,14 +79,21 @@ pub(super) fn prune(
             fit = solve(d, &active, opts).context("refitting the pruned model")?;
         }
     }
-    // Backward elimination: drop the worst while one is above the limit.
+    // Backward elimination: drop the worst while one is above the limit
+    // (or of a forbidden sign; among those the one of largest `%sigma`).
     loop {
         let worst = (0..active.len())
             .filter(|k| !physically_required(terms[active[*k]].regressor))
-            .map(|k| (k, pct(&fit, k)))
-            .filter(|(_, p)| *p > opts.max_pct_sigma)
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((k, p)) = worst else { break };
+            .map(|k| {
+                (
+                    k,
+                    badness(&fit, k, terms[active[k]].regressor),
+                    pct(&fit, k),
+                )
+            })
+            .filter(|(_, bad, _)| *bad > opts.max_pct_sigma)
+            .max_by(|a, b| a.1.total_cmp(&b.1).then(a.2.total_cmp(&b.2)));
+        let Some((k, _, p)) = worst else { break };
         dropped.push((terms[active[k]].regressor, p));
         active.remove(k);
         if active.is_empty() {
@@ -159,6 +184,29 @@ mod tests {
                 (fit.params[k] - want).abs() < 0.05 * want,
                 "param {k}: {} vs {want}",
                 fit.params[k]
+            );
+        }
+    }
+
+    /// The junk column (`x1''`, a mass) made to enter `y` with a negative
+    /// coefficient, well determined: a negative mass goes whatever its
+    /// `%sigma`; the same column with a positive coefficient stays.
+    #[test]
+    fn a_well_determined_negative_mass_is_dropped_and_a_positive_one_kept() {
+        for (coef, kept_junk) in [(-2000.0, false), (2000.0, true)] {
+            let mut rng = Rng(0x5eed);
+            let mut d = design(400, 0.3, &mut rng);
+            for (y, j) in d.y.iter_mut().zip(&d.cols[4]) {
+                *y += coef * j;
+            }
+            let all: Vec<usize> = (0..TERMS.len()).collect();
+            let first = solve(&d, &all, &IdentOptions::default()).unwrap();
+            assert!(first.pct_sigma(4) < 5.0, "junk at {} %", first.pct_sigma(4));
+            let (kept, _) = kept(&d, &IdentOptions::default());
+            assert_eq!(
+                kept.contains(&Regressor::X1Acc),
+                kept_junk,
+                "coefficient {coef}: kept {kept:?}"
             );
         }
     }

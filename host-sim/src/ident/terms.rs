@@ -153,6 +153,28 @@ pub const SIMPLIFIED_C: [Regressor; 4] = [
     Regressor::One,
 ];
 
+/// Regressors whose coefficient is a mass, a damping or a Coulomb friction
+/// in every model the project fits (model C's `m_0`, `f_sv1`, `f_sc1`,
+/// `m_1`, `f_vp2`, `f_cp2` and the pin's `J_e / r`, `f_efv / r`,
+/// `f_efc / r`; the JAE's `c1..c3`; `B_m`): none can be negative, so a fit
+/// that makes one negative has used it for something else.
+pub fn nonnegative_by_physics(r: Regressor) -> bool {
+    matches!(
+        r,
+        Regressor::ThetaVel
+            | Regressor::ThetaAcc
+            | Regressor::SgnThetaVel
+            | Regressor::X1Acc
+            | Regressor::X1Vel
+            | Regressor::SgnX1Vel
+            | Regressor::X2Acc
+            | Regressor::X2Vel
+            | Regressor::SgnX2Vel
+            | Regressor::PhiVel
+            | Regressor::SgnPhiVel
+    )
+}
+
 /// Regressors a model needs by physics: the spring/stiffness, the
 /// preload/offset, and the guides' Coulomb friction (a guide always has
 /// some; a `%sigma` above the limit says the run could not separate it, not

@@ -366,7 +366,8 @@ fn core_run(
             )
         }
         ModelKind::Tension => {
-            let target = d.col_required("tension1_hat_n")?.to_vec();
+            let mut target = d.col_required("tension1_hat_n")?.to_vec();
+            take_out_known_load(&nl.name, log, &cfg, lp, &mut target);
             let s1 = held_sign(
                 s(sig::X1_VEL_M_S).iter().copied(),
                 cfg.tension.sign_switch_x1_m_s,
@@ -482,6 +483,37 @@ fn keep_added_terms(
 
 /// Warns on stderr when a column (the target or an input) is not measured
 /// (or not finite) on some rows: those rows are neither fitted nor judged.
+/// A run with a known tip load (a reference force `f_ext_n`, not zero
+/// everywhere: weights hung on the tip, a force sensor) validates the
+/// no-load tension model too: the load adds `f_ext l_e / r` to cable 1's
+/// tension (the inverse of the DOB's force, `(F_1_hat - Q[F_1']) r /
+/// l_e`), so the target becomes the DOB's tension less `Q[f_ext] l_e / r`,
+/// through the observer's low-pass like every column. A term that reads
+/// the load as a change of the model (a stiffness on `x1`, which the load
+/// stretches) then shows on such a run as the harm it does.
+fn take_out_known_load(name: &str, log: &Log, cfg: &Config, lp: LowPass1, target: &mut [f64]) {
+    let Some(force) = log.col("f_ext_n") else {
+        return;
+    };
+    if !force.iter().any(|f| f.is_finite() && *f != 0.0) {
+        return;
+    }
+    let m = &cfg.machine;
+    let tension_per_tip = f64::from(m.gripper_length_m / m.pulley_radius_m);
+    let finite: Vec<f64> = force
+        .iter()
+        .map(|f| if f.is_finite() { *f } else { 0.0 })
+        .collect();
+    for (t, q) in target.iter_mut().zip(low_pass_column(lp, &finite)) {
+        *t -= q * tension_per_tip;
+    }
+    let peak = finite.iter().fold(0.0f64, |a, f| a.max(f.abs()));
+    eprintln!(
+        "note: {name}: the reference force f_ext_n (up to {peak:.2} N at the tip) is taken out of \
+         the tension target, {tension_per_tip:.2} N of cable 1 per N: a loaded run judges the no-load model"
+    );
+}
+
 pub(super) fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
     if let Some(k) = target.iter().position(|v| !v.is_finite()) {
         eprintln!(

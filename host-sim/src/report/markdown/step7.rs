@@ -20,9 +20,10 @@ pub(super) fn md_step_7(o: &mut String, r: &Report, fx: &EffectsPart) {
         "The simulator's effects switched on (default magnitudes): {}. The whole programme ran again on that plant \
          with the seed's models (every identification repeated), then the residual loop \
          (`host_sim::residual`) ranked candidate effect terms on the `jae-ident` log (JAE) and the `tension-ident` log \
-         (tension model), kept those that cut the error on the held-out last 30 % of each run and, for the JAE, \
-         made none of two other regimes worse (a run under 2.5 N, `robust-2n5`, and one with JAE feedback, \
-         `track-jae`, each a fresh run with its own seed), and wrote them into `config.jae.added` and \
+         (tension model), kept those that cut the error on the held-out last 30 % of each run and \
+         made no other regime worse: for the JAE a run under 2.5 N, `robust-2n5`, and one with JAE feedback, \
+         `track-jae`, each a fresh run with its own seed; for the tension model the same `robust-2n5` run with \
+         its known load taken out of the target (`f_ext l_e / r` of cable-1 tension), and wrote them into `config.jae.added` and \
          `config.tension.added`; steps 3, 4 and 6 then ran again with that configuration.\n",
         fx.names.join(", ")
     );

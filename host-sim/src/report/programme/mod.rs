@@ -22,7 +22,7 @@ use crate::scenario::{Direction, LOADING_ANGLES_DEG, LOADING_MASSES_G};
 use crate::stats::ErrorStats;
 
 pub use loading_summary::{above_1n, at_0n3, AccuracyStats, LoadingSummary};
-pub use residual_loop::{residual_loop, ResidualStep, JAE_REGIMES};
+pub use residual_loop::{residual_loop, ResidualStep, JAE_REGIMES, TENSION_REGIMES};
 
 /// The seed of one run: a mix of the report's seed and the run's label, so
 /// every run has its own noise and the same label gets the same noise on

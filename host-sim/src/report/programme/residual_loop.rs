@@ -1,5 +1,5 @@
 //! Step 7's residual loop on an identification's logs (the JAE, then the
-//! tension model), with the JAE's terms also judged on other regimes.
+//! tension model), each model's terms also judged on other regimes.
 
 use anyhow::{Context, Result};
 use cable_joint::Config;
@@ -11,7 +11,8 @@ use crate::residual::{self, Analysis, BuildOptions, ModelKind, NamedLog, SelectO
 
 /// Step 7's residual loop: the JAE on the `jae-ident` log, then the
 /// tension model on the `tension-ident` log, each judged on the last 30 %
-/// of its run (never fitted), the selected terms written into
+/// of its run (never fitted) and on its regimes ([`JAE_REGIMES`],
+/// [`TENSION_REGIMES`]), the selected terms written into
 /// `config.jae.added` and `config.tension.added`.
 pub struct ResidualStep {
     /// The JAE analysis.
@@ -25,6 +26,13 @@ pub struct ResidualStep {
 /// The runs the JAE's residual loop must not make worse, besides the
 /// held-out part of its identification run: another regime each.
 pub const JAE_REGIMES: [&str; 2] = ["robust-2n5", "track-jae"];
+
+/// The runs the tension model's residual loop must not make worse, besides
+/// the held-out part of its identification run: the run under 2.5 N, whose
+/// known load is taken out of the target (a term that reads the load as a
+/// change of the model, as a stiffness on `x1` does, would otherwise eat
+/// the force estimate under load).
+pub const TENSION_REGIMES: [&str; 1] = ["robust-2n5"];
 
 /// Run the residual loop on an identification's logs. The JAE's terms are
 /// also judged on [`JAE_REGIMES`] (fresh runs on `plant` with the
@@ -78,18 +86,20 @@ pub fn residual_loop(
     )
     .context("residual loop on the JAE")?;
     let config = residual::config_with(&jae, &id.config)?;
-    let build = BuildOptions {
-        holdout_with_validate: false,
-        ..build
-    };
     let ten_log = NamedLog {
         name: "tension-ident".into(),
         log: id.logs.tension.clone(),
     };
+    // The loaded regime judges the no-load tension model with its known
+    // load taken out of the target (`f_ext_n`).
+    let loaded: Vec<NamedLog> = regimes
+        .into_iter()
+        .filter(|r| TENSION_REGIMES.contains(&r.name.as_str()))
+        .collect();
     let tension = residual::analyse(
         ModelKind::Tension,
         std::slice::from_ref(&ten_log),
-        &[],
+        &loaded,
         &config,
         build,
         select,

@@ -13,7 +13,6 @@
 use crate::cascade::{self, CascadeIn, CascadeState};
 use crate::config::{Config, ConfigError};
 use crate::dob::{self, Dob, DobOut, DobState, TensionState};
-use crate::effects::TermState;
 use crate::fault::{Fault, Sensor};
 use crate::filter::{Kinematics, LowPass1, TrackingObserver};
 use crate::fusion::{self, Fusion, FusionIn, FusionState};
@@ -452,6 +451,15 @@ impl Controller {
     /// filter design left to do). Filters keep their state; the cascade
     /// integrator is kept (bumpless).
     pub fn install(&mut self, prepared: PreparedConfig) {
+        // Term states the new banks no longer use go back to rest
+        // (`set_origin` restarts only the active ones).
+        let (old, new) = (&self.prepared.config, &prepared.config);
+        old.jae
+            .added
+            .retire(&new.jae.added, &mut self.state.jae_terms);
+        old.tension
+            .added
+            .retire(&new.tension.added, &mut self.state.tension_terms);
         self.prepared = prepared;
     }
 
@@ -575,6 +583,7 @@ impl Controller {
             // A latched fault stays latched.
             fault: _,
         } = &mut self.state;
+        let cfg = &self.prepared.config;
         *motor_ext = Extender16::default();
         *magnetic_ext = Extender16::default();
         let (motor, _) = motor_ext.update(raw.motor.0);
@@ -591,9 +600,11 @@ impl Controller {
         }
         *jae = JaeState::default();
         *tension = TensionState::default();
-        for term in jae_terms.iter_mut().chain(tension_terms.iter_mut()) {
-            *term = TermState::default();
-        }
+        // Only the active terms' slots: the others are at rest (`install`
+        // retires what a replaced bank used), and rewriting all of them
+        // cost the homing tick, the worst, about a hundred instructions.
+        cfg.jae.added.restart(jae_terms);
+        cfg.tension.added.restart(tension_terms);
         *dob = DobState::default();
         *fusion = FusionState::default();
         probe.restart();
@@ -1433,7 +1444,7 @@ mod tests {
     /// ring (rewritten before it is read). The two then step identically.
     #[test]
     fn homing_restarts_the_estimators_as_a_fresh_controller_would() {
-        use crate::effects::{EffectKind, Term};
+        use crate::effects::{EffectKind, Term, TermState};
         let mut cfg = Config::default();
         cfg.probe.enabled = true;
         // The samples below are no plant: the current does not follow the
@@ -1520,6 +1531,39 @@ mod tests {
         c
     }
 
+    /// Homing restarts only the active effect terms' state; the slots past
+    /// the bank stay at rest, also after a bank with more terms was
+    /// replaced by a shorter one (`install` retires what it used).
+    #[test]
+    fn homing_after_a_shorter_term_bank_leaves_no_term_state_behind() {
+        use crate::effects::{EffectKind, Term, TermState};
+        let mut two = Config::default();
+        two.limits.max_current_error_a = 0.0;
+        two.limits.min_tension_fraction = 0.0;
+        let creep = |tau_s| Term {
+            kind: EffectKind::Creep { tau_s },
+            input: sig::X2_M,
+            aux: 0,
+        };
+        let mut one = two;
+        assert!(two.jae.added.push(creep(0.5), 1e-3));
+        assert!(two.jae.added.push(creep(2.0), 1e-3));
+        assert!(one.jae.added.push(creep(0.5), 1e-3));
+        let sample = |k: u32| RawSample {
+            grating2: GratingCount((60.0 * math::sin(0.003 * k as f32)) as i32),
+            ..RawSample::default()
+        };
+        let mut c = Controller::new(two).unwrap();
+        for k in 0..500 {
+            c.step(&sample(k));
+        }
+        assert_ne!(c.state.jae_terms[1], TermState::default(), "term 2 ran");
+        c.set_config(one).unwrap();
+        assert_eq!(c.state.jae_terms[1], TermState::default(), "retired");
+        assert_ne!(c.state.jae_terms[0], TermState::default(), "kept");
+        c.set_origin(&sample(500));
+        assert!(c.state.jae_terms.iter().all(|t| *t == TermState::default()));
+    }
     #[test]
     fn probing_dithers_only_a_held_reference_and_publishes_after_a_settling_period() {
         let mut config = Config::default();

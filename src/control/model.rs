@@ -144,6 +144,28 @@ impl AddedTerms {
         Ok(())
     }
 
+    /// Put the active terms' state back at rest (`state[..len]`). The slots
+    /// past the bank are never advanced while it is in force and stay at
+    /// rest ([`AddedTerms::retire`] keeps them so when a bank is replaced),
+    /// so homing need not rewrite all [`MAX_TERMS`] of them on its tick.
+    #[inline]
+    pub fn restart(&self, state: &mut AddedState) {
+        for s in state.iter_mut().take(self.active().len()) {
+            *s = TermState::default();
+        }
+    }
+
+    /// `next` replaces this bank: the state of the terms this bank advanced
+    /// and `next` does not have goes back to rest, so every slot past the
+    /// bank in force is at rest.
+    #[inline]
+    pub fn retire(&self, next: &AddedTerms, state: &mut AddedState) {
+        let (kept, used) = (next.active().len(), self.active().len());
+        for s in state.iter_mut().take(used).skip(kept) {
+            *s = TermState::default();
+        }
+    }
+
     /// Sum of `coef * term` for one tick (advances the terms' state).
     #[inline]
     pub fn eval(&self, state: &mut AddedState, signals: &Signals, dt_s: f32) -> f32 {

@@ -6,7 +6,7 @@
 
 use cable_joint::{Config, Fault};
 use host_sim::ident::{decoupled, identify_bm, identify_jae, identify_tension};
-use host_sim::plant::PlantParams;
+use host_sim::plant::{PlantParams, Tensions};
 use host_sim::scenario::{self, Direction, ScenarioOptions, G_M_S2};
 use host_sim::sim::{FnRecorder, LogRecorder, NullRecorder, TickRecord};
 
@@ -95,14 +95,14 @@ fn jae_feedback_tracks_better_than_motor_encoder_feedback() {
 }
 
 /// One case of the seed's loading protocol on the clean plant, with the
-/// plant's true tensions (cable 0, cable 1) at the tick a fault latched.
+/// plant's true tensions at the tick a fault latched.
 fn loading(
     config: &Config,
     angle_deg: f64,
     mass_g: f64,
     direction: Direction,
     duration_scale: f64,
-) -> (scenario::RunSummary, Option<(f64, f64)>) {
+) -> (scenario::RunSummary, Option<Tensions>) {
     let opts = ScenarioOptions {
         duration_scale,
         angle_deg: Some(angle_deg),
@@ -113,7 +113,7 @@ fn loading(
     let mut at_fault = None;
     let mut rec = FnRecorder(|r: &TickRecord| {
         if at_fault.is_none() && r.output.fault.is_some() {
-            at_fault = Some((r.tensions.rope_n, r.tensions.cable1_n));
+            at_fault = Some(r.tensions);
         }
     });
     let summary = scenario::run(
@@ -203,14 +203,15 @@ fn probing_brings_the_fused_estimate_at_rest_within_eight_percent_of_the_load_pl
         for (mass_g, direction) in [(30.0, Direction::Pos), (250.0, Direction::Neg)] {
             let (s, at_fault) = loading(&config, angle_deg, mass_g, direction, 1.0);
             if let Some(fault) = s.fault {
-                let (cable0_n, cable1_n) = at_fault.expect("a fault has a latching tick");
+                let t = at_fault.expect("a fault has a latching tick");
+                let (cable0_n, cable1_n) = (t.rope_n, t.cable1_n);
                 eprintln!(
                     "{angle_deg:>5}° {mass_g:>5} g {direction:?}, probing: {fault} \
                      (true tensions: cable 0 {cable0_n:.2} N, cable 1 {cable1_n:.2} N, limit {limit_n:.2} N)"
                 );
                 assert!(
                     matches!(fault, Fault::Cable0Slack | Fault::TransmissionSlack)
-                        && cable0_n.min(cable1_n) < limit_n
+                        && t.transmission_n() < limit_n
                         && (angle_deg, mass_g) == (-40.0, 250.0),
                     "{angle_deg}° {mass_g} g {direction:?}: false fault {fault} \
                      (cable 0 {cable0_n:.2} N, cable 1 {cable1_n:.2} N, limit {limit_n:.2} N)"

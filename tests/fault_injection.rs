@@ -193,7 +193,7 @@ fn cable_one_unloaded_by_a_tip_force_beyond_its_preload_is_slack() {
     // The drive, saturated against the load, may pull cable 0 slack first.
     let t = rec.tensions_true[k];
     assert!(
-        t.rope_n.min(t.cable1_n) < f64::from(firmware_config().slack_limit_n()),
+        t.transmission_n() < f64::from(firmware_config().slack_limit_n()),
         "the fault at tick {k} with cable 0 at {:.2} N and cable 1 at {:.2} N is no slack",
         t.rope_n,
         t.cable1_n

@@ -1564,6 +1564,7 @@ mod tests {
         c.set_origin(&sample(500));
         assert!(c.state.jae_terms.iter().all(|t| *t == TermState::default()));
     }
+
     #[test]
     fn probing_dithers_only_a_held_reference_and_publishes_after_a_settling_period() {
         let mut config = Config::default();

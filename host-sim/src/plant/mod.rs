@@ -138,6 +138,14 @@ pub struct Tensions {
     pub spring_n: f64,
 }
 
+impl Tensions {
+    /// The lesser of cable 0 and cable 1, N: the transmission between the
+    /// motor and the joint is slack when this is (the slack checks' truth).
+    pub fn transmission_n(&self) -> f64 {
+        self.rope_n.min(self.cable1_n)
+    }
+}
+
 /// The force of a spring–damper contact that can only push: stiffness
 /// times penetration plus damping times its rate, never below zero, and zero
 /// without contact, N. One law for every object the simulator grips (the

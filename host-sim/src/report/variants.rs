@@ -340,7 +340,7 @@ impl CaseRec {
     /// message gains what the plant shows, and whether it confirms it.
     fn judge(&mut self, r: &TickRecord, f: Fault) -> String {
         let t = &r.tensions;
-        let cable_slack = t.rope_n.min(t.cable1_n) < self.slack_limit_n;
+        let cable_slack = t.transmission_n() < self.slack_limit_n;
         let (confirmed, truth) = match f {
             Fault::TransmissionSlack | Fault::Cable0Slack => (
                 cable_slack,
@@ -379,7 +379,7 @@ impl Recorder for CaseRec {
         // yet: the drive still on and no fault (on the tick a fault latches
         // the drive is off).
         let t = &r.tensions;
-        if self.fault.is_none() && r.output.drive_enable && t.rope_n.min(t.cable1_n) <= 0.0 {
+        if self.fault.is_none() && r.output.drive_enable && t.transmission_n() <= 0.0 {
             let since = *self.slack_since_s.get_or_insert(r.t_s);
             self.slack_undetected_s = self.slack_undetected_s.max(r.t_s - since);
         } else {

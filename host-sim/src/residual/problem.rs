@@ -481,8 +481,6 @@ fn keep_added_terms(
     problem.kept = added.active().to_vec();
 }
 
-/// Warns on stderr when a column (the target or an input) is not measured
-/// (or not finite) on some rows: those rows are neither fitted nor judged.
 /// A run with a known tip load (a reference force `f_ext_n`, not zero
 /// everywhere: weights hung on the tip, a force sensor) validates the
 /// no-load tension model too: the load adds `f_ext l_e / r` to cable 1's
@@ -514,6 +512,8 @@ fn take_out_known_load(name: &str, log: &Log, cfg: &Config, lp: LowPass1, target
     );
 }
 
+/// Warns on stderr when a column (the target or an input) is not measured
+/// (or not finite) on some rows: those rows are neither fitted nor judged.
 pub(super) fn warn_unmeasured(log: &str, column: &str, target: &[f64]) {
     if let Some(k) = target.iter().position(|v| !v.is_finite()) {
         eprintln!(

@@ -31,7 +31,8 @@ pub const JAE_REGIMES: [&str; 2] = ["robust-2n5", "track-jae"];
 /// the held-out part of its identification run: the run under 2.5 N, whose
 /// known load is taken out of the target (a term that reads the load as a
 /// change of the model, as a stiffness on `x1` does, would otherwise eat
-/// the force estimate under load).
+/// the force estimate under load). Each is one of [`JAE_REGIMES`], whose
+/// runs are simulated once for both loops.
 pub const TENSION_REGIMES: [&str; 1] = ["robust-2n5"];
 
 /// Run the residual loop on an identification's logs. The JAE's terms are
@@ -96,6 +97,8 @@ pub fn residual_loop(
         .into_iter()
         .filter(|r| TENSION_REGIMES.contains(&r.name.as_str()))
         .collect();
+    // The tension regimes are runs the JAE's loop already simulated.
+    debug_assert_eq!(loaded.len(), TENSION_REGIMES.len());
     let tension = residual::analyse(
         ModelKind::Tension,
         std::slice::from_ref(&ten_log),

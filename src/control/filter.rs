@@ -275,8 +275,7 @@ impl SignMemory {
         min_travel: f32,
     ) -> f32 {
         if min_travel <= 0.0 {
-            // Off: the plain sign, and the anchor is not kept (the JAE stage
-            // costs what it did without the option).
+            // Off: the plain sign, and the anchor is not kept.
             return self.update(&mut state.sign, vel);
         }
         let held = state.sign;
@@ -287,15 +286,15 @@ impl SignMemory {
         } else if held > 0.0 && vel < -self.switch_speed && state.anchor - pos >= min_travel {
             state.sign = -1.0;
         }
-        state.anchor = if state.sign != held {
-            pos
-        } else if state.sign > 0.0 {
-            state.anchor.max(pos)
-        } else if state.sign < 0.0 {
-            state.anchor.min(pos)
-        } else {
-            pos
-        };
+        // The furthest point in the held direction, by plain comparisons:
+        // `f32::max`/`min` are calls into `fmaxf`/`fminf` on the Cortex-M4F
+        // for their NaN rules, and positions are never NaN (grating counts
+        // on the target, a log's cells are refused unless finite).
+        let behind =
+            (state.sign > 0.0 && pos < state.anchor) || (state.sign < 0.0 && pos > state.anchor);
+        if state.sign != held || !behind {
+            state.anchor = pos;
+        }
         state.sign
     }
 }

@@ -354,6 +354,29 @@ mod tests {
         }
     }
 
+    /// The travel of a reversal counts from the furthest point reached in
+    /// the held direction, in either direction: a slider that drifts back
+    /// half a count slowly and then 0.7 of a count fast has travelled 1.2
+    /// counts from its furthest point and flips; measured from where it
+    /// stood before the fast part it would not.
+    #[test]
+    fn the_reversal_travel_counts_from_the_furthest_point_either_way() {
+        let m = SignMemory { switch_speed: 2e-4 };
+        for dir in [1.0f32, -1.0] {
+            let mut held = HeldSign::default();
+            for k in 0..=5 {
+                m.update_travelled(&mut held, dir * 1e-3, dir * 1e-6 * k as f32, 1e-6);
+            }
+            assert_eq!((held.sign, held.anchor), (dir, dir * 5e-6));
+            // Back half a count, slowly: held, and the furthest point kept.
+            m.update_travelled(&mut held, -dir * 1e-4, dir * 4.5e-6, 1e-6);
+            assert_eq!((held.sign, held.anchor), (dir, dir * 5e-6));
+            // Back 0.7 of a count, fast: 1.2 counts from the furthest point.
+            m.update_travelled(&mut held, -dir * 1e-3, dir * 3.8e-6, 1e-6);
+            assert_eq!((held.sign, held.anchor), (-dir, dir * 3.8e-6));
+        }
+    }
+
     #[test]
     fn low_pass_step_matches_analytic_response() {
         let (g, t) = (2.0 * PI * 10.0, 1.0 / 2000.0);

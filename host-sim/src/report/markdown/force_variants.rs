@@ -308,7 +308,9 @@ pub fn markdown(results: &[VariantResult]) -> String {
          \"fused + probing\" is the same protocol with the dither on every hold; its estimate is the fused \
          estimate's mean over the last whole dither period, so it lags a load change by one period (0.25 s), \
          and its tip motion is the stick-slip of the dithered chain, not twice the amplitude. Not built: the \
-         Dahl presliding state in the estimator. The force scale of the stretch estimate rests on the \
+         Dahl presliding state in the estimator (on the default prototype knowing slider 1's friction \
+         would narrow the DOB's interval at rest from ±2.7 to ±1.5 N at the tip, the motor's own band \
+         left, against the stretch interval's ±0.5 N; docs/force.md). The force scale of the stretch estimate rests on the \
          spring rate (`machine.spring_n_m`, through `c4`, Eq. 16), which `identify` measures through the \
          motor on the JAE's calibration run (the DOB's tension across sweeps of the transmission sliding one \
          way) and keeps at the datasheet's unless that fit's %sigma is below 5 % and the datasheet's rate \

@@ -109,6 +109,7 @@ pub fn config_for_log_noted(log: &Log, config: &Config) -> Result<(Config, Vec<S
     let mut notes = vec![format!(
         "control rate {rate_hz:.1} Hz (from the log's median time step)"
     )];
+    notes.extend(Holes::of(t, dt).note());
     notes.extend(changes.iter().map(|a| {
         format!(
             "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
@@ -117,6 +118,73 @@ pub fn config_for_log_noted(log: &Log, config: &Config) -> Result<(Config, Vec<S
     }));
     Ok((c, notes))
 }
+
+/// Rows a log is missing: holes in its time column longer than one control
+/// period (telemetry a host could not keep up with, a dropped serial
+/// frame).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Holes {
+    /// Holes (a step of at least two periods).
+    pub count: usize,
+    /// Control ticks missing over all holes.
+    pub missing: usize,
+    /// The longest hole, s.
+    pub longest_s: f64,
+    /// The row after the longest hole (0-based).
+    pub longest_row: usize,
+}
+
+impl Holes {
+    /// The holes of the time column `t` at the control period `period_s`.
+    pub fn of(t: &[f64], period_s: f64) -> Self {
+        let mut h = Self::default();
+        for k in 1..t.len() {
+            let n = missing_ticks(t[k] - t[k - 1], period_s);
+            if n > 0 {
+                h.count += 1;
+                h.missing += n;
+                if t[k] - t[k - 1] > h.longest_s {
+                    h.longest_s = t[k] - t[k - 1];
+                    h.longest_row = k;
+                }
+            }
+        }
+        h
+    }
+
+    /// What the replay does about the holes, for the command to print
+    /// (`None` without holes).
+    pub fn note(&self) -> Option<String> {
+        (self.count > 0).then(|| {
+            format!(
+                "the log is missing {} rows in {} holes (the longest {:.4} s, before line {}): \
+                 the replay steps the core through each hole with the sensors interpolated and \
+                 the last current held",
+                self.missing,
+                self.count,
+                self.longest_s,
+                crate::log::line_of_row(self.longest_row)
+            )
+        })
+    }
+}
+
+/// Control ticks a time step `dt_s` skips at the period `period_s`: the
+/// step in whole periods, less the one a row takes (0 for a regular step
+/// or a non-positive one).
+fn missing_ticks(dt_s: f64, period_s: f64) -> usize {
+    let n = (dt_s / period_s).round();
+    if n.is_finite() && n >= 2.0 {
+        n as usize - 1
+    } else {
+        0
+    }
+}
+
+/// Most control ticks the replay fills into one hole of a log: 1e6, some
+/// ten minutes at 2 kHz. A longer step of the time column is not a lost
+/// frame but another recording or a broken clock, and is refused.
+pub const MAX_FILLED_TICKS: usize = 1_000_000;
 
 /// Replay `log` (project schema) through the core; returns a log with `t_s`,
 /// the run-time signals, [`EXTRA_COLUMNS`], and the log's `theta_rad`,
@@ -138,33 +206,76 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
     names.extend(EXTRA_COLUMNS);
     let mut out = Log::with_columns(&names)?;
     let two_pi = std::f64::consts::TAU;
+    let period_s = f64::from(cfg.period_s());
     let mut magnetic = 0u16;
-    for k in 0..log.len() {
-        let meas = i_meas
-            .map(|c| c[k])
-            .filter(|v| v.is_finite())
-            .unwrap_or(i_ref[k]);
-        let raw = RawSample {
-            grating1: GratingCount((x1[k] / s.grating_m_per_count as f64).round() as i32),
-            grating2: GratingCount((x2[k] / s.grating_m_per_count as f64).round() as i32),
-            motor: MotorCount(
-                (phi[k] * s.motor_counts_per_rev as f64 / two_pi).round() as i64 as u16,
-            ),
-            // A cell not measured holds the last reading (a jump to 0 would
-            // latch an encoder-jump fault and end the replay).
-            magnetic: MagneticCount({
-                if let Some(v) = theta.map(|c| c[k]).filter(|v| v.is_finite()) {
-                    magnetic =
-                        (v * s.magnetic_counts_per_rev as f64 / two_pi).round() as i64 as u16;
-                }
-                magnetic
-            }),
+    // Row k's sensor readings, or those a fraction `f` of the way from row
+    // k - 1 to row k (the ticks inside a hole).
+    let reading = |k: usize, f: f64| {
+        let at = |c: &[f64]| {
+            if f < 1.0 {
+                c[k - 1] + f * (c[k] - c[k - 1])
+            } else {
+                c[k]
+            }
+        };
+        let meas_at = |j: usize| {
+            i_meas
+                .map(|c| c[j])
+                .filter(|v| v.is_finite())
+                .unwrap_or(i_ref[j])
+        };
+        let meas = if f < 1.0 {
+            meas_at(k - 1) + f * (meas_at(k) - meas_at(k - 1))
+        } else {
+            meas_at(k)
+        };
+        // A cell not measured holds the last reading (a jump to 0 would
+        // latch an encoder-jump fault and end the replay).
+        let th = theta.and_then(|c| {
+            let (a, b) = (if f < 1.0 { c[k - 1] } else { c[k] }, c[k]);
+            (a.is_finite() && b.is_finite()).then_some(a + f * (b - a))
+        });
+        (at(x1), at(x2), at(phi), th, meas)
+    };
+    let raw_of = |(x1, x2, phi, th, meas): (f64, f64, f64, Option<f64>, f64),
+                  magnetic: &mut u16| {
+        if let Some(v) = th {
+            *magnetic = (v * s.magnetic_counts_per_rev as f64 / two_pi).round() as i64 as u16;
+        }
+        RawSample {
+            grating1: GratingCount((x1 / s.grating_m_per_count as f64).round() as i32),
+            grating2: GratingCount((x2 / s.grating_m_per_count as f64).round() as i32),
+            motor: MotorCount((phi * s.motor_counts_per_rev as f64 / two_pi).round() as i64 as u16),
+            magnetic: MagneticCount(*magnetic),
             current: AdcCode(
                 (meas as f32 / s.adc_a_per_code + s.adc_zero_code)
                     .round()
                     .clamp(0.0, 4095.0) as u16,
             ),
-        };
+        }
+    };
+    for k in 0..log.len() {
+        if k > 0 {
+            // A hole (rows the recording lost): the core steps through the
+            // time that passed, its sensors interpolated and the drive
+            // holding the last current, so the hole is not a sensor jump.
+            let n = missing_ticks(t[k] - t[k - 1], period_s);
+            if n > MAX_FILLED_TICKS {
+                bail!(
+                    "line {}: the time jumps by {:.3} s from the row before ({} control periods); \
+                     a hole this long is not a lost frame: split the log there",
+                    crate::log::line_of_row(k),
+                    t[k] - t[k - 1],
+                    n + 1
+                );
+            }
+            for j in 1..=n {
+                let f = j as f64 / (n + 1) as f64;
+                let raw = raw_of(reading(k, f), &mut magnetic);
+                ctl.replay(&raw, i_ref[k - 1] as f32);
+            }
+        }
+        let raw = raw_of(reading(k, 1.0), &mut magnetic);
         if k == 0 {
             ctl.set_origin(&raw);
         }

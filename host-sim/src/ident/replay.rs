@@ -5,7 +5,9 @@ use cable_joint::filter::{Kinematics, LowPass1, TrackingObserver};
 use cable_joint::Config;
 
 use super::{IdentOptions, Regressor};
-use crate::derive::{config_for_log, derive, held_sign, held_sign_travelled, low_pass_column};
+use crate::derive::{
+    config_for_log, derive, held_sign, held_sign_travelled, low_pass_column, Holes,
+};
 use crate::log::Log;
 
 /// A log replayed through the core, with the columns the models need (the
@@ -88,6 +90,9 @@ impl Prepared {
         let cfg = config_for_log(log, config).with_context(|| label.to_owned())?;
         let derived = derive(log, config).with_context(|| format!("replaying {label}"))?;
         let t = derived.time_s()?.to_vec();
+        if let Some(note) = Holes::of(&t, f64::from(cfg.period_s())).note() {
+            eprintln!("note: {label}: {note}");
+        }
         let fault = derived.col_required("fault_code")?;
         let t0 = t.first().copied().unwrap_or(0.0);
         let usable: Vec<bool> = t

@@ -9,7 +9,7 @@ use host_sim::estimate::estimate;
 use host_sim::log::{Log, Schema};
 use host_sim::plant::PlantParams;
 use host_sim::scenario::{self, Direction, ScenarioOptions};
-use host_sim::sim::LogRecorder;
+use host_sim::sim::{LogRecorder, LOG_COLUMNS};
 
 /// A loading case (100 g, positive, at 0°) logged by a 1 kHz controller.
 fn loading_log_1khz() -> Log {
@@ -248,22 +248,16 @@ fn a_log_with_dropped_telemetry_rows_replays_as_time_that_passed() {
     )
     .expect("track-motor");
     let full = rec.to_log().expect("log");
-    let names = [
-        "t_s",
-        "x1_m",
-        "x2_m",
-        "phi_rad",
-        "i_ref_a",
-        "i_meas_a",
-        "theta_rad",
-    ];
+    // The columns a rig with the magnetic encoder fitted records.
+    let names = &LOG_COLUMNS[..7];
+    assert_eq!(names.last(), Some(&"theta_rad"));
     let cols: Vec<&[f64]> = names
         .iter()
         .map(|n| full.col_required(n).unwrap())
         .collect();
     let (mut whole, mut holed) = (
-        Log::with_columns(&names).unwrap(),
-        Log::with_columns(&names).unwrap(),
+        Log::with_columns(names).unwrap(),
+        Log::with_columns(names).unwrap(),
     );
     let mut kept = Vec::new();
     for k in 0..full.len() {
@@ -317,7 +311,7 @@ fn a_log_with_dropped_telemetry_rows_replays_as_time_that_passed() {
         rms.to_degrees()
     );
     // A step of the clock far beyond any lost frame is refused, by line.
-    let mut broken = Log::with_columns(&names).unwrap();
+    let mut broken = Log::with_columns(names).unwrap();
     for k in 0..2000 {
         let mut row: Vec<f64> = cols.iter().map(|c| c[k]).collect();
         if k >= 1000 {

@@ -230,6 +230,10 @@ pub struct Client {
     pub resent: u32,
 }
 
+/// Most bytes one read of the port takes (a quarter of a second of
+/// telemetry at a record every tick of a 2 kHz loop).
+const READ_CHUNK: usize = 32 * 1024;
+
 /// Pause before a request the firmware could not queue is sent again (its
 /// queue of four drains one request per control tick).
 const BUSY_PAUSE: Duration = Duration::from_millis(10);
@@ -388,7 +392,11 @@ impl Client {
 
     /// Read the port once and decode every frame completed.
     fn fill(&mut self) -> anyhow::Result<()> {
-        let mut buf = [0u8; 512];
+        // One read takes everything that has arrived, up to READ_CHUNK: at
+        // a record every tick the firmware sends about 140 kB/s, and a
+        // reader that takes less per call falls behind, its socket fills
+        // and the firmware's telemetry queue overflows (rows lost).
+        let mut buf = [0u8; READ_CHUNK];
         let n = match self.port.read(&mut buf) {
             Ok(0) => bail!("the firmware link closed"),
             Ok(n) => n,

@@ -204,69 +204,81 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let mut elapsed = 0u64;
     let mut last_data = Instant::now();
     let idle = Duration::from_secs_f64(args.idle_timeout_s);
-    loop {
-        let got = client.poll()?;
-        let mut now = None;
-        for r in &got {
-            if let Record::Tick(t) = r {
-                now = Some(t.tick);
-                bar.set_message(format!("{} fault {}", t.phase, t.fault));
-                if homed_tick.is_none() && t.phase == Phase::Running.code() {
-                    homed_tick = Some(t.tick);
-                }
-                if let Some((_, live)) = &mut view {
-                    live.push(t);
+    // What was received is written even when the link fails part way.
+    let outcome = (|| -> anyhow::Result<()> {
+        loop {
+            let got = client.poll()?;
+            let mut now = None;
+            for r in &got {
+                if let Record::Tick(t) = r {
+                    now = Some(t.tick);
+                    bar.set_message(format!("{} fault {}", t.phase, t.fault));
+                    if homed_tick.is_none() && t.phase == Phase::Running.code() {
+                        homed_tick = Some(t.tick);
+                    }
+                    if let Some((_, live)) = &mut view {
+                        live.push(t);
+                    }
                 }
             }
-        }
-        if let Some(now) = now {
-            elapsed = u64::from(now.wrapping_sub(*first_tick.get_or_insert(now)));
-        }
-        if let Some((screen, live)) = &mut view {
-            live.set_note(format!(
-                "{recording} · {:.1} of {duration_s:.1} s · {} damaged frames",
-                elapsed as f64 / rate_hz,
-                client.damaged
-            ));
-            if screen.refresh(live)? {
-                stopped = true;
+            if let Some(now) = now {
+                elapsed = u64::from(now.wrapping_sub(*first_tick.get_or_insert(now)));
+            }
+            if let Some((screen, live)) = &mut view {
+                live.set_note(format!(
+                    "{recording} · {:.1} of {duration_s:.1} s · {} damaged frames",
+                    elapsed as f64 / rate_hz,
+                    client.damaged
+                ));
+                if screen.refresh(live)? {
+                    stopped = true;
+                    break;
+                }
+            }
+            if got.is_empty() {
+                if last_data.elapsed() > idle {
+                    bail!(
+                        "no telemetry for {:.0} s (after {} records): is the firmware running?",
+                        args.idle_timeout_s,
+                        records.len()
+                    );
+                }
+                continue;
+            }
+            last_data = Instant::now();
+            records.extend(got);
+            let Some(now) = now else { continue };
+            bar.set_position(elapsed.min(want_ticks));
+            if let Some(homed) = homed_tick {
+                let since_s = f64::from(now.wrapping_sub(homed)) / rate_hz;
+                while pending.last().is_some_and(|&(t, _)| t <= since_s) {
+                    let (_, c) = pending.pop().expect("checked");
+                    client.request(&Down::SetCommand(c))?;
+                    last_beat = now;
+                }
+            }
+            if scenario.is_some() && f64::from(now.wrapping_sub(last_beat)) / rate_hz > 0.2 {
+                client.request(&Down::Heartbeat)?;
+                last_beat = now;
+            }
+            if elapsed >= want_ticks {
                 break;
             }
         }
-        if got.is_empty() {
-            if last_data.elapsed() > idle {
-                bail!(
-                    "no telemetry for {:.0} s (after {} records): is the firmware running?",
-                    args.idle_timeout_s,
-                    records.len()
-                );
-            }
-            continue;
-        }
-        last_data = Instant::now();
-        records.extend(got);
-        let Some(now) = now else { continue };
-        bar.set_position(elapsed.min(want_ticks));
-        if let Some(homed) = homed_tick {
-            let since_s = f64::from(now.wrapping_sub(homed)) / rate_hz;
-            while pending.last().is_some_and(|&(t, _)| t <= since_s) {
-                let (_, c) = pending.pop().expect("checked");
-                client.request(&Down::SetCommand(c))?;
-                last_beat = now;
-            }
-        }
-        if scenario.is_some() && f64::from(now.wrapping_sub(last_beat)) / rate_hz > 0.2 {
-            client.request(&Down::Heartbeat)?;
-            last_beat = now;
-        }
-        if elapsed >= want_ticks {
-            break;
-        }
-    }
+        Ok(())
+    })();
     records.extend(client.take_telemetry());
     bar.finish_and_clear();
     let mut written = String::from("nothing recorded");
-    if let Some(path) = &args.record {
+    let ticks = records
+        .iter()
+        .filter(|r| matches!(r, Record::Tick(_)))
+        .count();
+    if let Some(path) = args
+        .record
+        .as_ref()
+        .filter(|_| outcome.is_ok() || ticks > 0)
+    {
         let mut out = Outputs::new();
         to_log(
             &records,
@@ -279,6 +291,16 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         out.commit()?;
         written = format!("wrote {}", path.display());
     }
+    if let Err(e) = outcome {
+        drop(view);
+        return Err(match &args.record {
+            Some(p) if ticks > 0 => e.context(format!(
+                "the run ended early, after {ticks} tick records: those are in {}",
+                p.display()
+            )),
+            _ => e,
+        });
+    }
     if let Some((mut screen, mut live)) = view {
         if !stopped {
             live.set_note(&written);
@@ -288,10 +310,6 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     if stopped {
         eprintln!("stopped with q before the end; what was received is kept");
     }
-    let ticks = records
-        .iter()
-        .filter(|r| matches!(r, Record::Tick(_)))
-        .count();
     eprintln!(
         "received {ticks} tick records ({} damaged frames, {} requests sent again)",
         client.damaged, client.resent

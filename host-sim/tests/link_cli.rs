@@ -1,0 +1,124 @@
+//! `host-sim link` against a stand-in for the firmware's link on a local
+//! socket: what a run received is kept when the link fails part way.
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::process::Command;
+
+use cable_joint::link::{encode, receive, FrameReader, Pushed, Up, MAX_WIRE_LEN};
+use cable_joint::telemetry::{
+    OriginRecord, Record, StartRecord, TickRecord, FORMAT_VERSION, MAX_RECORD_LEN,
+};
+
+/// Telemetry records the stand-in sends before it closes the link.
+const SENT_TICKS: u32 = 500;
+
+fn send(s: &mut TcpStream, seq: &mut u8, msg: &Up) {
+    let mut wire = [0u8; MAX_WIRE_LEN];
+    s.write_all(encode(msg, *seq, &mut wire).unwrap()).unwrap();
+    *seq = seq.wrapping_add(1);
+}
+
+fn send_record(s: &mut TcpStream, seq: &mut u8, record: Record) {
+    let mut bytes = [0u8; MAX_RECORD_LEN];
+    send(s, seq, &Up::Telemetry(record.encode(&mut bytes)));
+}
+
+/// Acknowledges the host's first request (its heartbeat), sends a start
+/// record and [`SENT_TICKS`] tick records, homing for the first half and
+/// running after it (with the origin record between when `origin`), then
+/// closes the connection, as a board that loses power would.
+fn firmware_that_stops(listener: TcpListener, origin: bool) {
+    let (mut s, _) = listener.accept().unwrap();
+    let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
+    let mut up_seq = 0u8;
+    let mut buf = [0u8; 256];
+    let seq = 'first: loop {
+        let n = s.read(&mut buf).unwrap();
+        assert!(n > 0, "the host closed before its first request");
+        for &b in &buf[..n] {
+            if let Pushed::Frame(len) = reader.push(b) {
+                break 'first receive(reader.frame(), len).seq;
+            }
+        }
+    };
+    send(&mut s, &mut up_seq, &Up::Ack { seq, refused: None });
+    let start = StartRecord {
+        version: FORMAT_VERSION,
+        control_rate_hz: 2000.0,
+        decimation: 1,
+    };
+    send_record(&mut s, &mut up_seq, Record::Start(start));
+    for tick in 0..SENT_TICKS {
+        if tick == SENT_TICKS / 2 && origin {
+            let o = OriginRecord {
+                tick,
+                ..OriginRecord::default()
+            };
+            send_record(&mut s, &mut up_seq, Record::Origin(o));
+        }
+        let t = TickRecord {
+            tick,
+            phase: if tick < SENT_TICKS / 2 { 3 } else { 4 },
+            mode: 1,
+            drive_enable: true,
+            dac: cable_joint::units::DacCode(2048),
+            ..TickRecord::default()
+        };
+        send_record(&mut s, &mut up_seq, Record::Tick(t));
+    }
+    s.flush().unwrap();
+}
+
+/// `host-sim link --duration-s 10 --record` against [`firmware_that_stops`]:
+/// whether it succeeded, its stderr and the log's text (if written).
+fn record_from_stand_in(name: &str, origin: bool) -> (bool, String, Option<String>) {
+    let dir = std::env::temp_dir().join(format!("link-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("run.csv");
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let firmware = std::thread::spawn(move || firmware_that_stops(listener, origin));
+    let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
+        .args(["--duration-s", "10", "--record"])
+        .arg(&log)
+        .output()
+        .unwrap();
+    firmware.join().unwrap();
+    let text = std::fs::read_to_string(&log).ok();
+    std::fs::remove_dir_all(&dir).ok();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+        text,
+    )
+}
+
+#[test]
+fn a_link_that_closes_part_way_keeps_the_records_received() {
+    let (ok, stderr, text) = record_from_stand_in("closes", true);
+    assert!(!ok, "the link reported success: {stderr}");
+    assert!(stderr.contains("the firmware link closed"), "{stderr}");
+    assert!(
+        stderr.contains(&format!("after {SENT_TICKS} tick records")),
+        "{stderr}"
+    );
+    let text = text.expect("the received records are written");
+    let rows = text.lines().count() - 1;
+    assert_eq!(rows, SENT_TICKS as usize, "{stderr}");
+    assert!(!stderr.contains("origin record"), "{stderr}");
+}
+
+#[test]
+fn a_homing_whose_origin_record_was_lost_is_named_in_a_warning() {
+    let (_, stderr, text) = record_from_stand_in("no-origin", false);
+    assert!(text.is_some(), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "homing ended by tick {} but its origin record is not in the stream",
+            SENT_TICKS / 2
+        )),
+        "{stderr}"
+    );
+}

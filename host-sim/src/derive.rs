@@ -6,7 +6,8 @@
 //! Positions are converted back to counts with the configuration's scales
 //! (exact for logs that came from counts) and the logged current reference is
 //! the current applied over each period. The control rate is taken from the
-//! log's median time step.
+//! log's tick column when it has one ([`log_clock`]), else from its median
+//! time step.
 
 use anyhow::{bail, Context, Result};
 use cable_joint::model::SIGNAL_NAMES;
@@ -89,6 +90,93 @@ pub fn median_period_s(t_s: &[f64]) -> Option<f64> {
     Some(d[d.len() / 2])
 }
 
+/// How a log's rows sit on the firmware's control clock.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clock {
+    /// The control period, s.
+    pub period_s: f64,
+    /// Control ticks from one row to the next in a regular stretch of the
+    /// log (the telemetry decimation; 1 for a row every tick).
+    pub decimation: u32,
+    /// Whether the clock was read from the log's `tick` column (a recorded
+    /// run) rather than from its time steps alone.
+    pub from_ticks: bool,
+}
+
+impl Clock {
+    /// The control rate, Hz.
+    pub fn rate_hz(&self) -> f64 {
+        1.0 / self.period_s
+    }
+
+    /// How the rate was found, for the command to print.
+    pub fn source(&self) -> String {
+        if self.from_ticks {
+            let every = match self.decimation {
+                1 => "a row every tick".to_owned(),
+                d => format!("a row every {d} ticks"),
+            };
+            format!("from the log's tick column: {every}")
+        } else {
+            "from the log's median time step".to_owned()
+        }
+    }
+}
+
+/// The control clock of `log`. A recorded run carries the firmware's tick
+/// counter: the period is the median of `dt / dtick` and the decimation the
+/// median tick step, so neither a decimated recording nor one that lost
+/// most of its rows (a median time step of two or three periods) is taken
+/// for a slower loop. Without a `tick` column, every row is a tick and the
+/// period is the median time step.
+pub fn log_clock(log: &Log) -> Result<Clock> {
+    let t = log.time_s()?;
+    let tick = log.col("tick").filter(|c| c.iter().all(|v| v.is_finite()));
+    let Some(tick) = tick else {
+        let dt = median_period_s(t).context("log has fewer than two rows")?;
+        if !(dt.is_finite() && dt > 0.0) {
+            bail!("log time step is not positive (median {dt} s)");
+        }
+        return Ok(Clock {
+            period_s: dt,
+            decimation: 1,
+            from_ticks: false,
+        });
+    };
+    if t.len() < 2 {
+        bail!("log has fewer than two rows");
+    }
+    let mut per_tick = Vec::with_capacity(t.len() - 1);
+    let mut steps = Vec::with_capacity(t.len() - 1);
+    for k in 1..t.len() {
+        let dtick = tick[k] - tick[k - 1];
+        if !(dtick >= 1.0 && dtick.fract() == 0.0) {
+            bail!(
+                "line {}, column tick: {} after {} (the firmware's tick counter must grow by a \
+                 whole number of ticks from row to row)",
+                crate::log::line_of_row(k),
+                tick[k],
+                tick[k - 1]
+            );
+        }
+        per_tick.push((t[k] - t[k - 1]) / dtick);
+        steps.push(dtick);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    let period_s = median(&mut per_tick);
+    if !(period_s.is_finite() && period_s > 0.0) {
+        bail!("log time step per tick is not positive (median {period_s} s)");
+    }
+    Ok(Clock {
+        period_s,
+        decimation: median(&mut steps).min(f64::from(u32::MAX)) as u32,
+        from_ticks: true,
+    })
+}
+
 /// The configuration with its control rate set to the log's rate.
 pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
     config_for_log_noted(log, config).map(|(c, _)| c)
@@ -97,19 +185,13 @@ pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
 /// [`config_for_log`], with a line for every setting derived from the log's
 /// rate ([`Config::at_rate`]) for the caller to print.
 pub fn config_for_log_noted(log: &Log, config: &Config) -> Result<(Config, Vec<String>)> {
-    let t = log.time_s()?;
-    let dt = median_period_s(t).context("log has fewer than two rows")?;
-    if !(dt.is_finite() && dt > 0.0) {
-        bail!("log time step is not positive (median {dt} s)");
-    }
-    let rate_hz = 1.0 / dt;
+    let clock = log_clock(log)?;
+    let rate_hz = clock.rate_hz();
     let (c, changes) = config.at_rate(rate_hz as f32);
     c.validate()
         .map_err(|e| anyhow::anyhow!("{e} (control rate taken from the log: {rate_hz:.1} Hz)"))?;
-    let mut notes = vec![format!(
-        "control rate {rate_hz:.1} Hz (from the log's median time step)"
-    )];
-    notes.extend(Holes::of(t, dt).note());
+    let mut notes = vec![format!("control rate {rate_hz:.1} Hz ({})", clock.source())];
+    notes.extend(Holes::of(log.time_s()?, &clock).note(&clock));
     notes.extend(changes.iter().map(|a| {
         format!(
             "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
@@ -119,14 +201,14 @@ pub fn config_for_log_noted(log: &Log, config: &Config) -> Result<(Config, Vec<S
     Ok((c, notes))
 }
 
-/// Rows a log is missing: holes in its time column longer than one control
-/// period (telemetry a host could not keep up with, a dropped serial
-/// frame).
+/// Rows a log is missing: steps of its time column longer than the
+/// clock's row step (telemetry a host could not keep up with, a dropped
+/// serial frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Holes {
-    /// Holes (a step of at least two periods).
+    /// Holes (a step of at least two rows).
     pub count: usize,
-    /// Control ticks missing over all holes.
+    /// Rows missing over all holes.
     pub missing: usize,
     /// The longest hole, s.
     pub longest_s: f64,
@@ -135,11 +217,13 @@ pub struct Holes {
 }
 
 impl Holes {
-    /// The holes of the time column `t` at the control period `period_s`.
-    pub fn of(t: &[f64], period_s: f64) -> Self {
+    /// The holes of the time column `t` on `clock` (a row every
+    /// `clock.decimation` periods).
+    pub fn of(t: &[f64], clock: &Clock) -> Self {
+        let row_s = clock.period_s * f64::from(clock.decimation.max(1));
         let mut h = Self::default();
         for k in 1..t.len() {
-            let n = missing_ticks(t[k] - t[k - 1], period_s);
+            let n = missing_ticks(t[k] - t[k - 1], row_s);
             if n > 0 {
                 h.count += 1;
                 h.missing += n;
@@ -152,10 +236,18 @@ impl Holes {
         h
     }
 
-    /// What the replay does about the holes, for the command to print
-    /// (`None` without holes).
-    pub fn note(&self) -> Option<String> {
-        (self.count > 0).then(|| {
+    /// What the replay does about the holes (and a decimated log's ticks
+    /// between rows), for the command to print (`None` when there is
+    /// nothing to fill).
+    pub fn note(&self, clock: &Clock) -> Option<String> {
+        let between = (clock.decimation > 1).then(|| {
+            format!(
+                "the log has a row every {} control ticks: the replay steps the core through \
+                 the ticks between rows with the sensors interpolated and the last current held",
+                clock.decimation
+            )
+        });
+        let holes = (self.count > 0).then(|| {
             format!(
                 "the log is missing {} rows in {} holes (the longest {:.4} s, before line {}): \
                  the replay steps the core through each hole with the sensors interpolated and \
@@ -165,7 +257,11 @@ impl Holes {
                 self.longest_s,
                 crate::log::line_of_row(self.longest_row)
             )
-        })
+        });
+        match (between, holes) {
+            (Some(b), Some(h)) => Some(format!("{b}; {h}")),
+            (b, h) => b.or(h),
+        }
     }
 }
 

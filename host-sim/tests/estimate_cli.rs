@@ -327,3 +327,86 @@ fn a_log_with_dropped_telemetry_rows_replays_as_time_that_passed() {
         "{e}"
     );
 }
+
+/// A recorded run carries the firmware's tick counter: its control rate
+/// is read from it, not from the median time step. A log that lost two of
+/// every three rows (a median step of three periods) and one recorded
+/// every tenth tick both replay at the firmware's 2 kHz, say so, and
+/// latch no fault; without the tick column the first would be taken for a
+/// 667 Hz loop.
+#[test]
+fn a_recorded_log_takes_its_control_rate_from_the_tick_column() {
+    let config = Config::default();
+    let mut rec = LogRecorder::new(true);
+    scenario::run(
+        "track-motor",
+        PlantParams::default(),
+        config,
+        Some(5),
+        &ScenarioOptions {
+            duration_scale: 0.25,
+            ..ScenarioOptions::default()
+        },
+        &mut rec,
+    )
+    .expect("track-motor");
+    let full = rec.to_log().expect("log");
+    let mut names: Vec<&str> = LOG_COLUMNS[..7].to_vec();
+    let cols: Vec<Vec<f64>> = names
+        .iter()
+        .map(|n| full.col_required(n).unwrap().to_vec())
+        .collect();
+    names.push("tick");
+    let thin = |keep: &dyn Fn(usize) -> bool, with_tick: bool| {
+        let n = if with_tick {
+            names.len()
+        } else {
+            names.len() - 1
+        };
+        let mut log = Log::with_columns(&names[..n]).unwrap();
+        for k in (0..full.len()).filter(|k| keep(*k)) {
+            let mut row: Vec<f64> = cols.iter().map(|c| c[k]).collect();
+            if with_tick {
+                row.push(k as f64);
+            }
+            log.push_row(&row).unwrap();
+        }
+        log
+    };
+    // Rows lost in runs: two of every three, and a few longer holes.
+    let lossy = |k: usize| k.is_multiple_of(3) || k.is_multiple_of(97);
+    let (_, s) = estimate(&thin(&lossy, true), &config).expect("lossy log");
+    assert!(
+        s.derived[0].contains("2000.0 Hz") && s.derived[0].contains("tick column"),
+        "{:?}",
+        s.derived
+    );
+    assert_eq!(s.first_fault, None);
+    let (_, s) = estimate(&thin(&lossy, false), &config).expect("lossy log without ticks");
+    assert!(
+        s.derived[0].contains("666.7 Hz") && s.derived[0].contains("median time step"),
+        "{:?}",
+        s.derived
+    );
+    let (_, s) = estimate(&thin(&|k| k.is_multiple_of(10), true), &config).expect("decimated log");
+    assert!(
+        s.derived[0].contains("2000.0 Hz") && s.derived[0].contains("a row every 10 ticks"),
+        "{:?}",
+        s.derived
+    );
+    assert!(
+        s.derived.iter().all(|d| !d.contains("missing")),
+        "a decimated log is not a lossy one: {:?}",
+        s.derived
+    );
+    assert_eq!(s.first_fault, None);
+    // A tick counter that does not grow is named by its line.
+    let mut bad = thin(&|_| true, true);
+    let mut tick = bad.col_required("tick").unwrap().to_vec();
+    tick[50] = tick[49];
+    bad.set_col("tick", tick).unwrap();
+    let e = estimate(&bad, &config)
+        .expect_err("a repeated tick")
+        .to_string();
+    assert!(e.contains("line 52") && e.contains("column tick"), "{e}");
+}

@@ -190,6 +190,9 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
     let mut last_tick: Option<u32> = None;
     let mut starts = 0;
     let mut row = Vec::with_capacity(32);
+    // Start-up seen since the last running tick, and an origin record
+    // since then (homing ends with one).
+    let (mut starting, mut origin_seen) = (false, false);
     for rec in records {
         match rec {
             Record::Start(_) => {
@@ -202,6 +205,7 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
                 let (m, _) = motor.update(o.raw.motor.0);
                 let (g, _) = magnetic.update(o.raw.magnetic.0);
                 origin = (o.raw.grating1.0, o.raw.grating2.0, m, g);
+                origin_seen = true;
             }
             Record::Tick(t) => {
                 if let Some(prev) = last_tick {
@@ -214,6 +218,19 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
                     }
                 }
                 last_tick = Some(t.tick);
+                if t.phase < Phase::Running.code() {
+                    starting = true;
+                } else if t.phase == Phase::Running.code() && starting {
+                    if !origin_seen {
+                        eprintln!(
+                            "warning: homing ended by tick {} but its origin record is not in \
+                             the stream (lost on the way): the positions after it are counted \
+                             from the origin before (power-on), off by a constant",
+                            t.tick
+                        );
+                    }
+                    (starting, origin_seen) = (false, false);
+                }
                 let (m, _) = motor.update(t.raw.motor.0);
                 let (g, _) = magnetic.update(t.raw.magnetic.0);
                 row.clear();

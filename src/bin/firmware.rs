@@ -16,7 +16,7 @@
 //! | `drive_fault`, `origin_switch` | EXTI1, EXTI2 | 4 | cut the drive at once (BSRR), leave the fault for the control task |
 //! | `control` | TIM6 update | 3 | one control period; a miss is `Fault::Overrun` (latched, drive cut) |
 //! | `link_rx` | USART2 (host link) | 2 | the next byte (22 µs at 460 800 baud): bytes into frames, a complete frame to `link_frame` |
-//! | `telemetry`, `link_frame` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full; a host frame is checked down to a request (`cable_joint::link::receive`: CRC, version, body, `validate()`, filter design), queued (4) for the control task, which applies one per tick, and acknowledged. The RTT logger (`rtt.rs`) never blocks and takes no critical section (a full channel cuts the frame; a frame logged while another is open is dropped), so logging can never mask the tasks above |
+//! | `telemetry`, `link_frame` | async | 1 | none: telemetry records queue (64) and are dropped and counted when full (an origin record waits for room instead, the tick records behind it dropped); a host frame is checked down to a request (`cable_joint::link::receive`: CRC, version, body, `validate()`, filter design), queued (4) for the control task, which applies one per tick, and acknowledged. The RTT logger (`rtt.rs`) never blocks and takes no critical section (a full channel cuts the frame; a frame logged while another is open is dropped), so logging can never mask the tasks above |
 //! | `idle` | – | 0 | after every wake-up (each tick), the host link's RTT down channel: bytes into frames, a complete frame to `link_frame`; then `wfi` |
 //!
 //! Settings: `board::firmware_config()` (the core's datasheet defaults at
@@ -346,6 +346,7 @@ mod app {
     #[task(binds = TIM6_DAC, priority = 3, local = [
         control, front_end, counter, drive, tick, watchdog, requests_rx, telemetry_tx,
         dropped: u32 = 0,
+        origin_pending: Option<Record> = None,
     ])]
     fn control(cx: control::Context) {
         let control::LocalResources {
@@ -358,6 +359,7 @@ mod app {
             requests_rx,
             telemetry_tx,
             dropped,
+            origin_pending,
             ..
         } = cx.local;
         #[cfg(feature = "qemu")]
@@ -369,11 +371,25 @@ mod app {
         let request = requests_rx.dequeue();
         let outcome = control.tick(front_end, drive, &EVENTS, request, counter);
         let mut queued = false;
+        // The origin record is never dropped: the host converts every
+        // later record's counts with it. While the queue has no room for
+        // it, it waits here and the tick records after it are dropped
+        // (counted), so the stream keeps its order.
         if let Some(origin) = outcome.origin {
-            queued |= push(telemetry_tx, Record::Origin(origin), dropped);
+            *origin_pending = Some(Record::Origin(origin));
+        }
+        if let Some(record) = origin_pending.take() {
+            match telemetry_tx.enqueue(record) {
+                Ok(()) => queued = true,
+                Err(record) => *origin_pending = Some(record),
+            }
         }
         if outcome.telemetry_due {
-            queued |= push(telemetry_tx, Record::Tick(outcome.record), dropped);
+            if origin_pending.is_none() {
+                queued |= push(telemetry_tx, Record::Tick(outcome.record), dropped);
+            } else {
+                *dropped = dropped.wrapping_add(1);
+            }
         }
         if tick.overran() {
             control.overrun(drive);

@@ -390,6 +390,18 @@ pub struct State {
     cable0_floor_m: f32,
     tick: u32,
     command_tick: u32,
+    /// The trajectory's reference angle on the last tick (before a probing
+    /// dither), rad: where a new command's transfer starts.
+    last_ref_rad: f32,
+    /// Its rate on the last tick, rad/s.
+    last_ref_vel_rad_s: f32,
+    /// The transfer of the command in force: the reference step its
+    /// trajectory would have made at its start (old reference minus the
+    /// new trajectory's start), added back and faded out by a
+    /// minimum-jerk move over `transfer_s` ([`Controller::set_command`]).
+    transfer_rad: f32,
+    /// Duration of that transfer, s (0: none).
+    transfer_s: f32,
     primed: bool,
     fault: Option<Fault>,
 }
@@ -474,12 +486,40 @@ impl Controller {
 
     /// Start a new command; its trajectory time starts now. Leaving
     /// [`Mode::Idle`] starts the velocity integrator from zero.
+    ///
+    /// A command whose trajectory starts away from the reference in force
+    /// (a command sent late over a link that lost a frame, an operator's
+    /// hold far from where the joint is) does not step the reference: the
+    /// step is added back and faded out by a minimum-jerk transfer, its
+    /// peak speed a quarter of the motor-velocity limit's joint speed, so
+    /// the cascade is not slammed into the current limit. A step no larger
+    /// than one tick of the old reference's motion and one of the
+    /// transfer's is taken as it is (a planned command applied a tick late
+    /// on a moving reference); a grip and [`Mode::Idle`] have no transfer.
     pub fn set_command(&mut self, command: Command) {
         if command.mode != self.command.mode {
             self.state.cascade = CascadeState::default();
         } else {
             self.state.cascade.primed = false;
         }
+        let cfg = &self.prepared.config;
+        let step_rad = self.state.last_ref_rad - command.trajectory.at(0.0).angle_rad;
+        let joint_speed_rad_s = cfg
+            .machine
+            .joint_rad_from_motor_rad(0.25 * cfg.cascade.vel_limit_rad_s);
+        let transfer = command.mode != Mode::Idle
+            && !command.trajectory.is_grip()
+            && self.state.primed
+            && step_rad.is_finite()
+            && step_rad.abs()
+                > (self.state.last_ref_vel_rad_s.abs() + joint_speed_rad_s)
+                    * self.prepared.derived.period_s;
+        (self.state.transfer_rad, self.state.transfer_s) = if transfer && joint_speed_rad_s > 0.0 {
+            // A minimum-jerk move of `d` in `T` peaks at 1.875 d / T.
+            (step_rad, 1.875 * step_rad.abs() / joint_speed_rad_s)
+        } else {
+            (0.0, 0.0)
+        };
         self.command = command;
         self.state.command_tick = self.state.tick;
         self.state.grip.started = false;
@@ -579,6 +619,10 @@ impl Controller {
             cable0_floor_m,
             tick,
             command_tick,
+            last_ref_rad,
+            last_ref_vel_rad_s,
+            transfer_rad,
+            transfer_s,
             primed,
             // A latched fault stays latched.
             fault: _,
@@ -622,6 +666,10 @@ impl Controller {
         *cable0_mean_taut_m = None;
         *cable0_floor_m = 0.0;
         *command_tick = *tick;
+        *last_ref_rad = 0.0;
+        *last_ref_vel_rad_s = 0.0;
+        *transfer_rad = 0.0;
+        *transfer_s = 0.0;
         *primed = false;
     }
 
@@ -925,6 +973,22 @@ impl Controller {
             ),
             (_, trajectory) => trajectory.at(t_cmd),
         };
+        if st.transfer_s > 0.0 {
+            if t_cmd < st.transfer_s {
+                let fade = Trajectory::PointToPoint {
+                    from_rad: st.transfer_rad,
+                    to_rad: 0.0,
+                    duration_s: st.transfer_s,
+                }
+                .at(t_cmd);
+                reference.angle_rad += fade.angle_rad;
+                reference.vel_rad_s += fade.vel_rad_s;
+            } else {
+                st.transfer_s = 0.0;
+            }
+        }
+        st.last_ref_rad = reference.angle_rad;
+        st.last_ref_vel_rad_s = reference.vel_rad_s;
         // Probing: a dither on a hold, and the fused estimate replaced by
         // its mean over the last whole dither period once one is complete.
         // Never during a grip: its law reads the estimate every tick.
@@ -1529,6 +1593,63 @@ mod tests {
             trajectory: Trajectory::Hold { angle_rad: 0.0 },
         });
         c
+    }
+
+    /// A command that starts away from the reference in force (sent late,
+    /// or a hold far from the joint) is reached by a minimum-jerk transfer
+    /// whose speed stays within a quarter of the motor-velocity limit's
+    /// joint speed, not by a step; one that starts where the reference is
+    /// takes over at once.
+    #[test]
+    fn a_command_that_starts_away_from_the_reference_is_reached_without_a_step() {
+        let mut config = Config::default();
+        // The readings stay at rest whatever the drive asks.
+        config.limits.max_current_error_a = 0.0;
+        config.limits.min_tension_fraction = 0.0;
+        let joint_speed = config
+            .machine
+            .joint_rad_from_motor_rad(0.25 * config.cascade.vel_limit_rad_s);
+        let period = config.period_s();
+        let mut c = holding(config);
+        for _ in 0..20 {
+            c.step(&at_rest());
+        }
+        let target = 0.3;
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: Trajectory::Hold { angle_rad: target },
+        });
+        let transfer_ticks = (1.875 * target / joint_speed / period).ceil() as usize;
+        let mut last = 0.0f32;
+        let mut peak_speed = 0.0f32;
+        for k in 0..transfer_ticks + 2 {
+            let o = c.step(&at_rest());
+            let step = o.est.theta_ref_rad - last;
+            peak_speed = peak_speed.max(step.abs() / period);
+            assert!(
+                step.abs() <= 1.01 * joint_speed * period,
+                "tick {k}: the reference stepped {step} rad"
+            );
+            last = o.est.theta_ref_rad;
+        }
+        assert_eq!(last, target, "the transfer ends on the command's angle");
+        assert!(peak_speed > 0.9 * joint_speed, "{peak_speed} rad/s");
+        // A sine that starts where the reference is: no transfer, the
+        // trajectory itself from its first tick.
+        let sine = Trajectory::Sine {
+            offset_rad: target,
+            amplitude_rad: 0.1,
+            freq_hz: 0.5,
+        };
+        c.set_command(Command {
+            mode: Mode::MotorPosition,
+            trajectory: sine,
+        });
+        for k in 0..50 {
+            let o = c.step(&at_rest());
+            let want = sine.at(k as f32 * period).angle_rad;
+            assert_eq!(o.est.theta_ref_rad, want, "tick {k}");
+        }
     }
 
     /// Homing restarts only the active effect terms' state; the slots past

@@ -125,7 +125,7 @@ impl Clock {
 
 /// The control clock of `log`. A recorded run carries the firmware's tick
 /// counter: the period is the median of `dt / dtick` and the decimation the
-/// median tick step, so neither a decimated recording nor one that lost
+/// smallest tick step, so neither a decimated recording nor one that lost
 /// most of its rows (a median time step of two or three periods) is taken
 /// for a slower loop. Without a `tick` column, every row is a tick and the
 /// period is the median time step.
@@ -170,9 +170,12 @@ pub fn log_clock(log: &Log) -> Result<Clock> {
     if !(period_s.is_finite() && period_s > 0.0) {
         bail!("log time step per tick is not positive (median {period_s} s)");
     }
+    // The smallest step: a decimated stream's steps are all multiples of
+    // its decimation, and a lossy one's median step is not its decimation.
+    let smallest = steps.iter().copied().fold(f64::INFINITY, f64::min);
     Ok(Clock {
         period_s,
-        decimation: median(&mut steps).min(f64::from(u32::MAX)) as u32,
+        decimation: smallest.min(f64::from(u32::MAX)) as u32,
         from_ticks: true,
     })
 }

@@ -377,8 +377,13 @@ fn a_recorded_log_takes_its_control_rate_from_the_tick_column() {
     let lossy = |k: usize| k.is_multiple_of(3) || k.is_multiple_of(97);
     let (_, s) = estimate(&thin(&lossy, true), &config).expect("lossy log");
     assert!(
-        s.derived[0].contains("2000.0 Hz") && s.derived[0].contains("tick column"),
+        s.derived[0].contains("2000.0 Hz") && s.derived[0].contains("a row every tick"),
         "{:?}",
+        s.derived
+    );
+    assert!(
+        s.derived.iter().any(|d| d.contains("missing")),
+        "a lossy log says so: {:?}",
         s.derived
     );
     assert_eq!(s.first_fault, None);

@@ -224,6 +224,25 @@ fn a_configuration_that_sets_only_a_1khz_rate_runs_and_says_what_was_derived() {
     );
 }
 
+/// The seed's motor-side tracking run (±30° at 0.5 Hz), `duration_scale`
+/// of its length, simulated with the magnetic encoder fitted.
+fn tracking_log(config: &Config, duration_scale: f64) -> Log {
+    let mut rec = LogRecorder::new(true);
+    scenario::run(
+        "track-motor",
+        PlantParams::default(),
+        *config,
+        Some(5),
+        &ScenarioOptions {
+            duration_scale,
+            ..ScenarioOptions::default()
+        },
+        &mut rec,
+    )
+    .expect("track-motor");
+    rec.to_log().expect("log")
+}
+
 /// A rig's telemetry can drop samples when the host falls behind (the
 /// firmware's RTT buffer is non-blocking): the recorded log then skips
 /// rows, and its sensors jump across each hole. The replay must treat a
@@ -234,20 +253,7 @@ fn a_configuration_that_sets_only_a_1khz_rate_runs_and_says_what_was_derived() {
 #[test]
 fn a_log_with_dropped_telemetry_rows_replays_as_time_that_passed() {
     let config = Config::default();
-    let mut rec = LogRecorder::new(true);
-    scenario::run(
-        "track-motor",
-        PlantParams::default(),
-        config,
-        Some(5),
-        &ScenarioOptions {
-            duration_scale: 0.5,
-            ..ScenarioOptions::default()
-        },
-        &mut rec,
-    )
-    .expect("track-motor");
-    let full = rec.to_log().expect("log");
+    let full = tracking_log(&config, 0.5);
     // The columns a rig with the magnetic encoder fitted records.
     let names = &LOG_COLUMNS[..7];
     assert_eq!(names.last(), Some(&"theta_rad"));
@@ -337,20 +343,7 @@ fn a_log_with_dropped_telemetry_rows_replays_as_time_that_passed() {
 #[test]
 fn a_recorded_log_takes_its_control_rate_from_the_tick_column() {
     let config = Config::default();
-    let mut rec = LogRecorder::new(true);
-    scenario::run(
-        "track-motor",
-        PlantParams::default(),
-        config,
-        Some(5),
-        &ScenarioOptions {
-            duration_scale: 0.25,
-            ..ScenarioOptions::default()
-        },
-        &mut rec,
-    )
-    .expect("track-motor");
-    let full = rec.to_log().expect("log");
+    let full = tracking_log(&config, 0.25);
     let mut names: Vec<&str> = LOG_COLUMNS[..7].to_vec();
     let cols: Vec<Vec<f64>> = names
         .iter()

@@ -375,14 +375,14 @@ mod app {
         // later record's counts with it. While the queue has no room for
         // it, it waits here and the tick records after it are dropped
         // (counted), so the stream keeps its order.
-        if let Some(origin) = outcome.origin {
-            *origin_pending = Some(Record::Origin(origin));
-        }
-        if let Some(record) = origin_pending.take() {
-            match telemetry_tx.enqueue(record) {
-                Ok(()) => queued = true,
-                Err(record) => *origin_pending = Some(record),
-            }
+        // A new origin supersedes one still waiting.
+        let waiting = match outcome.origin {
+            Some(origin) => Some(Record::Origin(origin)),
+            None => origin_pending.take(),
+        };
+        if let Some(record) = waiting {
+            *origin_pending = telemetry_tx.enqueue(record).err();
+            queued |= origin_pending.is_none();
         }
         if outcome.telemetry_due {
             if origin_pending.is_none() {
@@ -541,28 +541,41 @@ mod app {
         } = cx.local;
         cx.shared
             .links
-            .lock(|links| drain(telemetry_rx, last, links));
+            .lock(|links| drain(telemetry_rx, last, links, DRAIN_MAX));
         #[cfg(feature = "qemu")]
         if super::DONE.load(core::sync::atomic::Ordering::SeqCst) {
             // The control task stopped before setting DONE: this drain
             // flushes everything it queued.
             cx.shared
                 .links
-                .lock(|links| drain(telemetry_rx, last, links));
+                .lock(|links| drain(telemetry_rx, last, links, usize::MAX));
             defmt::info!("trace played");
             board::trace_played();
         }
     }
 
-    /// Log and send the records queued when it starts, no more: records
-    /// the control task queues meanwhile wait for the next run (its spawn
-    /// on the next tick), so the task returns and a host frame waiting at
-    /// the same priority (`link_frame`) is checked in between. Draining
-    /// until the queue was empty starved it whenever the control task
-    /// queued records as fast as the link sent them (PIL under QEMU,
+    /// Most records one run of the telemetry task sends: a host frame that
+    /// arrives meanwhile waits for at most these before `link_frame`
+    /// checks it (13 ms of the link at 460 800 baud). A run that took the
+    /// whole queue (64 records, about 0.1 s of the link, as long under
+    /// QEMU) held acknowledgements back so long that the host sent most
+    /// requests twice and applied commands late.
+    const DRAIN_MAX: usize = 8;
+
+    /// Log and send the records queued when it starts, at most `max`:
+    /// records the control task queues meanwhile wait for the next run
+    /// (its spawn on the next tick), so the task returns and a host frame
+    /// waiting at the same priority (`link_frame`) is checked in between.
+    /// Draining until the queue was empty starved it whenever the control
+    /// task queued records as fast as the link sent them (PIL under QEMU,
     /// telemetry every tick: every host frame after the first dropped).
-    fn drain(rx: &mut Consumer<'static, Record>, last: &mut (u8, u8), links: &mut Links) {
-        for _ in 0..rx.len() {
+    fn drain(
+        rx: &mut Consumer<'static, Record>,
+        last: &mut (u8, u8),
+        links: &mut Links,
+        max: usize,
+    ) {
+        for _ in 0..rx.len().min(max) {
             let Some(record) = rx.dequeue() else { break };
             log_record(&record, Some(&mut *links));
             if let Record::Tick(t) = record {

@@ -180,6 +180,20 @@ pub fn log_clock(log: &Log) -> Result<Clock> {
     })
 }
 
+/// [`log_clock`], with the lines the replay prints about it: the control
+/// rate and where it came from, then, when there is any, what the replay
+/// fills between rows ([`Holes::note`]).
+pub fn clock_noted(log: &Log) -> Result<(Clock, Vec<String>)> {
+    let clock = log_clock(log)?;
+    let mut notes = vec![format!(
+        "control rate {:.1} Hz ({})",
+        clock.rate_hz(),
+        clock.source()
+    )];
+    notes.extend(Holes::of(log.time_s()?, &clock).note(&clock));
+    Ok((clock, notes))
+}
+
 /// The configuration with its control rate set to the log's rate.
 pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
     config_for_log_noted(log, config).map(|(c, _)| c)
@@ -188,13 +202,11 @@ pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
 /// [`config_for_log`], with a line for every setting derived from the log's
 /// rate ([`Config::at_rate`]) for the caller to print.
 pub fn config_for_log_noted(log: &Log, config: &Config) -> Result<(Config, Vec<String>)> {
-    let clock = log_clock(log)?;
+    let (clock, mut notes) = clock_noted(log)?;
     let rate_hz = clock.rate_hz();
     let (c, changes) = config.at_rate(rate_hz as f32);
     c.validate()
         .map_err(|e| anyhow::anyhow!("{e} (control rate taken from the log: {rate_hz:.1} Hz)"))?;
-    let mut notes = vec![format!("control rate {rate_hz:.1} Hz ({})", clock.source())];
-    notes.extend(Holes::of(log.time_s()?, &clock).note(&clock));
     notes.extend(changes.iter().map(|a| {
         format!(
             "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",

@@ -6,7 +6,7 @@ use cable_joint::Config;
 
 use super::{IdentOptions, Regressor};
 use crate::derive::{
-    config_for_log, derive, held_sign, held_sign_travelled, log_clock, low_pass_column, Holes,
+    clock_noted, config_for_log, derive, held_sign, held_sign_travelled, low_pass_column,
 };
 use crate::log::Log;
 
@@ -90,16 +90,11 @@ impl Prepared {
         let cfg = config_for_log(log, config).with_context(|| label.to_owned())?;
         let derived = derive(log, config).with_context(|| format!("replaying {label}"))?;
         let t = derived.time_s()?.to_vec();
-        let clock = log_clock(log).with_context(|| label.to_owned())?;
-        if clock.from_ticks {
-            // A recorded run: say what its tick counter gave.
-            eprintln!(
-                "note: {label}: control rate {:.1} Hz ({})",
-                clock.rate_hz(),
-                clock.source()
-            );
-        }
-        if let Some(note) = Holes::of(&t, &clock).note(&clock) {
+        let (clock, notes) = clock_noted(log).with_context(|| label.to_owned())?;
+        // The rate line only for a recorded run (what its tick counter
+        // gave); a simulated log's rate is the one it was run at.
+        let skip = usize::from(!clock.from_ticks);
+        for note in &notes[skip..] {
             eprintln!("note: {label}: {note}");
         }
         let fault = derived.col_required("fault_code")?;

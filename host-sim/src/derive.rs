@@ -299,8 +299,55 @@ pub const MAX_FILLED_TICKS: usize = 1_000_000;
 
 /// Replay `log` (project schema) through the core; returns a log with `t_s`,
 /// the run-time signals, [`EXTRA_COLUMNS`], and the log's `theta_rad`,
-/// `f_ext_n` and `theta_ref_rad` when present.
+/// `f_ext_n` and `theta_ref_rad` when present: a row for each of the log's
+/// rows.
 pub fn derive(log: &Log, config: &Config) -> Result<Log> {
+    replay(log, config, false).map(|(d, _)| d)
+}
+
+/// The replay of a log tick by tick: [`Log`] has a row for every control
+/// tick the core stepped, the log's own rows and the ticks the replay fills
+/// between them (a decimated log's, a hole's), whose time, sensors and the
+/// log's `theta_rad`, `f_ext_n` and `theta_ref_rad` are interpolated and
+/// whose current is the last one held. Filters, observers, effect states
+/// and differences over time computed on it advance tick by tick as on the
+/// MCU, which on a decimated or lossy log a computation row by row does
+/// not.
+pub struct TickReplay {
+    /// The replay, a row a tick.
+    pub log: Log,
+    /// For each of its rows, the log's row it is (`None` for a filled tick).
+    pub source_row: Vec<Option<usize>>,
+}
+
+impl TickReplay {
+    /// Replay `log` through the core with `config`, a row a tick.
+    pub fn new(log: &Log, config: &Config) -> Result<Self> {
+        let (log, source_row) = replay(log, config, true)?;
+        Ok(Self { log, source_row })
+    }
+
+    /// Whether row `k` is one of the log's own rows (measured), not a
+    /// filled tick.
+    pub fn measured(&self, k: usize) -> bool {
+        self.source_row.get(k).is_some_and(Option::is_some)
+    }
+
+    /// The log's row of replay row `k`: its own, or for a filled tick the
+    /// row that ends its step (for messages that name a line).
+    pub fn log_row(&self, k: usize) -> usize {
+        self.source_row[k..]
+            .iter()
+            .find_map(|r| *r)
+            .or_else(|| self.source_row.iter().rev().find_map(|r| *r))
+            .unwrap_or(0)
+    }
+}
+
+/// [`derive`] and [`TickReplay::new`]: the replay, with a row for each of
+/// the log's rows or (`every_tick`) for every tick it steps, and for each
+/// row the log's row it is.
+fn replay(log: &Log, config: &Config, every_tick: bool) -> Result<(Log, Vec<Option<usize>>)> {
     let cfg = config_for_log(log, config)?;
     let s = &cfg.scales;
     let t = log.time_s()?;
@@ -316,6 +363,9 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
     names.extend(SIGNAL_NAMES);
     names.extend(EXTRA_COLUMNS);
     let mut out = Log::with_columns(&names)?;
+    // For each row of `out`: the log's row it ends at, and the fraction of
+    // the way there from the row before (1 for the row itself).
+    let mut at: Vec<(usize, f64)> = Vec::with_capacity(log.len());
     let two_pi = std::f64::consts::TAU;
     let period_s = f64::from(cfg.period_s());
     let mut magnetic = 0u16;
@@ -383,7 +433,12 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
             for j in 1..=n {
                 let f = j as f64 / (n + 1) as f64;
                 let raw = raw_of(reading(k, f), &mut magnetic);
-                ctl.replay(&raw, i_ref[k - 1] as f32);
+                let o = ctl.replay(&raw, i_ref[k - 1] as f32);
+                if every_tick {
+                    let t_f = t[k - 1] + f * (t[k] - t[k - 1]);
+                    out.push_row(&row_of(t_f, i_ref[k - 1], &o))?;
+                    at.push((k, f));
+                }
             }
         }
         let raw = raw_of(reading(k, 1.0), &mut magnetic);
@@ -391,35 +446,8 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
             ctl.set_origin(&raw);
         }
         let o = ctl.replay(&raw, if k > 0 { i_ref[k - 1] as f32 } else { 0.0 });
-        let e = &o.est;
-        let row = [
-            t[k],
-            e.x1_m as f64,
-            e.x1_vel_m_s as f64,
-            e.x2_m as f64,
-            e.x2_vel_m_s as f64,
-            e.x2_acc_m_s2 as f64,
-            e.phi_rad as f64,
-            e.phi_vel_rad_s as f64,
-            if k > 0 { i_ref[k - 1] } else { 0.0 },
-            e.i_meas_a as f64,
-            e.theta_motor_rad as f64,
-            e.x1_acc_m_s2 as f64,
-            e.phi_acc_rad_s2 as f64,
-            e.theta_hat_rad as f64,
-            e.tension1_n as f64,
-            e.tension1_model_n as f64,
-            e.load_torque_nm as f64,
-            e.f_ext_hat_n as f64,
-            e.f_ext_stretch_n as f64,
-            e.f_ext_fused_n as f64,
-            e.f_ext_lo_n as f64,
-            e.f_ext_hi_n as f64,
-            f64::from(e.fusion_flags),
-            e.tension1_stretch_n as f64,
-            cable_joint::Fault::code_of(o.fault) as f64,
-        ];
-        out.push_row(&row)?;
+        out.push_row(&row_of(t[k], if k > 0 { i_ref[k - 1] } else { 0.0 }, &o))?;
+        at.push((k, 1.0));
     }
     // Positions relative to the first sample: the replay zeroes the counters
     // there, so add the first sample back to keep the log's own origin.
@@ -427,10 +455,54 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
         let v: Vec<f64> = out.col_required(name)?.iter().map(|x| x + first).collect();
         out.set_col(name, v)?;
     }
+    // The log's own columns at each row: a filled tick's interpolated
+    // between the rows around it when both are measured.
     for name in ["theta_rad", "f_ext_n", "theta_ref_rad"] {
         if let Some(v) = log.col_opt(name) {
-            out.set_col_opt(name, &v)?;
+            let col: Vec<Option<f64>> = at
+                .iter()
+                .map(|&(k, f)| match (f < 1.0, v[k]) {
+                    (false, x) => x,
+                    (true, Some(b)) => v[k - 1].map(|a| a + f * (b - a)),
+                    (true, None) => None,
+                })
+                .collect();
+            out.set_col_opt(name, &col)?;
         }
     }
-    Ok(out)
+    let source_row = at.iter().map(|&(k, f)| (f >= 1.0).then_some(k)).collect();
+    Ok((out, source_row))
+}
+
+/// One row of the replay's log: time `t_s`, the current applied over the
+/// tick `i_ref_a`, and the core's outputs.
+fn row_of(t_s: f64, i_ref_a: f64, o: &cable_joint::controller::Output) -> [f64; 25] {
+    let e = &o.est;
+    [
+        t_s,
+        e.x1_m as f64,
+        e.x1_vel_m_s as f64,
+        e.x2_m as f64,
+        e.x2_vel_m_s as f64,
+        e.x2_acc_m_s2 as f64,
+        e.phi_rad as f64,
+        e.phi_vel_rad_s as f64,
+        i_ref_a,
+        e.i_meas_a as f64,
+        e.theta_motor_rad as f64,
+        e.x1_acc_m_s2 as f64,
+        e.phi_acc_rad_s2 as f64,
+        e.theta_hat_rad as f64,
+        e.tension1_n as f64,
+        e.tension1_model_n as f64,
+        e.load_torque_nm as f64,
+        e.f_ext_hat_n as f64,
+        e.f_ext_stretch_n as f64,
+        e.f_ext_fused_n as f64,
+        e.f_ext_lo_n as f64,
+        e.f_ext_hi_n as f64,
+        f64::from(e.fusion_flags),
+        e.tension1_stretch_n as f64,
+        cable_joint::Fault::code_of(o.fault) as f64,
+    ]
 }

@@ -501,3 +501,59 @@ fn the_command_runs_all_three_and_writes_a_config_that_loads_back() {
     assert!(identify(&bad).is_err());
     assert!(!path("never.toml").exists());
 }
+
+/// The rig's calibration log, recorded on the board at its default
+/// decimation (a record every 10th tick, `tick` column), is replayed tick
+/// by tick: the joint's kinematics are differentiated over the ticks, not
+/// over rows taken for ticks, so the joint torque balance (cable 1's
+/// stiffness, the pin's friction) fits as on the log with every tick. Row
+/// by row, the speed and acceleration of a decimated log came out ten and
+/// a hundred times too large.
+#[test]
+fn a_decimated_calibration_log_fits_the_joint_as_the_log_with_every_tick() {
+    let c = chain();
+    let opts = IdentOptions::default();
+    let full = &c.jae_log;
+    let names = &host_sim::sim::LOG_COLUMNS[..7];
+    assert_eq!(names.last(), Some(&"theta_rad"));
+    let mut with_tick = names.to_vec();
+    with_tick.push("tick");
+    let mut decimated = Log::with_columns(&with_tick).unwrap();
+    for k in (0..full.len()).step_by(10) {
+        let mut row: Vec<f64> = names
+            .iter()
+            .map(|n| full.col_required(n).unwrap()[k])
+            .collect();
+        row.push(k as f64);
+        decimated.push_row(&row).unwrap();
+    }
+    let base = Config::default();
+    let every = identify_jae_with(&[("every tick", full)], &base, &opts).unwrap();
+    let tenth = identify_jae_with(&[("every 10th", &decimated)], &base, &opts).unwrap();
+    let (a, b) = (&every.joint, &tenth.joint);
+    eprintln!("every tick: {a:?}\nevery 10th: {b:?}");
+    assert!(
+        rel(b.k_w1_n_m.0, a.k_w1_n_m.0) < 0.005,
+        "K_w1 {:.0} from the decimated log vs {:.0}",
+        b.k_w1_n_m.0,
+        a.k_w1_n_m.0
+    );
+    assert!(
+        rel(b.pin_coulomb_nm.0, a.pin_coulomb_nm.0) < 0.03,
+        "pin friction {:.5} vs {:.5}",
+        b.pin_coulomb_nm.0,
+        a.pin_coulomb_nm.0
+    );
+    assert!(
+        rel(b.pin_viscous_nm_s_rad, a.pin_viscous_nm_s_rad) < 0.3,
+        "pin viscous {:.3e} vs {:.3e} N·m·s/rad",
+        b.pin_viscous_nm_s_rad,
+        a.pin_viscous_nm_s_rad
+    );
+    assert!(
+        b.residual_rms_nm < 1.25 * a.residual_rms_nm,
+        "residual {:.3e} vs {:.3e} N·m",
+        b.residual_rms_nm,
+        a.residual_rms_nm
+    );
+}

@@ -126,7 +126,7 @@ pub(super) fn design(
         }
         let fault = p.derived.col_required("fault_code")?;
         let mut loss = RowLoss::default();
-        for k in 0..p.len() {
+        for k in (0..p.len()).filter(|&k| p.measured[k]) {
             let bad = (!y[k].is_finite()).then_some(target.column()).or_else(|| {
                 (0..cols.len())
                     .find(|&j| !cols[j][k].is_finite())
@@ -142,7 +142,7 @@ pub(super) fn design(
                 loss.still += 1;
             } else if let Some(col) = bad {
                 loss.not_finite += 1;
-                loss.first_not_finite.get_or_insert((k, col));
+                loss.first_not_finite.get_or_insert((p.log_row[k], col));
             } else {
                 for (dc, c) in d.cols.iter_mut().zip(&cols) {
                     dc.push(c[k]);
@@ -185,7 +185,7 @@ fn warn_row_loss(p: &Prepared, loss: &RowLoss, target: Target, opts: &IdentOptio
     if p.loss.warned.swap(true, Ordering::Relaxed) {
         return;
     }
-    let n = p.len();
+    let n = p.measured_rows();
     let used = n - loss.start_up - loss.faulted - loss.still - loss.not_finite;
     let mut why = Vec::new();
     if loss.start_up > 0 {

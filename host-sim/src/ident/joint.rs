@@ -77,7 +77,7 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
             continue;
         };
         let period_s = f64::from(p.config().period_s());
-        let half = (JOINT_DIFF_HALF_WINDOW_S / period_s).round().max(1.0) as usize;
+        let half = p.half_window(JOINT_DIFF_HALF_WINDOW_S);
         let (vel, acc) = central_kinematics(theta, half, period_s);
         // Travel since the last reversal: a pin in presliding (its friction
         // still building up after a reversal) is not at its kinetic level.
@@ -89,6 +89,7 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
                 0.0
             };
             if !p.usable[k]
+                || !p.measured[k]
                 || !vel[k].is_finite()
                 || !acc[k].is_finite()
                 || vel[k].abs() <= switch

@@ -6,7 +6,7 @@ use cable_joint::Config;
 
 use super::{IdentOptions, Regressor};
 use crate::derive::{
-    clock_noted, config_for_log, derive, held_sign, held_sign_travelled, low_pass_column,
+    clock_noted, config_for_log, held_sign, held_sign_travelled, low_pass_column, TickReplay,
 };
 use crate::log::Log;
 
@@ -14,10 +14,22 @@ use crate::log::Log;
 /// report draws the identified models on the same columns).
 pub struct Prepared {
     pub(super) label: String,
+    /// The replay, a row every control tick ([`TickReplay`]): filters,
+    /// observers and differences over it advance as on the MCU whatever
+    /// the log's decimation or holes.
     pub(super) derived: Log,
     pub(super) cfg: Config,
     /// Rows usable at all: after the start-up, not faulted.
     pub(super) usable: Vec<bool>,
+    /// Rows that are the log's own (the fits take only these); the others
+    /// are ticks the replay filled between them.
+    pub(super) measured: Vec<bool>,
+    /// The log's row of each replay row (`TickReplay::log_row`), for
+    /// messages that name a line.
+    pub(super) log_row: Vec<usize>,
+    /// Control ticks from one of the log's rows to the next in a regular
+    /// stretch (the telemetry decimation).
+    pub(super) decimation: u32,
     /// Time and code of the first fault the replay latched.
     pub(super) first_fault: Option<(f64, u8)>,
     pub(super) theta: Option<Vec<f64>>,
@@ -39,9 +51,10 @@ pub(super) struct LossNotes {
 }
 
 impl LossNotes {
-    fn new(log: &Log, t: &[f64], fault: &[f64]) -> Self {
-        let fault = fault.iter().position(|f| *f != 0.0).map(|k| {
-            let code = fault[k] as u8;
+    fn new(log: &Log, replay: &TickReplay, t: &[f64], fault: &[f64]) -> Self {
+        let fault = fault.iter().position(|f| *f != 0.0).map(|tick| {
+            let code = fault[tick] as u8;
+            let k = replay.log_row(tick);
             let name = cable_joint::Fault::from_code(code)
                 .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
             // A value the core's f32 cannot hold is the likely cause.
@@ -62,7 +75,7 @@ impl LossNotes {
             format!(
                 "the replay latched {name} at line {} (t = {} s){cause}",
                 crate::log::line_of_row(k),
-                t[k]
+                t[tick]
             )
         });
         let theta_gap = log.col_opt("theta_rad").and_then(|v| {
@@ -88,7 +101,10 @@ impl Prepared {
     /// Replay `log` (named `label` in errors) through the core with `config`.
     pub fn new(label: &str, log: &Log, config: &Config, opts: &IdentOptions) -> Result<Self> {
         let cfg = config_for_log(log, config).with_context(|| label.to_owned())?;
-        let derived = derive(log, config).with_context(|| format!("replaying {label}"))?;
+        let replay = TickReplay::new(log, config).with_context(|| format!("replaying {label}"))?;
+        let measured: Vec<bool> = (0..replay.log.len()).map(|k| replay.measured(k)).collect();
+        let log_row: Vec<usize> = (0..replay.log.len()).map(|k| replay.log_row(k)).collect();
+        let derived = &replay.log;
         let t = derived.time_s()?.to_vec();
         let (clock, notes) = clock_noted(log).with_context(|| label.to_owned())?;
         // The rate line only for a recorded run (what its tick counter
@@ -132,22 +148,40 @@ impl Prepared {
             }
             (v, a)
         });
-        let loss = LossNotes::new(log, &t, fault);
+        let loss = LossNotes::new(log, &replay, &t, fault);
         Ok(Self {
             label: label.to_owned(),
             first_fault,
             loss,
-            derived,
+            derived: replay.log,
             cfg,
             usable,
+            measured,
+            log_row,
+            decimation: clock.decimation,
             theta,
             theta_kin,
             theta_source,
         })
     }
 
+    /// Rows of the replay: control ticks.
     pub(super) fn len(&self) -> usize {
         self.derived.len()
+    }
+
+    /// Samples either side of a central difference over about `window_s`
+    /// of the replay: at least one of the log's row steps, so that the
+    /// difference spans measured rows and not only the straight line the
+    /// replay filled between two of them.
+    pub(super) fn half_window(&self, window_s: f64) -> usize {
+        let ticks = (window_s / f64::from(self.cfg.period_s())).round();
+        (ticks.max(1.0) as usize).max(self.decimation as usize)
+    }
+
+    /// The log's own rows among them.
+    pub(super) fn measured_rows(&self) -> usize {
+        self.measured.iter().filter(|m| **m).count()
     }
 
     /// A column of the replay.

@@ -48,6 +48,10 @@ pub struct SpringFit {
     pub residual_rms_n: f64,
     /// `K_s` fitted on the earlier and on the later half of the sweeps, N/m.
     pub halves_n_m: (f64, f64),
+    /// Share of the control ticks whose current the logs carry (the
+    /// fewest of any log): below 1 for a decimated log or one with holes,
+    /// whose replay holds one tick's current over the ticks between rows.
+    pub current_ticks_share: f64,
     /// What was written, or why not.
     pub note: String,
 }
@@ -72,6 +76,10 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
         datasheet_n_m: datasheet,
         residual_rms_n: f64::NAN,
         halves_n_m: (f64::NAN, f64::NAN),
+        current_ticks_share: preps
+            .iter()
+            .map(|p| p.measured_rows() as f64 / p.len().max(1) as f64)
+            .fold(1.0, f64::min),
         note: String::new(),
     };
     // Rows [x2, x2', x2'', y], demeaned per sweep.
@@ -89,7 +97,7 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
         };
         let q = [p.dob_filter(&x2), p.dob_filter(&v2), p.dob_filter(&a2)];
         let period_s = f64::from(p.config().period_s());
-        let half = (JOINT_DIFF_HALF_WINDOW_S / period_s).round().max(1.0) as usize;
+        let half = p.half_window(JOINT_DIFF_HALF_WINDOW_S);
         let (w1, _) = central_kinematics(&x1, half, period_s);
         let (w2, _) = central_kinematics(&x2, half, period_s);
         // The DOB's Q has forgotten the breakaway after three time constants.
@@ -125,7 +133,7 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
                     let far = (x1[k] - x1[k0]).abs() >= SPRING_MIN_TRAVEL_M
                         && (x2[k] - x2[k0]).abs() >= SPRING_MIN_TRAVEL_M
                         && (k - k0) as f64 * period_s >= settle_s;
-                    if far {
+                    if far && p.measured[k] {
                         sweep.push(row);
                     }
                 }
@@ -177,6 +185,21 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
 }
 
 impl SpringFit {
+    /// Why a log with some ticks' current only may not pin the rate down
+    /// (empty when the logs carry every tick's).
+    fn sampled_current_note(&self) -> String {
+        if self.current_ticks_share >= 0.9 {
+            return String::new();
+        }
+        format!(
+            "; the log carries the motor current of {:.0} % of the control ticks (a decimated \
+             recording, or rows lost) and the replay holds it over the others, while the \
+             tension through the motor needs every tick's current (the cascade's current \
+             changes from tick to tick): record the calibration run with a record every tick",
+            100.0 * self.current_ticks_share
+        )
+    }
+
     /// The measured rate when the data pinned it down, else `None`.
     pub fn value(&self) -> Option<f64> {
         let (k, pct) = self.k_s_n_m;
@@ -236,8 +259,9 @@ impl SpringFit {
                 )
             }
             None if pct >= SPRING_MAX_PCT_SIGMA => format!(
-                "spring rate not pinned down ({k:.0} N/m, %sigma {pct:.1}): the datasheet's {:.0} N/m kept",
-                self.datasheet_n_m
+                "spring rate not pinned down ({k:.0} N/m, %sigma {pct:.1}): the datasheet's {:.0} N/m kept{}",
+                self.datasheet_n_m,
+                self.sampled_current_note()
             ),
             None => format!(
                 "spring rate {k:.0} ± {:.0} N/m ({:.0} and {:.0} on the earlier and later half of the \

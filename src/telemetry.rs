@@ -28,7 +28,7 @@ use crate::fault::Fault;
 use crate::units::{AdcCode, DacCode, GratingCount, MagneticCount, MotorCount};
 
 /// Version of the byte layout (carried by [`StartRecord`]).
-pub const FORMAT_VERSION: u8 = 2;
+pub const FORMAT_VERSION: u8 = 3;
 
 /// Marker that starts a telemetry line in the decoded defmt text.
 pub const LINE_MARKER: &str = "tlm ";
@@ -76,6 +76,14 @@ pub struct TickRecord {
     pub dac: DacCode,
     /// Current reference, A (the controller's `current_ref_a`).
     pub current_ref_a: f32,
+    /// Mean current reference applied over the control periods since the
+    /// tick of the previous record sent, A (since format version 3): at a
+    /// record every tick, the last tick's `current_ref_a`; at a record
+    /// every N ticks, or after records dropped from a full queue, the mean
+    /// of the currents the stream does not carry, which a replay holds over
+    /// the ticks between rows (the cascade's current changes from tick to
+    /// tick, and one sample of N is not its mean).
+    pub current_applied_a: f32,
     /// Joint-angle reference, rad.
     pub theta_ref_rad: f32,
     /// Estimated joint angle (JAE), rad.
@@ -278,7 +286,7 @@ impl OriginRecord {
 
 impl TickRecord {
     /// Encoded length, bytes.
-    pub const LEN: usize = 1 + 4 + RAW_LEN + 1 + 2 + 7 * 4 + 4 + 4 + 2 * 4;
+    pub const LEN: usize = 1 + 4 + RAW_LEN + 1 + 2 + 8 * 4 + 4 + 4 + 2 * 4;
 
     /// Mode decoded from [`TickRecord::mode`].
     pub fn mode(&self) -> Option<Mode> {
@@ -337,6 +345,7 @@ impl Record {
                 w.u8(t.inputs.0);
                 w.u16(t.dac.0);
                 w.f32(t.current_ref_a);
+                w.f32(t.current_applied_a);
                 w.f32(t.theta_ref_rad);
                 w.f32(t.theta_hat_rad);
                 w.f32(t.f_ext_hat_n);
@@ -395,6 +404,7 @@ impl Record {
                 inputs: Inputs(r.u8()),
                 dac: DacCode(r.u16()),
                 current_ref_a: r.f32(),
+                current_applied_a: r.f32(),
                 theta_ref_rad: r.f32(),
                 theta_hat_rad: r.f32(),
                 f_ext_hat_n: r.f32(),
@@ -468,6 +478,7 @@ mod tests {
             inputs: Inputs::new(true, false),
             dac: DacCode(4_095),
             current_ref_a: -1.234_567_8,
+            current_applied_a: 0.987_654_3,
             theta_ref_rad: 0.25,
             theta_hat_rad: f32::from_bits(0x0000_0001), // a denormal survives
             f_ext_hat_n: -0.0,

@@ -258,7 +258,8 @@ impl Holes {
         let between = (clock.decimation > 1).then(|| {
             format!(
                 "the log has a row every {} control ticks: the replay steps the core through \
-                 the ticks between rows with the sensors interpolated and the last current held",
+                 the ticks between rows with the sensors interpolated and the current held (the \
+                 log's mean over each step, i_applied_a, when it has one)",
                 clock.decimation
             )
         });
@@ -266,7 +267,7 @@ impl Holes {
             format!(
                 "the log is missing {} rows in {} holes (the longest {:.4} s, before line {}): \
                  the replay steps the core through each hole with the sensors interpolated and \
-                 the last current held",
+                 the current held",
                 self.missing,
                 self.count,
                 self.longest_s,
@@ -355,6 +356,19 @@ fn replay(log: &Log, config: &Config, every_tick: bool) -> Result<(Log, Vec<Opti
     let x2 = log.col_required("x2_m")?;
     let phi = log.col_required("phi_rad")?;
     let i_ref = log.col_required("i_ref_a")?;
+    // The current applied over the ticks from row k - 1 to row k: the
+    // recording's mean over them (`i_applied_a`, telemetry format 3) when
+    // the log carries it, else row k - 1's reference held.
+    let i_applied = log.col("i_applied_a");
+    let applied = |k: usize| -> f64 {
+        match k {
+            0 => 0.0,
+            _ => i_applied
+                .map(|c| c[k])
+                .filter(|v| v.is_finite())
+                .unwrap_or(i_ref[k - 1]),
+        }
+    };
     let i_meas = log.col("i_meas_a");
     let theta = log.col("theta_rad");
     let mut ctl = Controller::new(cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -433,10 +447,10 @@ fn replay(log: &Log, config: &Config, every_tick: bool) -> Result<(Log, Vec<Opti
             for j in 1..=n {
                 let f = j as f64 / (n + 1) as f64;
                 let raw = raw_of(reading(k, f), &mut magnetic);
-                let o = ctl.replay(&raw, i_ref[k - 1] as f32);
+                let o = ctl.replay(&raw, applied(k) as f32);
                 if every_tick {
                     let t_f = t[k - 1] + f * (t[k] - t[k - 1]);
-                    out.push_row(&row_of(t_f, i_ref[k - 1], &o))?;
+                    out.push_row(&row_of(t_f, applied(k), &o))?;
                     at.push((k, f));
                 }
             }
@@ -445,8 +459,8 @@ fn replay(log: &Log, config: &Config, every_tick: bool) -> Result<(Log, Vec<Opti
         if k == 0 {
             ctl.set_origin(&raw);
         }
-        let o = ctl.replay(&raw, if k > 0 { i_ref[k - 1] as f32 } else { 0.0 });
-        out.push_row(&row_of(t[k], if k > 0 { i_ref[k - 1] } else { 0.0 }, &o))?;
+        let o = ctl.replay(&raw, applied(k) as f32);
+        out.push_row(&row_of(t[k], applied(k), &o))?;
         at.push((k, 1.0));
     }
     // Positions relative to the first sample: the replay zeroes the counters

@@ -15,8 +15,9 @@
 //! faster motion). Output columns: DESIGN.md §2's `t_s`, `x1_m`, `x2_m`,
 //! `phi_rad`, `i_ref_a`, `i_meas_a`, (`theta_rad` with `--magnetic`),
 //! `theta_ref_rad`, then `theta_hat_rad`, `f_ext_hat_n`, `f_ext_fused_n`,
-//! `f_ext_lo_n`, `f_ext_hi_n`, `dac_code`, `mode`,
-//! `fault_code`, `drive_enable`, `fw_phase`, `origin_switch`,
+//! `f_ext_lo_n`, `f_ext_hi_n`, `i_applied_a` (the mean current applied
+//! since the row before, which the replay holds over a decimated log's
+//! ticks between rows), `dac_code`, `mode`, `fault_code`, `drive_enable`, `fw_phase`, `origin_switch`,
 //! `drive_fault_line`, `tick` and the cycle counts `cycles`,
 //! `cycles_sensing`, `cycles_jae`, `cycles_dob`, `cycles_cascade`.
 //!
@@ -69,6 +70,7 @@ pub fn parse_stream(reader: impl Read, name: &str) -> anyhow::Result<Vec<Record>
 fn non_finite_field(t: &TickRecord) -> Option<(&'static str, f32)> {
     [
         ("current_ref_a", t.current_ref_a),
+        ("current_applied_a", t.current_applied_a),
         ("theta_ref_rad", t.theta_ref_rad),
         ("theta_hat_rad", t.theta_hat_rad),
         ("f_ext_hat_n", t.f_ext_hat_n),
@@ -103,6 +105,7 @@ pub fn columns(opts: &LogOptions) -> Vec<&'static str> {
         "f_ext_fused_n",
         "f_ext_lo_n",
         "f_ext_hi_n",
+        "i_applied_a",
         "dac_code",
         "mode",
         "fault_code",
@@ -251,7 +254,7 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
     Ok(log)
 }
 
-fn tick_columns(t: &TickRecord) -> [f64; 19] {
+fn tick_columns(t: &TickRecord) -> [f64; 20] {
     [
         t.theta_ref_rad as f64,
         t.theta_hat_rad as f64,
@@ -259,6 +262,7 @@ fn tick_columns(t: &TickRecord) -> [f64; 19] {
         t.f_ext_fused_n as f64,
         t.f_ext_lo_n as f64,
         t.f_ext_hi_n as f64,
+        t.current_applied_a as f64,
         t.dac.0 as f64,
         t.mode as f64,
         t.fault as f64,

@@ -563,6 +563,7 @@ mod tests {
             inputs: Inputs(0),
             dac: DacCode(2048),
             current_ref_a: 0.25,
+            current_applied_a: 0.25,
             theta_ref_rad: 30f32.to_radians(),
             theta_hat_rad: (30.0 - 2.0 * (-t).exp() as f32).to_radians(),
             f_ext_hat_n: 0.5,

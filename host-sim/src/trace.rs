@@ -371,6 +371,92 @@ mod tests {
     use cable_joint::board::Phase;
     use cable_joint::Fault;
 
+    /// A record every tick carries the last tick's current as the current
+    /// applied since the record before; a record every 10th tick the mean
+    /// of the ten currents the stream does not carry, which is not the
+    /// current of any one of them. The decimation changes what is sent,
+    /// not what the loop does.
+    #[test]
+    fn each_record_carries_the_mean_current_applied_since_the_record_before() {
+        let opts = TraceOptions::default();
+        let config = opts.config();
+        let every = record(PlantParams::default(), &opts).unwrap();
+        let mut tenth_fw = Harness::new(ControlLoop::new(config, 10).unwrap());
+        let tenth = record_on(
+            PlantParams::default(),
+            &opts,
+            config,
+            &mut NoInjection,
+            &mut tenth_fw,
+            &mut |_, _, _| Ok(()),
+        )
+        .unwrap();
+        let current = |r: &Recorded, k: usize| r.outcomes[k].record.current_ref_a;
+        let n = every.outcomes.len();
+        assert_eq!(tenth.outcomes.len(), n);
+        for k in 0..n {
+            assert_eq!(current(&every, k).to_bits(), current(&tenth, k).to_bits());
+        }
+        for k in 1..n {
+            assert_eq!(
+                every.outcomes[k].record.current_applied_a.to_bits(),
+                current(&every, k - 1).to_bits(),
+                "tick {k}"
+            );
+        }
+        let mut apart = 0;
+        for k in (10..n).step_by(10) {
+            let mean = (k - 10..k).map(|j| current(&tenth, j)).sum::<f32>() / 10.0;
+            let sent = tenth.outcomes[k].record.current_applied_a;
+            assert_eq!(sent.to_bits(), mean.to_bits(), "tick {k}");
+            apart += usize::from((sent - current(&tenth, k - 1)).abs() > 1e-3);
+        }
+        assert!(
+            apart > n / 100,
+            "the mean differs from the last current on {apart} records"
+        );
+    }
+
+    /// A record dropped from the firmware's full queue leaves its ticks to
+    /// the next record sent: that record's applied current is the mean
+    /// over both steps (the ticks since the last record that was sent).
+    #[test]
+    fn a_record_after_a_dropped_one_carries_the_mean_over_both_steps() {
+        let opts = TraceOptions::default();
+        let run = record(PlantParams::default(), &opts).unwrap();
+        let mut fw = Harness::new(ControlLoop::new(opts.config(), 10).unwrap());
+        let dropped = |k: usize| k % 30 == 20;
+        let mut out = Vec::new();
+        for (k, s) in run.samples.iter().enumerate() {
+            let request = NoInjection.request(k);
+            out.push(fw.tick_queued(s, request, !dropped(k)).record);
+        }
+        let current = |k: usize| out[k].current_ref_a;
+        for (k, o) in out.iter().enumerate() {
+            // The same samples, the same loop: the same currents.
+            assert_eq!(
+                o.current_ref_a.to_bits(),
+                run.outcomes[k].record.current_ref_a.to_bits()
+            );
+        }
+        let mut checked = 0;
+        for k in (30..out.len()).step_by(30) {
+            // Record k - 20 was sent, k - 10 dropped: k covers twenty ticks.
+            let mean = (k - 20..k).map(current).sum::<f32>() / 20.0;
+            let sent = out[k].current_applied_a;
+            assert!(
+                (sent - mean).abs() <= 1e-6 * (1.0 + mean.abs()),
+                "tick {k}: {sent} vs {mean}"
+            );
+            let last_ten = (k - 10..k).map(current).sum::<f32>() / 10.0;
+            checked += usize::from((sent - last_ten).abs() > 1e-3);
+        }
+        assert!(
+            checked > 5,
+            "the mean over twenty ticks differs from the last ten's on {checked}"
+        );
+    }
+
     /// What the firmware logic must do on the simulated prototype whatever
     /// the controller's tuning: check with the drive off, home on the
     /// switch edge, cut the drive on the fault line. (Tracking and force

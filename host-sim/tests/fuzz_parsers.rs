@@ -391,7 +391,7 @@ fn f32_bits() -> impl Strategy<Value = f32> {
 fn tick_record() -> impl Strategy<Value = TickRecord> {
     (
         (any::<u32>(), raw_sample(), any::<u8>(), any::<u16>()),
-        prop::array::uniform7(f32_bits()),
+        prop::array::uniform8(f32_bits()),
         (any::<[u8; 2]>(), any::<bool>(), any::<u8>(), any::<u32>()),
         any::<[u16; 4]>(),
     )
@@ -402,6 +402,7 @@ fn tick_record() -> impl Strategy<Value = TickRecord> {
                 inputs: Inputs(inputs),
                 dac: DacCode(dac),
                 current_ref_a: f[0],
+                current_applied_a: f[7],
                 theta_ref_rad: f[1],
                 theta_hat_rad: f[2],
                 f_ext_hat_n: f[3],
@@ -811,8 +812,8 @@ proptest! {
     fn defmt_records_round_trip((records, text) in defmt_stream()) {
         let corrupt = records.iter().position(|r| match r {
             Record::Tick(t) => [
-                t.current_ref_a, t.theta_ref_rad, t.theta_hat_rad, t.f_ext_hat_n,
-                t.f_ext_fused_n, t.f_ext_lo_n, t.f_ext_hi_n,
+                t.current_ref_a, t.current_applied_a, t.theta_ref_rad, t.theta_hat_rad,
+                t.f_ext_hat_n, t.f_ext_fused_n, t.f_ext_lo_n, t.f_ext_hi_n,
             ]
             .iter()
             .any(|v| !v.is_finite()),

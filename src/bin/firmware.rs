@@ -386,7 +386,12 @@ mod app {
         }
         if outcome.telemetry_due {
             if origin_pending.is_none() {
-                queued |= push(telemetry_tx, Record::Tick(outcome.record), dropped);
+                if push(telemetry_tx, Record::Tick(outcome.record), dropped) {
+                    // The next record's applied current starts here; a
+                    // dropped record leaves its ticks to the next one.
+                    control.record_queued();
+                    queued = true;
+                }
             } else {
                 *dropped = dropped.wrapping_add(1);
             }

@@ -86,6 +86,12 @@ pub struct ControlLoop {
     decimation: u32,
     tick: u32,
     rejected: u32,
+    /// Sum of the current references output since the last tick whose
+    /// record was queued (that tick's included), A, and how many.
+    applied_sum_a: f32,
+    applied_ticks: u32,
+    /// The last tick's current reference, A.
+    last_current_a: f32,
 }
 
 impl ControlLoop {
@@ -98,6 +104,9 @@ impl ControlLoop {
             decimation,
             tick: 0,
             rejected: 0,
+            applied_sum_a: 0.0,
+            applied_ticks: 0,
+            last_current_a: 0.0,
         })
     }
 
@@ -225,12 +234,26 @@ impl ControlLoop {
         let enabled = drive.apply(out.drive_enable, events);
         let cycles = counter.now().wrapping_sub(t0);
 
+        // The current applied over the periods since the last record
+        // queued: the outputs of the ticks from that record's on, this
+        // one's excluded. A record dropped from a full queue leaves its
+        // ticks to the next one sent.
+        let current_applied_a = if self.applied_ticks > 0 {
+            self.applied_sum_a / self.applied_ticks as f32
+        } else {
+            0.0
+        };
+        self.applied_sum_a += out.current_ref_a;
+        self.applied_ticks = self.applied_ticks.saturating_add(1);
+        self.last_current_a = out.current_ref_a;
+        let telemetry_due = self.tick.is_multiple_of(self.decimation);
         let record = TickRecord {
             tick: self.tick,
             raw,
             inputs: events.inputs(),
             dac: out.dac,
             current_ref_a: out.current_ref_a,
+            current_applied_a,
             theta_ref_rad: out.est.theta_ref_rad,
             theta_hat_rad: out.est.theta_hat_rad,
             f_ext_hat_n: out.est.f_ext_hat_n,
@@ -244,7 +267,6 @@ impl ControlLoop {
             cycles,
             stage_cycles,
         };
-        let telemetry_due = self.tick.is_multiple_of(self.decimation);
         self.tick = self.tick.wrapping_add(1);
         TickOutcome {
             output: out,
@@ -252,6 +274,15 @@ impl ControlLoop {
             telemetry_due,
             origin,
         }
+    }
+
+    /// The last tick's record was queued for telemetry: the next record's
+    /// applied current ([`TickRecord::current_applied_a`]) is the mean from
+    /// that tick on. Not called for a record dropped from a full queue, so
+    /// the next record sent covers the dropped one's ticks too.
+    pub fn record_queued(&mut self) {
+        self.applied_sum_a = self.last_current_a;
+        self.applied_ticks = 1;
     }
 
     /// The control task missed its deadline: latch [`Fault::Overrun`] and cut

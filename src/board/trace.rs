@@ -398,8 +398,21 @@ impl Harness {
         self.control.overrun(&mut self.drive);
     }
 
-    /// One tick on `sample`, with an optional operator request.
+    /// One tick on `sample`, with an optional operator request; a record
+    /// due is sent (a replay's queue never fills).
     pub fn tick(&mut self, sample: &TraceSample, request: Option<Request>) -> TickOutcome {
+        self.tick_queued(sample, request, true)
+    }
+
+    /// [`Harness::tick`], where a record due finds room in the firmware's
+    /// telemetry queue only if `room` (else it is dropped, as from a full
+    /// queue, and the next record sent covers its ticks).
+    pub fn tick_queued(
+        &mut self,
+        sample: &TraceSample,
+        request: Option<Request>,
+        room: bool,
+    ) -> TickOutcome {
         let now = sample.inputs;
         if now.drive_fault() != self.prev.drive_fault() {
             self.drive_fault.pin_mut().0 = now.drive_fault();
@@ -415,13 +428,17 @@ impl Harness {
             dac: None,
             drive_fault: now.drive_fault(),
         };
-        self.control.tick(
+        let outcome = self.control.tick(
             &mut fe,
             &mut self.drive,
             &self.events,
             request,
             &mut NoCycles,
-        )
+        );
+        if outcome.telemetry_due && room {
+            self.control.record_queued();
+        }
+        outcome
     }
 }
 

@@ -30,6 +30,10 @@ pub struct Prepared {
     /// Control ticks from one of the log's rows to the next in a regular
     /// stretch (the telemetry decimation).
     pub(super) decimation: u32,
+    /// Share of the control ticks whose applied current the log carries:
+    /// all when it has the recorded mean over each step (`i_applied_a`),
+    /// else its own rows'.
+    pub(super) current_ticks_share: f64,
     /// Time and code of the first fault the replay latched.
     pub(super) first_fault: Option<(f64, u8)>,
     pub(super) theta: Option<Vec<f64>>,
@@ -104,6 +108,14 @@ impl Prepared {
         let replay = TickReplay::new(log, config).with_context(|| format!("replaying {label}"))?;
         let measured: Vec<bool> = (0..replay.log.len()).map(|k| replay.measured(k)).collect();
         let log_row: Vec<usize> = (0..replay.log.len()).map(|k| replay.log_row(k)).collect();
+        let applied_mean = log
+            .col("i_applied_a")
+            .is_some_and(|c| c.iter().skip(1).all(|v| v.is_finite()));
+        let current_ticks_share = if applied_mean {
+            1.0
+        } else {
+            measured.iter().filter(|m| **m).count() as f64 / measured.len().max(1) as f64
+        };
         let derived = &replay.log;
         let t = derived.time_s()?.to_vec();
         let (clock, notes) = clock_noted(log).with_context(|| label.to_owned())?;
@@ -159,6 +171,7 @@ impl Prepared {
             measured,
             log_row,
             decimation: clock.decimation,
+            current_ticks_share,
             theta,
             theta_kin,
             theta_source,

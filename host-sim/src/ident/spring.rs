@@ -48,8 +48,9 @@ pub struct SpringFit {
     pub residual_rms_n: f64,
     /// `K_s` fitted on the earlier and on the later half of the sweeps, N/m.
     pub halves_n_m: (f64, f64),
-    /// Share of the control ticks whose current the logs carry (the
-    /// fewest of any log): below 1 for a decimated log or one with holes,
+    /// Share of the control ticks whose applied current the logs carry
+    /// (the fewest of any log): below 1 for a decimated log or one with
+    /// holes without the recorded mean over each step (`i_applied_a`),
     /// whose replay holds one tick's current over the ticks between rows.
     pub current_ticks_share: f64,
     /// What was written, or why not.
@@ -78,7 +79,7 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
         halves_n_m: (f64::NAN, f64::NAN),
         current_ticks_share: preps
             .iter()
-            .map(|p| p.measured_rows() as f64 / p.len().max(1) as f64)
+            .map(|p| p.current_ticks_share)
             .fold(1.0, f64::min),
         note: String::new(),
     };
@@ -195,7 +196,9 @@ impl SpringFit {
             "; the log carries the motor current of {:.0} % of the control ticks (a decimated \
              recording, or rows lost) and the replay holds it over the others, while the \
              tension through the motor needs every tick's current (the cascade's current \
-             changes from tick to tick): record the calibration run with a record every tick",
+             changes from tick to tick): record the calibration run with firmware that sends \
+             the mean current applied since the last record (telemetry format 3: \
+             i_applied_a), or with a record every tick",
             100.0 * self.current_ticks_share
         )
     }

@@ -1,7 +1,7 @@
 //! Processor in the loop: the firmware binary on QEMU closes the loop on
 //! the simulated prototype (`host_sim::pil`), and every tick must equal the
 //! host-only run of the same firmware logic bit for bit (instruction counts
-//! aside): the same plant, noise, load and drive fault, the same requests.
+//! and the applied mean current aside, `host_sim::pil::compare`): the same plant, noise, load and drive fault, the same requests.
 //!
 //! Needs QEMU and the PIL firmware (`cargo fw-pil`); `.ci/qemu.sh` runs it
 //! with `CABLE_JOINT_PIL_ELF` set:

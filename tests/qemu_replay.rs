@@ -136,6 +136,11 @@ fn differences(fw: &TickRecord, host: &TickRecord) -> Vec<String> {
         }
     };
     f("current_ref_a", fw.current_ref_a, host.current_ref_a);
+    f(
+        "current_applied_a",
+        fw.current_applied_a,
+        host.current_applied_a,
+    );
     f("theta_ref_rad", fw.theta_ref_rad, host.theta_ref_rad);
     f("theta_hat_rad", fw.theta_hat_rad, host.theta_hat_rad);
     f("f_ext_hat_n", fw.f_ext_hat_n, host.f_ext_hat_n);

@@ -337,12 +337,21 @@ impl TickReplay {
     /// The log's row of replay row `k`: its own, or for a filled tick the
     /// row that ends its step (for messages that name a line).
     pub fn log_row(&self, k: usize) -> usize {
-        self.source_row[k..]
-            .iter()
-            .find_map(|r| *r)
-            .or_else(|| self.source_row.iter().rev().find_map(|r| *r))
-            .unwrap_or(0)
+        log_row_in(&self.source_row, k)
     }
+}
+
+/// The log's row of replay row `k` given each replay row's source row
+/// ([`TickReplay::source_row`]): its own, or for a filled tick the row that
+/// ends its step (the last row past the end).
+pub fn log_row_in(source_row: &[Option<usize>], k: usize) -> usize {
+    source_row
+        .get(k..)
+        .unwrap_or_default()
+        .iter()
+        .find_map(|r| *r)
+        .or_else(|| source_row.iter().rev().find_map(|r| *r))
+        .unwrap_or(0)
 }
 
 /// [`derive`] and [`TickReplay::new`]: the replay, with a row for each of

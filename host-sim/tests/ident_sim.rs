@@ -502,34 +502,9 @@ fn the_command_runs_all_three_and_writes_a_config_that_loads_back() {
     assert!(!path("never.toml").exists());
 }
 
-/// `log` as the firmware records it at a record every `every` ticks: the
-/// columns a rig with the magnetic encoder fitted records, the `tick`
-/// column and, with `applied`, the mean current applied since the row
-/// before (`i_applied_a`, telemetry format 3).
+/// `log` as the firmware records it at a record every `every` ticks.
 fn recorded_every(log: &Log, every: usize, applied: bool) -> Log {
-    let names = &host_sim::sim::LOG_COLUMNS[..7];
-    assert_eq!(names.last(), Some(&"theta_rad"));
-    let mut cols = names.to_vec();
-    cols.push("tick");
-    if applied {
-        cols.push("i_applied_a");
-    }
-    let i_ref = log.col_required("i_ref_a").unwrap();
-    let mut out = Log::with_columns(&cols).unwrap();
-    for k in (0..log.len()).step_by(every) {
-        let mut row: Vec<f64> = names
-            .iter()
-            .map(|n| log.col_required(n).unwrap()[k])
-            .collect();
-        row.push(k as f64);
-        if applied {
-            let from = k.saturating_sub(every);
-            let n = (k - from).max(1) as f64;
-            row.push(i_ref[from..k].iter().sum::<f64>() / n);
-        }
-        out.push_row(&row).unwrap();
-    }
-    out
+    host_sim::sim::recorded_every(log, every, applied).expect("a decimated recording")
 }
 
 /// The rig's calibration log, recorded on the board at its default

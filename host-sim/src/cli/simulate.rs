@@ -5,6 +5,7 @@
 //! host-sim simulate --scenario track-motor --out run.csv
 //! host-sim simulate --scenario loading --angle-deg 30 --mass-g 100 --direction pos --out l.csv
 //! host-sim simulate --scenario track-jae --effect creep,thermal --seed 7 --duration 5 --out r.csv
+//! host-sim simulate --scenario jae-ident --record-every 10 --out board.csv
 //! host-sim simulate --list
 //! host-sim simulate --print-plant > plant.toml
 //! ```
@@ -108,6 +109,12 @@ pub struct SimulateArgs {
     /// Print the plant parameters (after `--plant` and `--effect`) as TOML and exit.
     #[arg(long)]
     pub print_plant: bool,
+    /// Write the log as a board streaming a record every N-th control tick
+    /// records it (`link --decimation N`): the measured columns (`t_s` to
+    /// `f_ext_n`), `tick`, and `i_applied_a`, the mean current reference
+    /// since the record before (default: a row every tick, every column).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub record_every: Option<u32>,
 }
 
 impl SimulateArgs {
@@ -211,17 +218,26 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     let summary = sim.summary;
     // The log and the raw trace are written together, or neither is.
     let mut outputs = Outputs::new();
-    sim.log.to_log()?.stage(&mut outputs, out)?;
+    let log = sim.log.to_log()?;
+    let log = match args.record_every {
+        Some(n) => crate::sim::recorded_every(&log, n as usize, true)?,
+        None => log,
+    };
+    log.stage(&mut outputs, out)?;
     if let (Some(p), Some(raw)) = (&args.raw_out, &sim.raw) {
         raw.to_table().to_log()?.stage(&mut outputs, p)?;
     }
     outputs.commit()?;
     let effects = plant.effects.enabled();
     println!(
-        "{}: seed {}, {} rows, {:.2} s simulated{} -> {}",
+        "{}: seed {}, {} rows{}, {:.2} s simulated{} -> {}",
         summary.name,
         summary.seed,
-        summary.ticks,
+        log.len(),
+        match args.record_every {
+            Some(n) => format!(" (a record every {n} of {} ticks)", summary.ticks),
+            None => String::new(),
+        },
         summary.duration_s,
         if effects.is_empty() {
             String::new()

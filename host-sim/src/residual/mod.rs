@@ -140,7 +140,11 @@ pub fn analyse(
     };
     options.max_terms = options.max_terms.min(cap.saturating_sub(used));
     if options.decimate == 0 {
-        let rows: usize = problem.runs.iter().map(|r| r.fit_rows.len()).sum();
+        let rows: usize = problem
+            .runs
+            .iter()
+            .map(|r| r.fit_rows.clone().filter(|&k| r.measured(k)).count())
+            .sum();
         options.decimate = rows.div_ceil(AUTO_FIT_ROWS).max(1);
     }
     let outcome = select(&problem, &options)?;

@@ -37,7 +37,7 @@ use super::families::{term_column, term_label};
 use super::generic::{generic_columns, generic_run};
 use super::select::{Problem, RunData};
 use crate::derive::{
-    config_for_log, derive, held_sign, held_sign_travelled, low_pass_column, median_period_s,
+    config_for_log, held_sign, held_sign_travelled, low_pass_column, median_period_s, TickReplay,
 };
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
 use crate::log::{Log, Schema};
@@ -184,12 +184,16 @@ pub(super) fn f32s(v: &[f64]) -> Vec<f32> {
     v.iter().map(|x| *x as f32).collect()
 }
 
-/// The run-time signals of a log as the core sees them (positions relative
-/// to the first sample, as after `set_origin`), the derived log, and the
-/// configuration at the log's rate.
-fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, Log, Config)> {
+/// The run-time signals of a log as the core sees them tick by tick
+/// (positions relative to the first sample, as after `set_origin`), the
+/// replay they come from ([`TickReplay`]: on a decimated or lossy log the
+/// ticks between its rows are stepped and kept, so the terms' states and
+/// the observer's `Q` advance as on the MCU), and the configuration at the
+/// log's control rate.
+fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, TickReplay, Config)> {
     let cfg = config_for_log(log, config)?;
-    let d = derive(log, &cfg)?;
+    let replay = TickReplay::new(log, &cfg)?;
+    let d = &replay.log;
     let mut signals = Vec::with_capacity(SIGNAL_NAMES.len());
     for name in SIGNAL_NAMES {
         let v = d.col_required(name)?;
@@ -199,7 +203,22 @@ fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, Log, Co
         };
         signals.push(v.iter().map(|x| (x - first) as f32).collect());
     }
-    Ok((signals, d, cfg))
+    Ok((signals, replay, cfg))
+}
+
+/// Column `name` of a tick replay at the log's own rows, NaN at the ticks
+/// filled between them and where the log does not measure it (neither
+/// fitted nor judged).
+fn at_log_rows(replay: &TickReplay, name: &str) -> Result<Vec<f64>> {
+    let col = replay
+        .log
+        .col(name)
+        .with_context(|| format!("internal: the replay has no column {name}"))?;
+    Ok(col
+        .iter()
+        .enumerate()
+        .map(|(k, v)| if replay.measured(k) { *v } else { f64::NAN })
+        .collect())
 }
 
 /// What the core's configuration needs to take a `jae`/`tension` result.
@@ -261,8 +280,8 @@ fn build_runs(
         _ => None,
     };
     let mut runs = Vec::new();
+    let mut control_period_s: Option<f32> = None;
     for (nl, is_fit) in all {
-        let n = nl.log.len();
         let p = median_period_s(nl.log.time_s()?).context("log too short")?;
         ensure!(
             p.is_finite() && p > 0.0,
@@ -270,22 +289,34 @@ fn build_runs(
              finite number (are the times too large for their differences to be represented?)",
             nl.name
         );
-        ensure!(
-            (p - period0).abs() <= 0.01 * period0,
-            "{}: sample period {p} s differs from the first log's {period0} s",
-            nl.name
-        );
         let mut run = match kind {
             ModelKind::Generic { target, .. } => {
+                ensure!(
+                    (p - period0).abs() <= 0.01 * period0,
+                    "{}: sample period {p} s differs from the first log's {period0} s",
+                    nl.name
+                );
                 let (inputs, velocities) = generic_cols.as_ref().map(|c| (&c.0, &c.1)).unwrap();
                 generic_run(nl, target, inputs, velocities, config, problem)?
             }
             _ => {
+                // Replayed tick by tick, logs recorded at other decimations
+                // mix; their control rate must not differ (the terms' states
+                // step at it on the MCU).
                 let (run, cfg) = core_run(kind, nl, config, opts.keep_added, problem)?;
+                let period_s = cfg.period_s();
+                let first = *control_period_s.get_or_insert(period_s);
+                ensure!(
+                    (period_s - first).abs() <= 0.01 * first,
+                    "{}: control period {period_s} s differs from the first log's {first} s: \
+                     the model's terms step at one control rate",
+                    nl.name
+                );
                 info.config = cfg;
                 run
             }
         };
+        let n = run.t_s.len();
         // Rows before `settle_s` are computed (the terms' states run from
         // the first sample) but neither fitted nor judged.
         let t0 = run.t_s.first().copied().unwrap_or(0.0);
@@ -325,23 +356,28 @@ fn core_run(
         crate::log::REQUIRED_COLUMNS.join(", "),
         missing.join(", ")
     );
-    let (signals, d, cfg) =
+    let (signals, replay, cfg) =
         runtime_signals(log, config).with_context(|| format!("replaying {}", nl.name))?;
-    let t_s = log.time_s()?.to_vec();
+    let d = &replay.log;
+    let t_s = d.time_s()?.to_vec();
     let n = t_s.len();
     let s = |i: u8| &signals[i as usize];
     let to64 = |v: &[f32]| v.iter().map(|x| f64::from(*x)).collect::<Vec<f64>>();
     let lp = LowPass1::new(cfg.dob.cutoff_rad_s, cfg.period_s());
     problem.signal_names = SIGNAL_NAMES.iter().map(|s| (*s).to_owned()).collect();
     problem.term_dt_s = Some(cfg.period_s());
+    // A reference column at the log's own rows (NaN at filled ticks),
+    // warned about when the log does not measure it everywhere.
     let need = |name: &str, what: &str| -> Result<Vec<f64>> {
-        log.col(name).map(<[f64]>::to_vec).with_context(|| {
+        let on_rows = log.col(name).with_context(|| {
             format!(
                 "{}: the {} model needs the column `{name}` ({what})",
                 nl.name,
                 kind.name()
             )
-        })
+        })?;
+        warn_unmeasured(&nl.name, name, on_rows);
+        at_log_rows(&replay, name)
     };
     let (mut target, fixed, mut baseline, names) = match kind {
         ModelKind::Jae => {
@@ -366,8 +402,8 @@ fn core_run(
             )
         }
         ModelKind::Tension => {
-            let mut target = d.col_required("tension1_hat_n")?.to_vec();
-            take_out_known_load(&nl.name, log, &cfg, lp, &mut target);
+            let mut target = at_log_rows(&replay, "tension1_hat_n")?;
+            take_out_known_load(&nl.name, d, &cfg, lp, &mut target);
             let s1 = held_sign(
                 s(sig::X1_VEL_M_S).iter().copied(),
                 cfg.tension.sign_switch_x1_m_s,
@@ -397,8 +433,7 @@ fn core_run(
         }
         ModelKind::Generic { .. } => bail!("internal: generic model in core_run"),
     };
-    warn_unmeasured(&nl.name, kind.target(), &target);
-    drop_faulted_rows(&nl.name, &d, &t_s, &mut target);
+    drop_faulted_rows(&nl.name, &replay, &mut target);
     problem.baseline_names = names
         .iter()
         .take(baseline.len())
@@ -417,6 +452,7 @@ fn core_run(
             signals,
             fit_rows: 0..0,
             val_rows: 0..0,
+            source_row: replay.source_row.clone(),
         },
         cfg,
     ))
@@ -424,21 +460,27 @@ fn core_run(
 
 /// Ticks the replay flags as faulted are neither fitted nor judged: their
 /// target becomes NaN, with one warning naming the first fault.
-fn drop_faulted_rows(name: &str, d: &Log, t_s: &[f64], target: &mut [f64]) {
-    let Some(fault) = d.col("fault_code") else {
+fn drop_faulted_rows(name: &str, replay: &TickReplay, target: &mut [f64]) {
+    let d = &replay.log;
+    let (Some(fault), Ok(t_s)) = (d.col("fault_code"), d.time_s()) else {
         return;
     };
     if let Some(k) = fault.iter().position(|f| *f != 0.0) {
         let code = fault[k] as u8;
         let what = cable_joint::Fault::from_code(code)
             .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+        let rows = |faulted: bool| {
+            (0..fault.len())
+                .filter(|&j| replay.measured(j) && (!faulted || fault[j] != 0.0))
+                .count()
+        };
         eprintln!(
             "warning: {name}: the replay latched {what} at line {} (t = {} s): {} of {} rows \
              are neither fitted nor judged",
-            crate::log::line_of_row(k),
+            crate::log::line_of_row(replay.log_row(k)),
             t_s[k],
-            fault.iter().filter(|f| **f != 0.0).count(),
-            t_s.len()
+            rows(true),
+            rows(false)
         );
     }
     for (y, f) in target.iter_mut().zip(fault) {

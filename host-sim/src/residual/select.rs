@@ -64,6 +64,40 @@ pub struct RunData {
     pub fit_rows: Range<usize>,
     /// Rows used for validation.
     pub val_rows: Range<usize>,
+    /// A run replayed tick by tick ([`crate::derive::TickReplay`]): for
+    /// each row, the log's row it is (`None` for a tick filled between a
+    /// decimated or lossy log's rows, which is computed but neither fitted
+    /// nor judged). Empty: every row is the log's own.
+    pub source_row: Vec<Option<usize>>,
+}
+
+impl RunData {
+    /// Whether row `k` is one of the log's own rows (not a filled tick).
+    pub fn measured(&self, k: usize) -> bool {
+        self.source_row.is_empty() || self.source_row.get(k).is_some_and(Option::is_some)
+    }
+
+    /// The log's row of row `k` (a filled tick: the row that ends its
+    /// step), for messages that name a line.
+    pub fn log_row(&self, k: usize) -> usize {
+        if self.source_row.is_empty() {
+            return k;
+        }
+        crate::derive::log_row_in(&self.source_row, k)
+    }
+
+    /// The median time between the log's own rows, s (`None` with fewer
+    /// than two).
+    pub fn row_period_s(&self) -> Option<f64> {
+        if self.source_row.is_empty() {
+            return crate::derive::median_period_s(&self.t_s);
+        }
+        let t: Vec<f64> = (0..self.t_s.len())
+            .filter(|&k| self.measured(k))
+            .map(|k| self.t_s[k])
+            .collect();
+        crate::derive::median_period_s(&t)
+    }
 }
 
 /// What to fit and which effects to try.
@@ -410,6 +444,7 @@ mod tests {
                 fit_rows: 0..n,
                 val_rows: 0..0,
                 t_s: t,
+                ..Default::default()
             }
         };
         let mut val = mk("val", 1.0);
@@ -476,6 +511,7 @@ mod tests {
             fit_rows: 0..0,
             val_rows: 0..n,
             t_s: t,
+            ..Default::default()
         }
     }
 
@@ -564,6 +600,7 @@ mod tests {
             fit_rows: if fit { 0..2000 } else { 0..0 },
             val_rows: if fit { 2000..n } else { 0..0 },
             t_s: t.clone(),
+            ..Default::default()
         };
         let problem = Problem {
             model: "generic".into(),

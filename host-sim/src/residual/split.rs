@@ -53,16 +53,18 @@ fn why_unusable(problem: &Problem, run: &RunData, k: usize) -> String {
     bad.map_or_else(String::new, |c| {
         format!(
             " (the first, line {}: {c} is not finite)",
-            crate::log::line_of_row(k)
+            crate::log::line_of_row(run.log_row(k))
         )
     })
 }
 
-/// Rows of `range` that are finite in the target, fixed part, baseline and
-/// every signal, every `decimate`-th.
+/// The log's own rows of `range` (a tick replay's filled ticks left out),
+/// every `decimate`-th, that are finite in the target, fixed part, baseline
+/// and every signal.
 fn rows_of(run: &RunData, range: &Range<usize>, decimate: usize) -> Vec<usize> {
     let end = range.end.min(run.t_s.len());
     (range.start..end)
+        .filter(|&k| run.measured(k))
         .step_by(decimate.max(1))
         .filter(|&k| {
             run.target[k].is_finite()
@@ -159,13 +161,14 @@ pub(super) fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split
             .iter()
             .filter(|r| !r.val_rows.is_empty())
             .map(|r| {
+                let first = r.val_rows.clone().find(|&k| r.measured(k));
                 format!(
                     "{}: lines {}..{} ({} rows), none usable{}",
                     r.name,
-                    r.val_rows.start + 2,
-                    r.val_rows.end + 1,
-                    r.val_rows.len(),
-                    why_unusable(problem, r, r.val_rows.start)
+                    crate::log::line_of_row(r.log_row(r.val_rows.start)),
+                    crate::log::line_of_row(r.log_row(r.val_rows.end.saturating_sub(1))),
+                    r.val_rows.clone().filter(|&k| r.measured(k)).count(),
+                    why_unusable(problem, r, first.unwrap_or(r.val_rows.start))
                 )
             })
             .collect();
@@ -292,11 +295,12 @@ pub(super) fn diagnostics(
     let n = e.len().max(1) as f64;
     let mean = e.iter().sum::<f64>() / n;
     let var: f64 = e.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>();
-    // Lags in rows of the split: every run contiguous, `decimate` samples apart.
+    // Lags in rows of the split: every run contiguous, `decimate` of the
+    // log's rows apart.
     let dt = problem
         .runs
         .first()
-        .and_then(|r| crate::derive::median_period_s(&r.t_s))
+        .and_then(RunData::row_period_s)
         .unwrap_or(1.0)
         * opts.decimate.max(1) as f64;
     let acf = |lag: usize| -> f64 {

@@ -27,7 +27,9 @@ use cable_joint::{Command, Config, Controller, Output, RawSample};
 use crate::plant::{Plant, PlantParams, PlantState, Tensions, TipObject};
 
 mod record;
-pub use record::{AngleErrors, LogRecorder, RawRecord, RawTrace, Table, LOG_COLUMNS, RAW_COLUMNS};
+pub use record::{
+    recorded_every, AngleErrors, LogRecorder, RawRecord, RawTrace, Table, LOG_COLUMNS, RAW_COLUMNS,
+};
 
 /// External tip force over time, N (> 0 opposes positive rotation). Time is
 /// counted from the moment the profile is set ([`Sim::set_external_force`]).

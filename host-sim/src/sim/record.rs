@@ -212,6 +212,46 @@ impl Recorder for LogRecorder {
     }
 }
 
+/// What a board streaming a record every `every`-th control tick would
+/// have written of `log` (a row a tick, as [`LogRecorder`] writes it): the
+/// CSV log's measured columns (`t_s` to `f_ext_n`), the `tick` column, and
+/// with `applied_mean` the mean current reference over the ticks since the
+/// record before (`i_applied_a`, telemetry format 3; without it, what a
+/// format-2 board sent: one sampled current a record). For tests and
+/// studies of decimated recordings.
+pub fn recorded_every(log: &Log, every: usize, applied_mean: bool) -> anyhow::Result<Log> {
+    anyhow::ensure!(
+        every >= 1,
+        "a record every {every} ticks: must be at least 1"
+    );
+    let names = &LOG_COLUMNS[..9];
+    let mut cols = names.to_vec();
+    cols.push("tick");
+    if applied_mean {
+        cols.push("i_applied_a");
+    }
+    let columns = names
+        .iter()
+        .map(|n| log.col_required(n))
+        .collect::<Result<Vec<_>, _>>()?;
+    let i_ref = log.col_required("i_ref_a")?;
+    let mut out = Log::with_columns(&cols)?;
+    for k in (0..log.len()).step_by(every) {
+        let mut row: Vec<f64> = columns.iter().map(|c| c[k]).collect();
+        row.push(k as f64);
+        if applied_mean {
+            let from = k.saturating_sub(every);
+            let mean = match k - from {
+                0 => 0.0,
+                n => i_ref[from..k].iter().sum::<f64>() / n as f64,
+            };
+            row.push(mean);
+        }
+        out.push_row(&row)?;
+    }
+    Ok(out)
+}
+
 /// One tick of a raw trace: the sample the board read and the controller's
 /// answer.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -391,5 +431,33 @@ impl Recorder for AngleErrors {
                 .push((e.theta_ref_rad - e.theta_mag_rad) as f64);
             self.jae.push((e.theta_hat_rad - e.theta_mag_rad) as f64);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_record_every_third_tick_carries_its_tick_and_the_mean_current_since_the_record_before() {
+        let names = &LOG_COLUMNS[..9];
+        let mut log = Log::with_columns(names).unwrap();
+        for k in 0..10 {
+            let mut row = vec![0.0; names.len()];
+            row[0] = k as f64 * 1e-3;
+            row[4] = k as f64; // i_ref_a
+            log.push_row(&row).unwrap();
+        }
+        assert_eq!(names[4], "i_ref_a");
+        let r = recorded_every(&log, 3, true).unwrap();
+        assert_eq!(r.col("tick").unwrap(), [0.0, 3.0, 6.0, 9.0]);
+        let t: Vec<f64> = [0, 3, 6, 9].map(|k| k as f64 * 1e-3).to_vec();
+        assert_eq!(r.col("t_s").unwrap(), t);
+        assert_eq!(r.col("i_ref_a").unwrap(), [0.0, 3.0, 6.0, 9.0]);
+        // The ticks from the record before up to this one: (0+1+2)/3, ...
+        assert_eq!(r.col("i_applied_a").unwrap(), [0.0, 1.0, 4.0, 7.0]);
+        let sampled = recorded_every(&log, 3, false).unwrap();
+        assert!(sampled.col("i_applied_a").is_none() && sampled.len() == 4);
+        assert!(recorded_every(&log, 0, true).is_err());
     }
 }

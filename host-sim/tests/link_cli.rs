@@ -3,6 +3,7 @@
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
+use std::ops::Range;
 use std::process::Command;
 
 use cable_joint::link::{encode, receive, FrameReader, Pushed, Up, MAX_WIRE_LEN};
@@ -27,8 +28,9 @@ fn send_record(s: &mut TcpStream, seq: &mut u8, record: Record) {
 /// Acknowledges the host's first request (its heartbeat), sends a start
 /// record and [`SENT_TICKS`] tick records, homing for the first half and
 /// running after it (with the origin record between when `origin`), then
-/// closes the connection, as a board that loses power would.
-fn firmware_that_stops(listener: TcpListener, origin: bool) {
+/// closes the connection, as a board that loses power would. The ticks in
+/// `lost` are not sent (records a link dropped).
+fn firmware_that_stops(listener: TcpListener, origin: bool, lost: Range<u32>) {
     let (mut s, _) = listener.accept().unwrap();
     let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
     let mut up_seq = 0u8;
@@ -57,6 +59,9 @@ fn firmware_that_stops(listener: TcpListener, origin: bool) {
             };
             send_record(&mut s, &mut up_seq, Record::Origin(o));
         }
+        if lost.contains(&tick) {
+            continue;
+        }
         let t = TickRecord {
             tick,
             phase: if tick < SENT_TICKS / 2 { 3 } else { 4 },
@@ -72,13 +77,17 @@ fn firmware_that_stops(listener: TcpListener, origin: bool) {
 
 /// `host-sim link --duration-s 10 --record` against [`firmware_that_stops`]:
 /// whether it succeeded, its stderr and the log's text (if written).
-fn record_from_stand_in(name: &str, origin: bool) -> (bool, String, Option<String>) {
+fn record_from_stand_in(
+    name: &str,
+    origin: bool,
+    lost: Range<u32>,
+) -> (bool, String, Option<String>) {
     let dir = std::env::temp_dir().join(format!("link-cli-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let log = dir.join("run.csv");
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let port = listener.local_addr().unwrap().port();
-    let firmware = std::thread::spawn(move || firmware_that_stops(listener, origin));
+    let firmware = std::thread::spawn(move || firmware_that_stops(listener, origin, lost));
     let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
         .args(["--duration-s", "10", "--record"])
@@ -97,11 +106,13 @@ fn record_from_stand_in(name: &str, origin: bool) -> (bool, String, Option<Strin
 
 #[test]
 fn a_link_that_closes_part_way_keeps_the_records_received() {
-    let (ok, stderr, text) = record_from_stand_in("closes", true);
+    let (ok, stderr, text) = record_from_stand_in("closes", true, 0..0);
     assert!(!ok, "the link reported success: {stderr}");
     assert!(stderr.contains("the firmware link closed"), "{stderr}");
     assert!(
-        stderr.contains(&format!("after {SENT_TICKS} tick records")),
+        stderr.contains(&format!(
+            "after {SENT_TICKS} tick records at a record every tick, none lost"
+        )),
         "{stderr}"
     );
     let text = text.expect("the received records are written");
@@ -112,7 +123,7 @@ fn a_link_that_closes_part_way_keeps_the_records_received() {
 
 #[test]
 fn a_homing_whose_origin_record_was_lost_is_named_in_a_warning() {
-    let (_, stderr, text) = record_from_stand_in("no-origin", false);
+    let (_, stderr, text) = record_from_stand_in("no-origin", false, 0..0);
     assert!(text.is_some(), "{stderr}");
     assert!(
         stderr.contains(&format!(
@@ -121,4 +132,21 @@ fn a_homing_whose_origin_record_was_lost_is_named_in_a_warning() {
         )),
         "{stderr}"
     );
+}
+
+/// Records the link dropped are counted from the gaps of the firmware's tick
+/// counter, and the log keeps what arrived.
+#[test]
+fn records_the_link_lost_are_counted_from_the_tick_counter() {
+    let (_, stderr, text) = record_from_stand_in("lossy", true, 100..110);
+    assert!(
+        stderr.contains(&format!(
+            "after {} tick records at a record every tick; 10 lost in a gap of the tick counter \
+             (the longest 0.0055 s, before line 102)",
+            SENT_TICKS - 10
+        )),
+        "{stderr}"
+    );
+    let rows = text.expect("the log is written").lines().count() - 1;
+    assert_eq!(rows, SENT_TICKS as usize - 10);
 }

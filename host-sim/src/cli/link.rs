@@ -20,9 +20,11 @@ use cable_joint::trajectory::Trajectory;
 
 use crate::cli;
 use crate::cli::simulate::GripArgs;
+use crate::derive::{log_clock, Holes};
 use crate::ident::excite::{self, Design};
 use crate::ingest::{to_log, LogOptions};
 use crate::live::{Live, Screen, ViewArg};
+use crate::log::Log;
 use crate::operator::{open, Client};
 use crate::output::Outputs;
 use crate::scenario::{plan, GripOptions, ScenarioOptions};
@@ -274,20 +276,21 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         .iter()
         .filter(|r| matches!(r, Record::Tick(_)))
         .count();
+    let log = to_log(
+        &records,
+        &config,
+        &LogOptions {
+            magnetic: args.magnetic,
+        },
+    );
+    let lost = log.as_ref().map_or_else(|_| String::new(), lost_records);
     if let Some(path) = args
         .record
         .as_ref()
         .filter(|_| outcome.is_ok() || ticks > 0)
     {
         let mut out = Outputs::new();
-        to_log(
-            &records,
-            &config,
-            &LogOptions {
-                magnetic: args.magnetic,
-            },
-        )?
-        .stage(&mut out, path)?;
+        log?.stage(&mut out, path)?;
         out.commit()?;
         written = format!("wrote {}", path.display());
     }
@@ -295,7 +298,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         drop(view);
         return Err(match &args.record {
             Some(p) if ticks > 0 => e.context(format!(
-                "the run ended early, after {ticks} tick records: those are in {}",
+                "the run ended early, after {ticks} tick records{lost}: those are in {}",
                 p.display()
             )),
             _ => e,
@@ -311,11 +314,43 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         eprintln!("stopped with q before the end; what was received is kept");
     }
     eprintln!(
-        "received {ticks} tick records ({} damaged frames, {} requests sent again)",
+        "received {ticks} tick records{lost} ({} damaged frames, {} requests sent again)",
         client.damaged, client.resent
     );
     if args.record.is_some() {
         eprintln!("{written}");
     }
     Ok(())
+}
+
+/// What the stream lost, from the tick counter of the records received
+/// (the log's own clock and holes, [`Holes`]), for the summary: empty with
+/// fewer than two records.
+fn lost_records(log: &Log) -> String {
+    let Ok(clock) = log_clock(log) else {
+        return String::new();
+    };
+    let Ok(t) = log.time_s() else {
+        return String::new();
+    };
+    let h = Holes::of(t, &clock);
+    let every = match clock.decimation {
+        1 => "every tick".to_owned(),
+        d => format!("every {d} ticks"),
+    };
+    if h.count == 0 {
+        format!(" at a record {every}, none lost")
+    } else {
+        format!(
+            " at a record {every}; {} lost in {} of the tick counter (the longest {:.4} s, \
+             before line {}), which a replay of the log fills tick by tick",
+            h.missing,
+            match h.count {
+                1 => "a gap".to_owned(),
+                n => format!("{n} gaps"),
+            },
+            h.longest_s,
+            crate::log::line_of_row(h.longest_row)
+        )
+    }
 }

@@ -203,16 +203,27 @@ pub fn config_for_log(log: &Log, config: &Config) -> Result<Config> {
 /// rate ([`Config::at_rate`]) for the caller to print.
 pub fn config_for_log_noted(log: &Log, config: &Config) -> Result<(Config, Vec<String>)> {
     let (clock, mut notes) = clock_noted(log)?;
+    let (c, derived) = config_at_clock(&clock, config)?;
+    notes.extend(derived);
+    Ok((c, notes))
+}
+
+/// `config` at `clock`'s control rate, with a line for every setting
+/// derived from the rate.
+fn config_at_clock(clock: &Clock, config: &Config) -> Result<(Config, Vec<String>)> {
     let rate_hz = clock.rate_hz();
     let (c, changes) = config.at_rate(rate_hz as f32);
     c.validate()
         .map_err(|e| anyhow::anyhow!("{e} (control rate taken from the log: {rate_hz:.1} Hz)"))?;
-    notes.extend(changes.iter().map(|a| {
-        format!(
-            "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
-            a.field, a.to, a.from
-        )
-    }));
+    let notes = changes
+        .iter()
+        .map(|a| {
+            format!(
+                "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
+                a.field, a.to, a.from
+            )
+        })
+        .collect();
     Ok((c, notes))
 }
 
@@ -303,7 +314,8 @@ pub const MAX_FILLED_TICKS: usize = 1_000_000;
 /// `f_ext_n` and `theta_ref_rad` when present: a row for each of the log's
 /// rows.
 pub fn derive(log: &Log, config: &Config) -> Result<Log> {
-    replay(log, config, false).map(|(d, _)| d)
+    let cfg = config_for_log(log, config)?;
+    replay(log, &cfg, false).map(|(d, _)| d)
 }
 
 /// The replay of a log tick by tick: [`Log`] has a row for every control
@@ -319,13 +331,30 @@ pub struct TickReplay {
     pub log: Log,
     /// For each of its rows, the log's row it is (`None` for a filled tick).
     pub source_row: Vec<Option<usize>>,
+    /// The log's control clock ([`log_clock`]).
+    pub clock: Clock,
+    /// What [`clock_noted`] says of it: the control rate and what the
+    /// replay fills between rows.
+    pub clock_notes: Vec<String>,
+    /// The configuration it was replayed with: the caller's at the log's
+    /// control rate.
+    pub config: Config,
 }
 
 impl TickReplay {
-    /// Replay `log` through the core with `config`, a row a tick.
+    /// Replay `log` through the core with `config` (set to the log's
+    /// control rate), a row a tick.
     pub fn new(log: &Log, config: &Config) -> Result<Self> {
-        let (log, source_row) = replay(log, config, true)?;
-        Ok(Self { log, source_row })
+        let (clock, clock_notes) = clock_noted(log)?;
+        let (config, _) = config_at_clock(&clock, config)?;
+        let (replayed, source_row) = replay(log, &config, true)?;
+        Ok(Self {
+            log: replayed,
+            source_row,
+            clock,
+            clock_notes,
+            config,
+        })
     }
 
     /// Whether row `k` is one of the log's own rows (measured), not a
@@ -354,11 +383,11 @@ pub fn log_row_in(source_row: &[Option<usize>], k: usize) -> usize {
         .unwrap_or(0)
 }
 
-/// [`derive`] and [`TickReplay::new`]: the replay, with a row for each of
-/// the log's rows or (`every_tick`) for every tick it steps, and for each
-/// row the log's row it is.
-fn replay(log: &Log, config: &Config, every_tick: bool) -> Result<(Log, Vec<Option<usize>>)> {
-    let cfg = config_for_log(log, config)?;
+/// [`derive`] and [`TickReplay::new`]: the replay with `cfg` (already at
+/// the log's control rate), with a row for each of the log's rows or
+/// (`every_tick`) for every tick it steps, and for each row the log's row
+/// it is.
+fn replay(log: &Log, cfg: &Config, every_tick: bool) -> Result<(Log, Vec<Option<usize>>)> {
     let s = &cfg.scales;
     let t = log.time_s()?;
     let x1 = log.col_required("x1_m")?;
@@ -380,7 +409,7 @@ fn replay(log: &Log, config: &Config, every_tick: bool) -> Result<(Log, Vec<Opti
     };
     let i_meas = log.col("i_meas_a");
     let theta = log.col("theta_rad");
-    let mut ctl = Controller::new(cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut ctl = Controller::new(*cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
 
     let mut names: Vec<&str> = vec!["t_s"];
     names.extend(SIGNAL_NAMES);

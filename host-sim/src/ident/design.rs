@@ -73,7 +73,8 @@ pub(super) fn design(
         }
         let y = match target {
             Target::Theta => p
-                .derived
+                .replay
+                .log
                 .col_opt("theta_rad")
                 .ok_or_else(|| {
                     anyhow!(
@@ -124,9 +125,9 @@ pub(super) fn design(
                 *s = since <= holdoff;
             }
         }
-        let fault = p.derived.col_required("fault_code")?;
+        let fault = p.replay.log.col_required("fault_code")?;
         let mut loss = RowLoss::default();
-        for k in (0..p.len()).filter(|&k| p.measured[k]) {
+        for k in (0..p.len()).filter(|&k| p.measured(k)) {
             let bad = (!y[k].is_finite()).then_some(target.column()).or_else(|| {
                 (0..cols.len())
                     .find(|&j| !cols[j][k].is_finite())
@@ -142,7 +143,7 @@ pub(super) fn design(
                 loss.still += 1;
             } else if let Some(col) = bad {
                 loss.not_finite += 1;
-                loss.first_not_finite.get_or_insert((p.log_row[k], col));
+                loss.first_not_finite.get_or_insert((p.log_row(k), col));
             } else {
                 for (dc, c) in d.cols.iter_mut().zip(&cols) {
                     dc.push(c[k]);

@@ -89,7 +89,7 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
                 0.0
             };
             if !p.usable[k]
-                || !p.measured[k]
+                || !p.measured(k)
                 || !vel[k].is_finite()
                 || !acc[k].is_finite()
                 || vel[k].abs() <= switch

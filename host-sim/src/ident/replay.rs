@@ -5,9 +5,7 @@ use cable_joint::filter::{Kinematics, LowPass1, TrackingObserver};
 use cable_joint::Config;
 
 use super::{IdentOptions, Regressor};
-use crate::derive::{
-    clock_noted, config_for_log, held_sign, held_sign_travelled, low_pass_column, TickReplay,
-};
+use crate::derive::{held_sign, held_sign_travelled, low_pass_column, TickReplay};
 use crate::log::Log;
 
 /// A log replayed through the core, with the columns the models need (the
@@ -16,20 +14,12 @@ pub struct Prepared {
     pub(super) label: String,
     /// The replay, a row every control tick ([`TickReplay`]): filters,
     /// observers and differences over it advance as on the MCU whatever
-    /// the log's decimation or holes.
-    pub(super) derived: Log,
+    /// the log's decimation or holes; the fits take only the log's own
+    /// rows ([`Prepared::measured`]).
+    pub(super) replay: TickReplay,
     pub(super) cfg: Config,
     /// Rows usable at all: after the start-up, not faulted.
     pub(super) usable: Vec<bool>,
-    /// Rows that are the log's own (the fits take only these); the others
-    /// are ticks the replay filled between them.
-    pub(super) measured: Vec<bool>,
-    /// The log's row of each replay row (`TickReplay::log_row`), for
-    /// messages that name a line.
-    pub(super) log_row: Vec<usize>,
-    /// Control ticks from one of the log's rows to the next in a regular
-    /// stretch (the telemetry decimation).
-    pub(super) decimation: u32,
     /// Share of the control ticks whose applied current the log carries:
     /// all when it has the recorded mean over each step (`i_applied_a`),
     /// else its own rows'.
@@ -104,25 +94,22 @@ pub(super) enum X2Switch {
 impl Prepared {
     /// Replay `log` (named `label` in errors) through the core with `config`.
     pub fn new(label: &str, log: &Log, config: &Config, opts: &IdentOptions) -> Result<Self> {
-        let cfg = config_for_log(log, config).with_context(|| label.to_owned())?;
         let replay = TickReplay::new(log, config).with_context(|| format!("replaying {label}"))?;
-        let measured: Vec<bool> = (0..replay.log.len()).map(|k| replay.measured(k)).collect();
-        let log_row: Vec<usize> = (0..replay.log.len()).map(|k| replay.log_row(k)).collect();
+        let cfg = replay.config;
         let applied_mean = log
             .col("i_applied_a")
             .is_some_and(|c| c.iter().skip(1).all(|v| v.is_finite()));
         let current_ticks_share = if applied_mean {
             1.0
         } else {
-            measured.iter().filter(|m| **m).count() as f64 / measured.len().max(1) as f64
+            log.len() as f64 / replay.log.len().max(1) as f64
         };
         let derived = &replay.log;
         let t = derived.time_s()?.to_vec();
-        let (clock, notes) = clock_noted(log).with_context(|| label.to_owned())?;
         // The rate line only for a recorded run (what its tick counter
         // gave); a simulated log's rate is the one it was run at.
-        let skip = usize::from(!clock.from_ticks);
-        for note in &notes[skip..] {
+        let skip = usize::from(!replay.clock.from_ticks);
+        for note in replay.clock_notes.iter().skip(skip) {
             eprintln!("note: {label}: {note}");
         }
         let fault = derived.col_required("fault_code")?;
@@ -165,12 +152,9 @@ impl Prepared {
             label: label.to_owned(),
             first_fault,
             loss,
-            derived: replay.log,
+            replay,
             cfg,
             usable,
-            measured,
-            log_row,
-            decimation: clock.decimation,
             current_ticks_share,
             theta,
             theta_kin,
@@ -180,7 +164,18 @@ impl Prepared {
 
     /// Rows of the replay: control ticks.
     pub(super) fn len(&self) -> usize {
-        self.derived.len()
+        self.replay.log.len()
+    }
+
+    /// Whether replay row `k` is one of the log's own rows (the fits take
+    /// only these), not a tick the replay filled between them.
+    pub(super) fn measured(&self, k: usize) -> bool {
+        self.replay.measured(k)
+    }
+
+    /// The log's row of replay row `k`, for messages that name a line.
+    pub(super) fn log_row(&self, k: usize) -> usize {
+        self.replay.log_row(k)
     }
 
     /// Samples either side of a central difference over about `window_s`
@@ -189,18 +184,19 @@ impl Prepared {
     /// replay filled between two of them.
     pub(super) fn half_window(&self, window_s: f64) -> usize {
         let ticks = (window_s / f64::from(self.cfg.period_s())).round();
-        (ticks.max(1.0) as usize).max(self.decimation as usize)
+        (ticks.max(1.0) as usize).max(self.replay.clock.decimation as usize)
     }
 
     /// The log's own rows among them.
     pub(super) fn measured_rows(&self) -> usize {
-        self.measured.iter().filter(|m| **m).count()
+        self.replay.source_row.iter().flatten().count()
     }
 
     /// A column of the replay.
     pub fn col(&self, name: &str) -> Result<Vec<f64>> {
         Ok(self
-            .derived
+            .replay
+            .log
             .col(name)
             .ok_or_else(|| anyhow!("{}: replay has no column `{name}`", self.label))?
             .to_vec())
@@ -229,7 +225,7 @@ impl Prepared {
 
     /// Time, s.
     pub fn t_s(&self) -> Result<&[f64]> {
-        Ok(self.derived.time_s()?)
+        Ok(self.replay.log.time_s()?)
     }
 
     /// The configuration the log was replayed with (its own control rate).

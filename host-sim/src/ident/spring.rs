@@ -134,7 +134,7 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
                     let far = (x1[k] - x1[k0]).abs() >= SPRING_MIN_TRAVEL_M
                         && (x2[k] - x2[k0]).abs() >= SPRING_MIN_TRAVEL_M
                         && (k - k0) as f64 * period_s >= settle_s;
-                    if far && p.measured[k] {
+                    if far && p.measured(k) {
                         sweep.push(row);
                     }
                 }

@@ -36,9 +36,7 @@ use super::candidates::offer_candidates;
 use super::families::{term_column, term_label};
 use super::generic::{generic_columns, generic_run};
 use super::select::{Problem, RunData};
-use crate::derive::{
-    config_for_log, held_sign, held_sign_travelled, low_pass_column, median_period_s, TickReplay,
-};
+use crate::derive::{held_sign, held_sign_travelled, low_pass_column, median_period_s, TickReplay};
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
 use crate::log::{Log, Schema};
 
@@ -191,8 +189,8 @@ pub(super) fn f32s(v: &[f64]) -> Vec<f32> {
 /// the observer's `Q` advance as on the MCU), and the configuration at the
 /// log's control rate.
 fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, TickReplay, Config)> {
-    let cfg = config_for_log(log, config)?;
-    let replay = TickReplay::new(log, &cfg)?;
+    let replay = TickReplay::new(log, config)?;
+    let cfg = replay.config;
     let d = &replay.log;
     let mut signals = Vec::with_capacity(SIGNAL_NAMES.len());
     for name in SIGNAL_NAMES {

@@ -353,13 +353,16 @@ impl Client {
 
     /// Read what has arrived (waiting up to the port's timeout once) and
     /// return the telemetry received so far.
+    /// When the read fails (the link closed), the records already read
+    /// stay for [`Client::take_telemetry`].
     pub fn poll(&mut self) -> anyhow::Result<Vec<Record>> {
-        self.fill()?;
+        let filled = self.fill();
         for f in self.incoming.drain(..) {
             if let Frame::Telemetry(r) = f {
                 self.pending.push(r);
             }
         }
+        filled?;
         Ok(self.take_telemetry())
     }
 
@@ -376,8 +379,17 @@ impl Client {
         Ok(())
     }
 
-    /// The telemetry records received so far.
+    /// The telemetry records received so far, those read while waiting for
+    /// an acknowledgement included (the acknowledgements stay).
     pub fn take_telemetry(&mut self) -> Vec<Record> {
+        let mut acks = VecDeque::with_capacity(self.incoming.len());
+        for f in self.incoming.drain(..) {
+            match f {
+                Frame::Telemetry(r) => self.pending.push(r),
+                ack => acks.push_back(ack),
+            }
+        }
+        self.incoming = acks;
         std::mem::take(&mut self.pending)
     }
 
@@ -530,6 +542,56 @@ mod tests {
         for r in &FOUR {
             c.request(&down_for(r).unwrap()).unwrap();
         }
+    }
+
+    /// Telemetry read in the same chunk as an acknowledgement waits in the
+    /// client's queue; when the link then closes, `poll` fails but those
+    /// records are still handed over (a run that ends early keeps them).
+    #[test]
+    fn records_read_before_the_link_closed_are_kept() {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let port = listener.local_addr().unwrap().port();
+        let firmware = std::thread::spawn(move || {
+            let (mut s, _) = listener.accept().unwrap();
+            let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
+            let mut buf = [0u8; 256];
+            let seq = 'request: loop {
+                let n = s.read(&mut buf).unwrap();
+                for &b in &buf[..n] {
+                    if let Pushed::Frame(len) = reader.push(b) {
+                        break 'request receive(reader.frame(), len).seq;
+                    }
+                }
+            };
+            // The acknowledgement and three records in one write, then close.
+            let mut out = Vec::new();
+            let mut wire = [0u8; MAX_WIRE_LEN];
+            out.extend_from_slice(encode(&Up::Ack { seq, refused: None }, 0, &mut wire).unwrap());
+            for k in 0..3u8 {
+                let mut bytes = [0u8; MAX_RECORD_LEN];
+                let record = Record::Start(StartRecord {
+                    version: FORMAT_VERSION,
+                    control_rate_hz: 2000.0,
+                    decimation: u32::from(k) + 1,
+                });
+                let up = Up::Telemetry(record.encode(&mut bytes));
+                out.extend_from_slice(encode(&up, k + 1, &mut wire).unwrap());
+            }
+            s.write_all(&out).unwrap();
+        });
+        let mut c = Client::new(open(&format!("tcp:127.0.0.1:{port}")).unwrap()).unwrap();
+        c.request(&Down::Heartbeat).unwrap();
+        firmware.join().unwrap();
+        let mut got = Vec::new();
+        let closed = loop {
+            match c.poll() {
+                Ok(r) => got.extend(r),
+                Err(e) => break e.to_string(),
+            }
+        };
+        assert!(closed.contains("closed"), "{closed}");
+        got.extend(c.take_telemetry());
+        assert_eq!(got.len(), 3, "{got:?}");
     }
 
     #[test]

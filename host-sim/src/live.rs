@@ -74,6 +74,9 @@ pub struct Live {
     points: VecDeque<Point>,
     last: Option<TickRecord>,
     records: u64,
+    /// Since the first record (or a restart): its tick, the smallest tick
+    /// step seen (the decimation) and the records taken in.
+    stream: Option<(u32, u32, u64)>,
     first_fault: Option<(u32, u8)>,
     note: String,
     finished: bool,
@@ -90,6 +93,7 @@ impl Live {
             points: VecDeque::new(),
             last: None,
             records: 0,
+            stream: None,
             first_fault: None,
             note: String::new(),
             finished: false,
@@ -100,9 +104,17 @@ impl Live {
     pub fn push(&mut self, r: &TickRecord) {
         let t_s = f64::from(r.tick) / self.rate_hz;
         // A tick counter that went back is a restarted firmware: start over.
+        let back = self.last.is_some_and(|l| l.tick > r.tick);
         if self.points.back().is_some_and(|p| p.t_s > t_s) {
             self.points.clear();
         }
+        self.stream = match (self.stream, self.last) {
+            (Some((first, step, n)), Some(l)) if !back => {
+                let d = r.tick.wrapping_sub(l.tick);
+                Some((first, if d > 0 { step.min(d) } else { step }, n + 1))
+            }
+            _ => Some((r.tick, u32::MAX, 1)),
+        };
         self.points.push_back(Point {
             t_s,
             ref_deg: f64::from(r.theta_ref_rad).to_degrees(),
@@ -137,6 +149,18 @@ impl Live {
     /// Tick records taken in.
     pub fn records(&self) -> u64 {
         self.records
+    }
+
+    /// Tick records the stream lost since its first (or since the firmware
+    /// restarted): the ticks from the first record to the last at the
+    /// smallest tick step seen (the decimation), less the records taken in.
+    pub fn lost(&self) -> u64 {
+        match (self.stream, self.last) {
+            (Some((first, step, n)), Some(l)) if step != u32::MAX => {
+                (u64::from(l.tick.wrapping_sub(first)) / u64::from(step) + 1).saturating_sub(n)
+            }
+            _ => 0,
+        }
     }
 
     /// Draw the view on `frame`.
@@ -206,6 +230,10 @@ impl Live {
     /// Records, the first fault, the command's note, the keys.
     fn footer(&self) -> Line<'static> {
         let mut text = format!("{} records", self.records);
+        match self.lost() {
+            0 => {}
+            n => text.push_str(&format!(" ({n} lost)")),
+        }
         if let Some((tick, code)) = self.first_fault {
             text.push_str(&format!(" · first fault {code} at tick {tick}"));
         }
@@ -657,5 +685,17 @@ mod tests {
         live.push(&tick(3, 0));
         assert_eq!(live.points.len(), 1);
         assert_eq!(live.records(), 501);
+        assert_eq!(live.lost(), 0);
+    }
+
+    #[test]
+    fn records_the_stream_lost_are_counted_at_its_decimation() {
+        let mut live = Live::new("sim", 2000.0, Scales::default());
+        // A record every 4th tick, ticks 40 to 76 lost (10 records).
+        for k in (0..200).step_by(4).filter(|k| !(40..80).contains(k)) {
+            live.push(&tick(k, 0));
+        }
+        assert_eq!(live.lost(), 10);
+        assert!(screen_text(&live).contains("40 records (10 lost)"));
     }
 }

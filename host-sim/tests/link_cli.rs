@@ -25,25 +25,45 @@ fn send_record(s: &mut TcpStream, seq: &mut u8, record: Record) {
     send(s, seq, &Up::Telemetry(record.encode(&mut bytes)));
 }
 
+/// What the stand-in sends.
+#[derive(Clone)]
+struct Stream {
+    /// An origin record where homing ends (tick `SENT_TICKS / 2`).
+    origin: bool,
+    /// Ticks not sent (records a link dropped).
+    lost: Range<u32>,
+    /// The host sets this decimation (`--decimation`): the stand-in sends
+    /// [`EARLY_TICKS`] records every tick first, then acknowledges the
+    /// request and sends every N-th tick.
+    decimation: Option<u32>,
+}
+
+/// Records sent every tick before a decimation request is taken.
+const EARLY_TICKS: u32 = 10;
+
+/// The next request frame's sequence number.
+fn next_request(s: &mut TcpStream, reader: &mut FrameReader<MAX_WIRE_LEN>) -> u8 {
+    let mut buf = [0u8; 256];
+    loop {
+        let n = s.read(&mut buf).unwrap();
+        assert!(n > 0, "the host closed before its request");
+        for &b in &buf[..n] {
+            if let Pushed::Frame(len) = reader.push(b) {
+                return receive(reader.frame(), len).seq;
+            }
+        }
+    }
+}
+
 /// Acknowledges the host's first request (its heartbeat), sends a start
-/// record and [`SENT_TICKS`] tick records, homing for the first half and
-/// running after it (with the origin record between when `origin`), then
-/// closes the connection, as a board that loses power would. The ticks in
-/// `lost` are not sent (records a link dropped).
-fn firmware_that_stops(listener: TcpListener, origin: bool, lost: Range<u32>) {
+/// record and tick records up to [`SENT_TICKS`], homing for the first half
+/// and running after it, as `stream` says, then closes the connection, as a
+/// board that loses power would.
+fn firmware_that_stops(listener: TcpListener, stream: Stream) {
     let (mut s, _) = listener.accept().unwrap();
     let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
     let mut up_seq = 0u8;
-    let mut buf = [0u8; 256];
-    let seq = 'first: loop {
-        let n = s.read(&mut buf).unwrap();
-        assert!(n > 0, "the host closed before its first request");
-        for &b in &buf[..n] {
-            if let Pushed::Frame(len) = reader.push(b) {
-                break 'first receive(reader.frame(), len).seq;
-            }
-        }
-    };
+    let seq = next_request(&mut s, &mut reader);
     send(&mut s, &mut up_seq, &Up::Ack { seq, refused: None });
     let start = StartRecord {
         version: FORMAT_VERSION,
@@ -51,49 +71,56 @@ fn firmware_that_stops(listener: TcpListener, origin: bool, lost: Range<u32>) {
         decimation: 1,
     };
     send_record(&mut s, &mut up_seq, Record::Start(start));
-    for tick in 0..SENT_TICKS {
-        if tick == SENT_TICKS / 2 && origin {
+    let mut step = 1;
+    let mut tick = 0;
+    while tick < SENT_TICKS {
+        if let (Some(n), EARLY_TICKS) = (stream.decimation, tick) {
+            let seq = next_request(&mut s, &mut reader);
+            send(&mut s, &mut up_seq, &Up::Ack { seq, refused: None });
+            step = n;
+            tick = tick.next_multiple_of(n);
+        }
+        if tick == SENT_TICKS / 2 && stream.origin {
             let o = OriginRecord {
                 tick,
                 ..OriginRecord::default()
             };
             send_record(&mut s, &mut up_seq, Record::Origin(o));
         }
-        if lost.contains(&tick) {
-            continue;
+        if !stream.lost.contains(&tick) {
+            let t = TickRecord {
+                tick,
+                phase: if tick < SENT_TICKS / 2 { 3 } else { 4 },
+                mode: 1,
+                drive_enable: true,
+                dac: cable_joint::units::DacCode(2048),
+                ..TickRecord::default()
+            };
+            send_record(&mut s, &mut up_seq, Record::Tick(t));
         }
-        let t = TickRecord {
-            tick,
-            phase: if tick < SENT_TICKS / 2 { 3 } else { 4 },
-            mode: 1,
-            drive_enable: true,
-            dac: cable_joint::units::DacCode(2048),
-            ..TickRecord::default()
-        };
-        send_record(&mut s, &mut up_seq, Record::Tick(t));
+        tick += step;
     }
     s.flush().unwrap();
 }
 
 /// `host-sim link --duration-s 10 --record` against [`firmware_that_stops`]:
 /// whether it succeeded, its stderr and the log's text (if written).
-fn record_from_stand_in(
-    name: &str,
-    origin: bool,
-    lost: Range<u32>,
-) -> (bool, String, Option<String>) {
+fn record_from_stand_in(name: &str, stream: Stream) -> (bool, String, Option<String>) {
     let dir = std::env::temp_dir().join(format!("link-cli-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let log = dir.join("run.csv");
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let port = listener.local_addr().unwrap().port();
-    let firmware = std::thread::spawn(move || firmware_that_stops(listener, origin, lost));
-    let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
+    let decimation = stream.decimation;
+    let firmware = std::thread::spawn(move || firmware_that_stops(listener, stream));
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_host-sim"));
+    cmd.args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
         .args(["--duration-s", "10", "--record"])
-        .arg(&log)
-        .output()
-        .unwrap();
+        .arg(&log);
+    if let Some(n) = decimation {
+        cmd.args(["--decimation", &n.to_string()]);
+    }
+    let out = cmd.output().unwrap();
     firmware.join().unwrap();
     let text = std::fs::read_to_string(&log).ok();
     std::fs::remove_dir_all(&dir).ok();
@@ -104,9 +131,18 @@ fn record_from_stand_in(
     )
 }
 
+/// Every tick sent, an origin record where homing ends.
+fn whole() -> Stream {
+    Stream {
+        origin: true,
+        lost: 0..0,
+        decimation: None,
+    }
+}
+
 #[test]
 fn a_link_that_closes_part_way_keeps_the_records_received() {
-    let (ok, stderr, text) = record_from_stand_in("closes", true, 0..0);
+    let (ok, stderr, text) = record_from_stand_in("closes", whole());
     assert!(!ok, "the link reported success: {stderr}");
     assert!(stderr.contains("the firmware link closed"), "{stderr}");
     assert!(
@@ -123,7 +159,13 @@ fn a_link_that_closes_part_way_keeps_the_records_received() {
 
 #[test]
 fn a_homing_whose_origin_record_was_lost_is_named_in_a_warning() {
-    let (_, stderr, text) = record_from_stand_in("no-origin", false, 0..0);
+    let (_, stderr, text) = record_from_stand_in(
+        "no-origin",
+        Stream {
+            origin: false,
+            ..whole()
+        },
+    );
     assert!(text.is_some(), "{stderr}");
     assert!(
         stderr.contains(&format!(
@@ -138,7 +180,11 @@ fn a_homing_whose_origin_record_was_lost_is_named_in_a_warning() {
 /// counter, and the log keeps what arrived.
 #[test]
 fn records_the_link_lost_are_counted_from_the_tick_counter() {
-    let (_, stderr, text) = record_from_stand_in("lossy", true, 100..110);
+    let lossy = Stream {
+        lost: 100..110,
+        ..whole()
+    };
+    let (_, stderr, text) = record_from_stand_in("lossy", lossy);
     assert!(
         stderr.contains(&format!(
             "after {} tick records at a record every tick; 10 lost in a gap of the tick counter \
@@ -149,4 +195,27 @@ fn records_the_link_lost_are_counted_from_the_tick_counter() {
     );
     let rows = text.expect("the log is written").lines().count() - 1;
     assert_eq!(rows, SENT_TICKS as usize - 10);
+}
+
+/// After `--decimation 4` the losses are counted at a record every 4th
+/// tick, from the first record after the request was acknowledged (the
+/// records before it came every tick).
+#[test]
+fn records_lost_after_a_decimation_request_are_counted_at_that_decimation() {
+    let decimated = Stream {
+        lost: 200..240,
+        decimation: Some(4),
+        ..whole()
+    };
+    let (_, stderr, text) = record_from_stand_in("decimated", decimated);
+    // Ticks 0..9, then 12, 16, ..., 496 less the 10 of 200..240.
+    let rows = EARLY_TICKS + (SENT_TICKS - 12).div_ceil(4) - 10;
+    assert!(
+        stderr.contains(&format!(
+            "after {rows} tick records at a record every 4 ticks; 10 lost from line 12 in a gap \
+             of the tick counter (the longest 0.0220 s, before line 59)"
+        )),
+        "{stderr}"
+    );
+    assert_eq!(text.map(|t| t.lines().count() - 1), Some(rows as usize));
 }

@@ -272,10 +272,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     records.extend(client.take_telemetry());
     bar.finish_and_clear();
     let mut written = String::from("nothing recorded");
-    let ticks = records
-        .iter()
-        .filter(|r| matches!(r, Record::Tick(_)))
-        .count();
+    let ticks = tick_records(&records);
     let log = to_log(
         &records,
         &config,
@@ -283,7 +280,9 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
             magnetic: args.magnetic,
         },
     );
-    let lost = log.as_ref().map_or_else(|_| String::new(), lost_records);
+    let lost = log
+        .as_ref()
+        .map_or_else(|_| String::new(), |l| lost_records(l, args.decimation));
     if let Some(path) = args
         .record
         .as_ref()
@@ -323,26 +322,47 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Tick records among `records`.
+fn tick_records(records: &[Record]) -> usize {
+    records
+        .iter()
+        .filter(|r| matches!(r, Record::Tick(_)))
+        .count()
+}
+
 /// What the stream lost, from the tick counter of the records received
 /// (the log's own clock and holes, [`Holes`]), for the summary: empty with
-/// fewer than two records.
-fn lost_records(log: &Log) -> String {
-    let Ok(clock) = log_clock(log) else {
+/// fewer than two records. With a decimation `requested`, counted at it
+/// from the first row after which every record's tick is a multiple of it
+/// (the firmware sends a record on those ticks; the records before came at
+/// the boot's decimation, every tick).
+fn lost_records(log: &Log, requested: Option<u32>) -> String {
+    let (Ok(mut clock), Ok(t), Some(tick)) = (log_clock(log), log.time_s(), log.col("tick")) else {
         return String::new();
     };
-    let Ok(t) = log.time_s() else {
-        return String::new();
+    let from = match requested.filter(|n| *n > 0) {
+        Some(n) => {
+            clock.decimation = n;
+            let off = |k: &f64| k.rem_euclid(f64::from(n)) != 0.0;
+            tick.iter().rposition(off).map_or(0, |k| k + 1)
+        }
+        None => 0,
     };
-    let h = Holes::of(t, &clock);
+    let h = Holes::of(&t[from..], &clock);
     let every = match clock.decimation {
         1 => "every tick".to_owned(),
         d => format!("every {d} ticks"),
     };
+    let since = if from > 0 {
+        format!(" from line {}", crate::log::line_of_row(from))
+    } else {
+        String::new()
+    };
     if h.count == 0 {
-        format!(" at a record {every}, none lost")
+        format!(" at a record {every}, none lost{since}")
     } else {
         format!(
-            " at a record {every}; {} lost in {} of the tick counter (the longest {:.4} s, \
+            " at a record {every}; {} lost{since} in {} of the tick counter (the longest {:.4} s, \
              before line {}), which a replay of the log fills tick by tick",
             h.missing,
             match h.count {
@@ -350,7 +370,7 @@ fn lost_records(log: &Log) -> String {
                 n => format!("{n} gaps"),
             },
             h.longest_s,
-            crate::log::line_of_row(h.longest_row)
+            crate::log::line_of_row(from + h.longest_row)
         )
     }
 }

@@ -186,11 +186,10 @@ pub(super) fn f32s(v: &[f64]) -> Vec<f32> {
 /// (positions relative to the first sample, as after `set_origin`), the
 /// replay they come from ([`TickReplay`]: on a decimated or lossy log the
 /// ticks between its rows are stepped and kept, so the terms' states and
-/// the observer's `Q` advance as on the MCU), and the configuration at the
-/// log's control rate.
-fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, TickReplay, Config)> {
+/// the observer's `Q` advance as on the MCU; its `config` is the
+/// configuration at the log's control rate).
+fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, TickReplay)> {
     let replay = TickReplay::new(log, config)?;
-    let cfg = replay.config;
     let d = &replay.log;
     let mut signals = Vec::with_capacity(SIGNAL_NAMES.len());
     for name in SIGNAL_NAMES {
@@ -201,7 +200,7 @@ fn runtime_signals(log: &Log, config: &Config) -> Result<(Vec<Vec<f32>>, TickRep
         };
         signals.push(v.iter().map(|x| (x - first) as f32).collect());
     }
-    Ok((signals, replay, cfg))
+    Ok((signals, replay))
 }
 
 /// Column `name` of a tick replay at the log's own rows, NaN at the ticks
@@ -354,8 +353,9 @@ fn core_run(
         crate::log::REQUIRED_COLUMNS.join(", "),
         missing.join(", ")
     );
-    let (signals, replay, cfg) =
+    let (signals, replay) =
         runtime_signals(log, config).with_context(|| format!("replaying {}", nl.name))?;
+    let cfg = replay.config;
     let d = &replay.log;
     let t_s = d.time_s()?.to_vec();
     let n = t_s.len();
@@ -450,7 +450,7 @@ fn core_run(
             signals,
             fit_rows: 0..0,
             val_rows: 0..0,
-            source_row: replay.source_row.clone(),
+            source_row: replay.source_row,
         },
         cfg,
     ))

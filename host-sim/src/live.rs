@@ -33,6 +33,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Axis, Block, Chart, Dataset, GraphType, Paragraph};
 use ratatui::{Frame, Terminal};
 
+use crate::operator::Losses;
 use crate::trace::Ticked;
 
 /// Firmware seconds the charts span.
@@ -74,9 +75,8 @@ pub struct Live {
     points: VecDeque<Point>,
     last: Option<TickRecord>,
     records: u64,
-    /// Since the first record (or a restart): its tick, the smallest tick
-    /// step seen (the decimation) and the records taken in.
-    stream: Option<(u32, u32, u64)>,
+    /// Records the stream lost since the first (or a restart).
+    losses: Losses,
     first_fault: Option<(u32, u8)>,
     note: String,
     finished: bool,
@@ -93,28 +93,30 @@ impl Live {
             points: VecDeque::new(),
             last: None,
             records: 0,
-            stream: None,
+            losses: Losses::default(),
             first_fault: None,
             note: String::new(),
             finished: false,
         }
     }
 
+    /// The host asked the firmware for a record every `n` ticks: losses
+    /// are counted at that decimation, from the first record after which
+    /// every tick is a multiple of it (the boot streams every tick).
+    #[must_use]
+    pub fn asked_every(mut self, n: Option<u32>) -> Self {
+        self.losses = Losses::new(n);
+        self
+    }
+
     /// Take in one tick record.
     pub fn push(&mut self, r: &TickRecord) {
         let t_s = f64::from(r.tick) / self.rate_hz;
         // A tick counter that went back is a restarted firmware: start over.
-        let back = self.last.is_some_and(|l| l.tick > r.tick);
         if self.points.back().is_some_and(|p| p.t_s > t_s) {
             self.points.clear();
         }
-        self.stream = match (self.stream, self.last) {
-            (Some((first, step, n)), Some(l)) if !back => {
-                let d = r.tick.wrapping_sub(l.tick);
-                Some((first, if d > 0 { step.min(d) } else { step }, n + 1))
-            }
-            _ => Some((r.tick, u32::MAX, 1)),
-        };
+        self.losses.push(r.tick);
         self.points.push_back(Point {
             t_s,
             ref_deg: f64::from(r.theta_ref_rad).to_degrees(),
@@ -152,15 +154,10 @@ impl Live {
     }
 
     /// Tick records the stream lost since its first (or since the firmware
-    /// restarted): the ticks from the first record to the last at the
-    /// smallest tick step seen (the decimation), less the records taken in.
+    /// restarted), at the decimation asked for ([`Live::asked_every`]) or
+    /// else the smallest tick step seen ([`Losses`]).
     pub fn lost(&self) -> u64 {
-        match (self.stream, self.last) {
-            (Some((first, step, n)), Some(l)) if step != u32::MAX => {
-                (u64::from(l.tick.wrapping_sub(first)) / u64::from(step) + 1).saturating_sub(n)
-            }
-            _ => 0,
-        }
+        self.losses.lost()
     }
 
     /// Draw the view on `frame`.
@@ -697,5 +694,25 @@ mod tests {
         }
         assert_eq!(live.lost(), 10);
         assert!(screen_text(&live).contains("40 records (10 lost)"));
+    }
+
+    #[test]
+    fn records_before_a_decimation_request_took_effect_are_not_counted_as_lost() {
+        let mut live = Live::new("sim", 2000.0, Scales::default()).asked_every(Some(4));
+        // The boot streams every tick; the request takes effect at tick 99.
+        for k in 0..99 {
+            live.push(&tick(k, 0));
+        }
+        for k in (100..400).step_by(4) {
+            live.push(&tick(k, 0));
+        }
+        assert_eq!(live.lost(), 0);
+        assert!(!screen_text(&live).contains("lost"));
+        // Then ticks 200 to 236 lost.
+        let mut live = Live::new("sim", 2000.0, Scales::default()).asked_every(Some(4));
+        for k in (0..99).chain((100..400).step_by(4).filter(|k| !(200..240).contains(k))) {
+            live.push(&tick(k, 0));
+        }
+        assert_eq!(live.lost(), 10);
     }
 }

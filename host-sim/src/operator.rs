@@ -19,7 +19,7 @@
 //! back with its reason; no answer within [`Client::ack_timeout`] is an
 //! error naming the request and the copies sent.
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::io::{ErrorKind, Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
@@ -434,6 +434,111 @@ impl Client {
     }
 }
 
+/// Records a telemetry stream lost, counted from the firmware's tick
+/// counter as the records arrive (the live view's footer and `host-sim
+/// link`'s summary). The stream's decimation is the one the host asked for
+/// (`requested`), counted from the first record after which every tick is
+/// a multiple of it (the records before came at the boot's, every tick),
+/// or else the smallest tick step seen. A tick counter that does not go
+/// forward (the firmware restarted) starts the count over.
+#[derive(Clone, Debug, Default)]
+pub struct Losses {
+    requested: Option<u32>,
+    /// The first record counted: its tick and its index among the records
+    /// pushed.
+    first: Option<(u32, usize)>,
+    /// Tick of the newest record.
+    last: u32,
+    /// Records pushed in all.
+    pushed: usize,
+    /// Every tick step since the first record counted: how often, and the
+    /// index of the record after its first occurrence.
+    steps: BTreeMap<u32, (u64, usize)>,
+}
+
+/// Where a stream lost records ([`Losses::gaps`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Gaps {
+    /// The decimation the losses are counted at (a record every `decimation` ticks).
+    pub decimation: u32,
+    /// Gaps of the tick counter (a step longer than the decimation).
+    pub count: u64,
+    /// Records missing over all gaps.
+    pub missing: u64,
+    /// The longest step, in ticks (0 without a gap).
+    pub longest_ticks: u32,
+    /// Index of the record after the longest step's first occurrence.
+    pub longest_after: usize,
+    /// Index of the first record counted (0, or the first after the last
+    /// record off the requested decimation).
+    pub from: usize,
+}
+
+impl Losses {
+    /// A count for a stream whose host asked for a record every
+    /// `requested` ticks (`None` or 0: it did not ask).
+    pub fn new(requested: Option<u32>) -> Self {
+        Self {
+            requested: requested.filter(|n| *n > 0),
+            ..Self::default()
+        }
+    }
+
+    /// Take in the next record's tick.
+    pub fn push(&mut self, tick: u32) {
+        let index = self.pushed;
+        self.pushed += 1;
+        let before = std::mem::replace(&mut self.last, tick);
+        let off = self.requested.is_some_and(|n| !tick.is_multiple_of(n));
+        match self.first {
+            Some(_) if !off && tick > before => {
+                self.steps.entry(tick - before).or_insert((0, index)).0 += 1;
+            }
+            _ => {
+                self.steps.clear();
+                self.first = (!off).then_some((tick, index));
+            }
+        }
+    }
+
+    /// The decimation the losses are counted at: the one asked for, else
+    /// the smallest step seen (`None` before two records are counted).
+    pub fn decimation(&self) -> Option<u32> {
+        self.requested.or_else(|| self.steps.keys().next().copied())
+    }
+
+    /// Records lost since the first counted.
+    pub fn lost(&self) -> u64 {
+        self.gaps().missing
+    }
+
+    /// Where the records were lost: every step longer than the decimation
+    /// is a gap of the tick counter missing the step in records, rounded,
+    /// less one.
+    pub fn gaps(&self) -> Gaps {
+        let Some(((_, from), decimation)) = self.first.zip(self.decimation()) else {
+            return Gaps::default();
+        };
+        let mut g = Gaps {
+            decimation,
+            from,
+            ..Gaps::default()
+        };
+        for (&step, &(n, after)) in &self.steps {
+            let records = (f64::from(step) / f64::from(decimation)).round() as u64;
+            if records >= 2 {
+                g.count += n;
+                g.missing += n * (records - 1);
+                if step > g.longest_ticks {
+                    g.longest_ticks = step;
+                    g.longest_after = after;
+                }
+            }
+        }
+        g
+    }
+}
+
 /// A message's name for errors.
 pub fn name(msg: &Down) -> &'static str {
     match msg {
@@ -458,7 +563,7 @@ mod tests {
     /// frames (counted from 0 as they arrive, resends included) that never
     /// arrive, and those whose acknowledgement never comes back.
     #[derive(Clone, Copy, Default)]
-    struct Losses {
+    struct Dropped {
         frames: &'static [usize],
         acks: &'static [usize],
     }
@@ -467,7 +572,7 @@ mod tests {
     /// goes through the core's `receive` and `Repeats` (as the `link_frame`
     /// task does), a telemetry record goes up before each acknowledgement,
     /// and a decimation of 7 is answered "busy". `losses` are dropped.
-    fn fake_firmware(listener: TcpListener, losses: Losses) -> Vec<Request> {
+    fn fake_firmware(listener: TcpListener, losses: Dropped) -> Vec<Request> {
         let (mut s, _) = listener.accept().unwrap();
         let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
         let mut queued = Vec::new();
@@ -523,7 +628,7 @@ mod tests {
 
     /// A stand-in firmware on a local port: the port's spec and the thread
     /// that returns what it queued.
-    fn stand_in(losses: Losses) -> (String, std::thread::JoinHandle<Vec<Request>>) {
+    fn stand_in(losses: Dropped) -> (String, std::thread::JoinHandle<Vec<Request>>) {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let port = listener.local_addr().unwrap().port();
         let firmware = std::thread::spawn(move || fake_firmware(listener, losses));
@@ -596,7 +701,7 @@ mod tests {
 
     #[test]
     fn client_gets_acknowledgements_refusals_and_the_telemetry_between() {
-        let (spec, firmware) = stand_in(Losses::default());
+        let (spec, firmware) = stand_in(Dropped::default());
         let mut c = Client::new(open(&spec).unwrap()).unwrap();
         c.ack_timeout = Duration::from_secs(1);
         c.request(&Down::Heartbeat).unwrap();
@@ -640,7 +745,7 @@ mod tests {
         // Arrivals: 0 heartbeat, 1 decimation (lost), 2 its resend,
         // 3 fault clear (its acknowledgement lost), 4 its resend,
         // 5 heartbeat.
-        let (spec, firmware) = stand_in(Losses {
+        let (spec, firmware) = stand_in(Dropped {
             frames: &[1],
             acks: &[3],
         });
@@ -656,7 +761,7 @@ mod tests {
     /// it is told to, and the telemetry around them passes.
     #[test]
     fn loses_acks_drops_the_chosen_acknowledgements_only() {
-        let (spec, firmware) = stand_in(Losses::default());
+        let (spec, firmware) = stand_in(Dropped::default());
         let lossy = LosesAcks::new(open(&spec).unwrap(), vec![1]);
         let mut c = Client::new(Box::new(lossy)).unwrap();
         c.resend_after = Duration::from_millis(150);
@@ -695,5 +800,51 @@ mod tests {
             "{e}"
         );
         assert!(c.resent >= 1, "sent again before giving up");
+    }
+
+    fn count(requested: Option<u32>, ticks: impl IntoIterator<Item = u32>) -> super::Losses {
+        let mut l = super::Losses::new(requested);
+        for t in ticks {
+            l.push(t);
+        }
+        l
+    }
+
+    #[test]
+    fn losses_are_the_gaps_of_the_tick_counter_at_the_smallest_step() {
+        // A record every 4th tick; ticks 40..52 lost (3 records), then 100
+        // (1 record).
+        let ticks = (0..200)
+            .step_by(4)
+            .filter(|k| !(40..52).contains(k) && *k != 100);
+        let g = count(None, ticks).gaps();
+        assert_eq!(
+            g,
+            Gaps {
+                decimation: 4,
+                count: 2,
+                missing: 4,
+                longest_ticks: 16,
+                longest_after: 10,
+                from: 0,
+            }
+        );
+    }
+
+    #[test]
+    fn losses_after_a_decimation_request_are_counted_from_its_first_record() {
+        // Every tick at boot, every 5th from tick 23 (the first multiple
+        // after the last record off it, 22, is 25: record 23).
+        let ticks = (0..23).chain((25..300).step_by(5));
+        let l = count(Some(5), ticks.clone());
+        assert_eq!((l.lost(), l.gaps().from), (0, 23));
+        // Without the request the boot's every tick is the decimation.
+        assert_eq!(count(None, ticks).lost(), 296 - 23 - 55);
+    }
+
+    #[test]
+    fn a_tick_counter_that_goes_back_starts_the_count_over() {
+        let l = count(None, (0..100).step_by(2).chain([10, 11, 14, 15]));
+        assert_eq!((l.lost(), l.gaps().count, l.gaps().from), (2, 1, 50));
     }
 }

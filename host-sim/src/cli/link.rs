@@ -20,12 +20,12 @@ use cable_joint::trajectory::Trajectory;
 
 use crate::cli;
 use crate::cli::simulate::GripArgs;
-use crate::derive::{log_clock, Holes};
+use crate::derive::log_clock;
 use crate::ident::excite::{self, Design};
 use crate::ingest::{to_log, LogOptions};
 use crate::live::{Live, Screen, ViewArg};
 use crate::log::Log;
-use crate::operator::{open, Client};
+use crate::operator::{open, Client, Losses};
 use crate::output::Outputs;
 use crate::scenario::{plan, GripOptions, ScenarioOptions};
 
@@ -191,7 +191,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let mut view = if args.view.view {
         Some((
             Screen::open()?,
-            Live::new(&args.port, rate_hz, config.scales),
+            Live::new(&args.port, rate_hz, config.scales).asked_every(args.decimation),
         ))
     } else {
         None
@@ -331,46 +331,40 @@ fn tick_records(records: &[Record]) -> usize {
 }
 
 /// What the stream lost, from the tick counter of the records received
-/// (the log's own clock and holes, [`Holes`]), for the summary: empty with
-/// fewer than two records. With a decimation `requested`, counted at it
-/// from the first row after which every record's tick is a multiple of it
-/// (the firmware sends a record on those ticks; the records before came at
-/// the boot's decimation, every tick).
+/// ([`Losses`], at the decimation `requested` when the run asked for one),
+/// for the summary: empty with fewer than two records.
 fn lost_records(log: &Log, requested: Option<u32>) -> String {
-    let (Ok(mut clock), Ok(t), Some(tick)) = (log_clock(log), log.time_s(), log.col("tick")) else {
+    let (Ok(clock), Some(tick)) = (log_clock(log), log.col("tick")) else {
         return String::new();
     };
-    let from = match requested.filter(|n| *n > 0) {
-        Some(n) => {
-            clock.decimation = n;
-            let off = |k: &f64| k.rem_euclid(f64::from(n)) != 0.0;
-            tick.iter().rposition(off).map_or(0, |k| k + 1)
-        }
-        None => 0,
-    };
-    let h = Holes::of(&t[from..], &clock);
-    let every = match clock.decimation {
+    let mut losses = Losses::new(requested);
+    for &t in tick {
+        losses.push(t as u32);
+    }
+    let g = losses.gaps();
+    let every = match g.decimation {
+        0 => return String::new(),
         1 => "every tick".to_owned(),
         d => format!("every {d} ticks"),
     };
-    let since = if from > 0 {
-        format!(" from line {}", crate::log::line_of_row(from))
+    let since = if g.from > 0 {
+        format!(" from line {}", crate::log::line_of_row(g.from))
     } else {
         String::new()
     };
-    if h.count == 0 {
+    if g.count == 0 {
         format!(" at a record {every}, none lost{since}")
     } else {
         format!(
             " at a record {every}; {} lost{since} in {} of the tick counter (the longest {:.4} s, \
              before line {}), which a replay of the log fills tick by tick",
-            h.missing,
-            match h.count {
+            g.missing,
+            match g.count {
                 1 => "a gap".to_owned(),
                 n => format!("{n} gaps"),
             },
-            h.longest_s,
-            crate::log::line_of_row(from + h.longest_row)
+            f64::from(g.longest_ticks) * clock.period_s,
+            crate::log::line_of_row(g.longest_after)
         )
     }
 }

@@ -79,4 +79,13 @@ fn the_smallest_programme_writes_one_judged_row_per_effect() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--rate"));
     assert!(!dir.path().join("bad").exists(), "nothing written");
+
+    let o = Command::new(exe)
+        .args(["undeclared", "--record-every", "0", "--out"])
+        .arg(dir.path().join("bad"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--record-every"));
+    assert!(!dir.path().join("bad").exists(), "nothing written");
 }

@@ -7,6 +7,7 @@
 //! ```text
 //! host-sim undeclared --out undeclared            # 2 draws x 2 rates x 2 sizes x 15 cases
 //! host-sim undeclared --draw 41 --rate 1000 --size upper --singles --out u
+//! host-sim undeclared --record-every 10 --singles --out u10  # as the board streams
 //! ```
 //!
 //! Writes `undeclared.md` (method, sizes with their physics, summary, every
@@ -44,6 +45,12 @@ pub struct UndeclaredArgs {
     /// Base of the runs' noise seeds.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Record every run as the board streams it: a row every N control
+    /// ticks with `tick` and the mean current since the row before, as
+    /// `simulate --record-every N` writes it (the firmware's default is
+    /// 10); the loop replays each log tick by tick.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub record_every: u32,
     /// No progress lines.
     #[arg(long)]
     pub quiet: bool,
@@ -61,6 +68,7 @@ pub fn run(args: UndeclaredArgs) -> Result<()> {
         pairs: !args.singles,
         seed: args.seed,
         progress: !args.quiet,
+        record_every: args.record_every as usize,
     };
     let p = programme::run(&opts)?;
     let mut out = Outputs::new();

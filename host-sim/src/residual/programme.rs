@@ -248,6 +248,10 @@ pub struct ProgrammeOptions {
     pub seed: u64,
     /// Progress lines on stderr.
     pub progress: bool,
+    /// Every run recorded as the board streams it: a row every this many
+    /// control ticks, with `tick` and the mean current since the row before
+    /// (`sim::recorded_every`); 1 is every tick.
+    pub record_every: usize,
 }
 
 impl Default for ProgrammeOptions {
@@ -259,6 +263,7 @@ impl Default for ProgrammeOptions {
             pairs: true,
             seed: 1,
             progress: true,
+            record_every: 1,
         }
     }
 }
@@ -376,18 +381,26 @@ pub struct Programme {
     pub rows: Vec<CaseRow>,
     /// Visibility threshold used.
     pub visible_rise: f64,
+    /// Every run recorded with a row every this many control ticks.
+    pub record_every: usize,
 }
 
-/// The calibration run (`jae-ident`) through `host-sim simulate`'s own path.
-fn simulate(plant: PlantParams, config: Config, seed: u64) -> Result<NamedLog> {
+/// The calibration run (`jae-ident`) through `host-sim simulate`'s own
+/// path, recorded with a row every `every` control ticks as `simulate
+/// --record-every` writes it (every tick: the simulator's own log).
+fn simulate(plant: PlantParams, config: Config, seed: u64, every: usize) -> Result<NamedLog> {
     let opts = SimulateOptions {
         scenario: "jae-ident".to_owned(),
         seed: Some(seed),
         ..SimulateOptions::default()
     };
+    let log = scenario::simulate(plant, config, &opts)?.log.to_log()?;
     Ok(NamedLog {
         name: opts.scenario.clone(),
-        log: scenario::simulate(plant, config, &opts)?.log.to_log()?,
+        log: match every {
+            0 | 1 => log,
+            n => crate::sim::recorded_every(&log, n, true)?,
+        },
     })
 }
 
@@ -446,8 +459,8 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
             let (config, _) = scenario::tuned_gains(&Config::default()).at_rate(rate_hz);
             let seed = run_seed(opts.seed, &format!("undeclared/{draw}/{rate_hz}"));
             let tag = format!("draw {draw}, {rate_hz} Hz");
-            let clean =
-                simulate(base, config, seed).with_context(|| format!("{tag}: clean run"))?;
+            let clean = simulate(base, config, seed, opts.record_every)
+                .with_context(|| format!("{tag}: clean run"))?;
             let jae = fit(Target::Jae, &clean, &config, false, 4)?;
             let with_jae = config_with(&jae, &config)?;
             let tension = fit(Target::Tension, &clean, &with_jae, false, 4)?;
@@ -491,7 +504,8 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
                     }
                     let names: Vec<&'static str> = case.iter().map(|e| e.name()).collect();
                     let label = format!("{tag}, {} {}", names.join(" + "), size.name());
-                    let log = simulate(plant, config, seed).with_context(|| label.clone())?;
+                    let log = simulate(plant, config, seed, opts.record_every)
+                        .with_context(|| label.clone())?;
                     for (i, target) in TARGETS.into_iter().enumerate() {
                         let expected: Vec<&'static str> = case
                             .iter()
@@ -551,6 +565,7 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
         clean: refs,
         rows,
         visible_rise: VISIBLE_RISE,
+        record_every: opts.record_every.max(1),
     })
 }
 
@@ -625,6 +640,15 @@ pub fn markdown(p: &Programme) -> String {
          them. *Excess removed*: `(before - after) / (before - clean)`.\n",
         p.visible_rise
     );
+    if p.record_every > 1 {
+        let _ = writeln!(
+            s,
+            "Every run is recorded as the board streams it: a row every {} control ticks with \
+             `tick` and the mean current since the row before (`simulate --record-every {}`); the \
+             loop replays each log tick by tick and judges its own rows only.\n",
+            p.record_every, p.record_every
+        );
+    }
     let _ = writeln!(
         s,
         "| effect | model | family | datasheet size | upper size |"
@@ -830,5 +854,19 @@ mod tests {
             assert_eq!(u.effects.enabled(), vec![e.name()], "{}", e.name());
             assert_ne!(d, u, "{}: the upper size differs", e.name());
         }
+    }
+
+    #[test]
+    fn a_run_recorded_as_the_board_streams_it_keeps_every_tenth_tick_with_its_tick() {
+        let plant = crate::report::variants::drawn(31);
+        let config = scenario::tuned_gains(&Config::default());
+        let every = simulate(plant, config, 5, 1).unwrap().log;
+        let tenth = simulate(plant, config, 5, 10).unwrap().log;
+        assert_eq!(tenth.len(), every.len().div_ceil(10));
+        let tick = tenth.col_required("tick").unwrap();
+        assert_eq!((tick[0], tick[1], tick[7]), (0.0, 10.0, 70.0));
+        assert!(tenth.col("i_applied_a").is_some());
+        let theta = |l: &crate::log::Log, k: usize| l.col_required("theta_rad").unwrap()[k];
+        assert_eq!(theta(&tenth, 7), theta(&every, 70));
     }
 }

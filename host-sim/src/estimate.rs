@@ -33,11 +33,14 @@ pub struct EstimateSummary {
     pub derived: Vec<String>,
     /// First latched fault: (row, code, text).
     pub first_fault: Option<(usize, u8, String)>,
-    /// Share of rows with slider 1 stuck (DOB blind to its band).
+    /// Share of rows with slider 1 stuck (DOB blind to its band), of the
+    /// rows before the first fault.
     pub slider1_stuck_share: f64,
-    /// Share of rows whose DOB and stretch intervals disagree.
+    /// Share of rows whose DOB and stretch intervals disagree, of the rows
+    /// before the first fault.
     pub inconsistent_share: f64,
-    /// Mean width of the bound, N.
+    /// Mean width of the bound over the rows before the first fault, N
+    /// (NaN when the fault came at the first row).
     pub mean_bound_width_n: f64,
     /// With a reference force: errors of the DOB, stretch and fused estimate
     /// (estimate − reference), N, and the bound's coverage (share of rows
@@ -85,10 +88,15 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             .unwrap_or_else(|| "unknown".into());
         (k, code, text)
     });
-    let share =
-        |bit: u8| fl.iter().filter(|f| (**f as u8) & bit != 0).count() as f64 / rows.max(1) as f64;
+    // The shares and the bound's width describe the estimator on the log's
+    // data: the rows before a latched fault (after it the replay idles and
+    // its bound grows without a measurement behind it).
+    let live = first_fault.as_ref().map_or(rows, |f| f.0);
+    let share = |bit: u8| {
+        fl[..live].iter().filter(|f| (**f as u8) & bit != 0).count() as f64 / live.max(1) as f64
+    };
     let mut width = Acc::default();
-    for k in 0..rows {
+    for k in 0..live {
         width.push(hi[k] - lo[k]);
     }
     let against_reference = match log.col("f_ext_n") {

@@ -408,3 +408,40 @@ fn a_recorded_log_takes_its_control_rate_from_the_tick_column() {
         .to_string();
     assert!(e.contains("line 52") && e.contains("column tick"), "{e}");
 }
+
+/// A grating that jumps beyond physical speed latches a fault part way;
+/// the summary's bound width and shares describe the rows before it (after
+/// it the replay idles, and its bound has no measurement behind it).
+#[test]
+fn after_a_latched_fault_the_bound_width_is_that_of_the_rows_before_it() {
+    let log = loading_log_1khz();
+    let cut = log.len() / 2;
+    let mut jumped = Log::with_columns(&log.names()).unwrap();
+    let x2 = log.names().iter().position(|n| *n == "x2_m").unwrap();
+    for k in 0..log.len() {
+        let mut row: Vec<f64> = log.names().iter().map(|n| log.col(n).unwrap()[k]).collect();
+        if k == cut {
+            row[x2] += 0.05;
+        }
+        jumped.push_row(&row).unwrap();
+    }
+    let (out, s) = estimate(&jumped, &Config::default()).unwrap();
+    assert_eq!(s.first_fault.as_ref().map(|f| f.0), Some(cut));
+    let width = |from: usize, to: usize| {
+        let (lo, hi) = (
+            out.col("f_ext_lo_n").unwrap(),
+            out.col("f_ext_hi_n").unwrap(),
+        );
+        (from..to).map(|k| hi[k] - lo[k]).sum::<f64>() / (to - from) as f64
+    };
+    assert!(
+        (s.mean_bound_width_n - width(0, cut)).abs() < 1e-9,
+        "{} vs the rows before the fault {}",
+        s.mean_bound_width_n,
+        width(0, cut)
+    );
+    // The idle replay's bound after the fault is not a measurement's, and
+    // it is not the same: the whole log's mean would not be the one above.
+    let after = width(cut, out.len());
+    assert!((after - width(0, cut)).abs() > 0.1, "{after}");
+}

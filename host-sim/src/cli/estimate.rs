@@ -87,7 +87,7 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
         Some((k, code, text)) => {
             let _ = writeln!(
                 t,
-                "  fault latched at row {} (code {code}: {text}); estimates after it are the idle replay's",
+                "  fault latched at line {} (code {code}: {text}); estimates after it are the idle replay's",
                 crate::log::line_of_row(*k)
             );
         }
@@ -95,16 +95,26 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
             let _ = writeln!(t, "  no fault");
         }
     }
+    let rows = if s.first_fault.is_some() {
+        "of the rows before the fault"
+    } else {
+        "of rows"
+    };
     let _ = writeln!(
         t,
-        "  slider 1 stuck in {:.1} % of rows (DOB blind to its friction band there); DOB and stretch disagree in {:.1} %",
+        "  slider 1 stuck in {:.1} % {rows} (DOB blind to its friction band there); DOB and stretch disagree in {:.1} %",
         100.0 * s.slider1_stuck_share,
         100.0 * s.inconsistent_share
     );
     let _ = writeln!(
         t,
-        "  mean width of the force bound: {:.3} N",
-        s.mean_bound_width_n
+        "  mean width of the force bound: {:.3} N{}",
+        s.mean_bound_width_n,
+        if s.first_fault.is_some() {
+            " (before the fault)"
+        } else {
+            ""
+        }
     );
     if let Some(r) = &s.against_reference {
         let _ = writeln!(

@@ -41,6 +41,10 @@ use crate::controller::{Command, PreparedConfig};
 /// effect kind).
 pub const LINK_VERSION: u8 = 4;
 
+/// The host link's baud rate on the prototype's serial port (USART2, 8N1:
+/// ten bits a byte on the line).
+pub const SERIAL_BAUD: u32 = 460_800;
+
 /// Largest decoded frame, bytes (version, seq, body and CRC): a whole
 /// [`Config`] with an added term in each model takes 381 on the wire
 /// (measured in a test that keeps it below [`MAX_WIRE_LEN`]).

@@ -161,14 +161,13 @@ pub fn open(spec: &str) -> anyhow::Result<Box<dyn Port>> {
         stream.set_nodelay(true)?;
         return Ok(Box::new(stream));
     }
+    let baud = link::SERIAL_BAUD.to_string();
     let status = std::process::Command::new("stty")
-        .args([
-            "-F", spec, "460800", "raw", "-echo", "min", "0", "time", "1",
-        ])
+        .args(["-F", spec, &baud, "raw", "-echo", "min", "0", "time", "1"])
         .status()
         .with_context(|| format!("running stty on {spec}"))?;
     if !status.success() {
-        bail!("stty could not set {spec} to 460800 baud raw (is it a serial device?)");
+        bail!("stty could not set {spec} to {baud} baud raw (is it a serial device?)");
     }
     let file = std::fs::OpenOptions::new()
         .read(true)
@@ -176,6 +175,43 @@ pub fn open(spec: &str) -> anyhow::Result<Box<dyn Port>> {
         .open(spec)
         .with_context(|| format!("opening the serial device {spec}"))?;
     Ok(Box::new(Tty(file)))
+}
+
+/// Whether `spec` names a serial device (not `tcp:` or `rtt:`).
+pub fn is_serial(spec: &str) -> bool {
+    !(spec.starts_with("tcp:") || spec.starts_with("rtt:"))
+}
+
+/// Bytes one tick record takes on the wire: its frame (version, sequence,
+/// body, CRC) in COBS with the delimiter.
+pub fn tick_frame_len() -> usize {
+    let mut bytes = [0u8; cable_joint::telemetry::MAX_RECORD_LEN];
+    let record = Record::Tick(cable_joint::telemetry::TickRecord::default());
+    let mut wire = [0u8; MAX_WIRE_LEN];
+    link::encode(&Up::Telemetry(record.encode(&mut bytes)), 0, &mut wire).map_or(0, <[u8]>::len)
+}
+
+/// A warning when a record every `decimation` ticks of a `rate_hz` loop
+/// needs more than the serial link carries ([`link::SERIAL_BAUD`], ten bits
+/// a byte): the share of records the firmware will drop from its full
+/// queue, and the least decimation the link carries.
+pub fn serial_shortfall(rate_hz: f64, decimation: u32) -> Option<String> {
+    let frame_b = tick_frame_len() as f64;
+    let link_b_s = f64::from(link::SERIAL_BAUD) / 10.0;
+    let need_b_s = rate_hz / f64::from(decimation.max(1)) * frame_b;
+    (need_b_s > link_b_s).then(|| {
+        let least = (rate_hz * frame_b / link_b_s).ceil();
+        format!(
+            "a record every {decimation} ticks at {rate_hz:.0} Hz needs {:.1} kB/s of {frame_b:.0}-byte \
+             frames; the serial link carries {:.1} kB/s at {} baud, so the firmware will drop about \
+             {:.0} % of the records (the log's gaps, counted at the end): ask for --decimation \
+             {least:.0} or more, or record over RTT",
+            need_b_s / 1e3,
+            link_b_s / 1e3,
+            link::SERIAL_BAUD,
+            100.0 * (1.0 - link_b_s / need_b_s)
+        )
+    })
 }
 
 /// The firmware's message for a request the host's own tools build (a
@@ -846,5 +882,21 @@ mod tests {
     fn a_tick_counter_that_goes_back_starts_the_count_over() {
         let l = count(None, (0..100).step_by(2).chain([10, 11, 14, 15]));
         assert_eq!((l.lost(), l.gaps().count, l.gaps().from), (2, 1, 50));
+    }
+
+    #[test]
+    fn a_serial_link_cannot_carry_a_record_every_tick_at_2khz_and_says_what_it_can() {
+        // 70 bytes of record, 8 of frame (docs/firmware.md).
+        assert_eq!(tick_frame_len(), 78);
+        let w = serial_shortfall(2000.0, 1).expect("156 kB/s on a 46 kB/s line");
+        assert!(w.contains("156.0 kB/s"), "{w}");
+        assert!(w.contains("drop about 70 %"), "{w}");
+        assert!(w.contains("--decimation 4 or more"), "{w}");
+        assert_eq!(serial_shortfall(2000.0, 4), None);
+        assert_eq!(serial_shortfall(2000.0, 10), None);
+        let w = serial_shortfall(1000.0, 1).expect("78 kB/s");
+        assert!(w.contains("--decimation 2 or more"), "{w}");
+        assert!(is_serial("/dev/ttyACM0"));
+        assert!(!is_serial("tcp:127.0.0.1:5555") && !is_serial("rtt:127.0.0.1:3333"));
     }
 }

@@ -25,7 +25,7 @@ use crate::ident::excite::{self, Design};
 use crate::ingest::{to_log, LogOptions};
 use crate::live::{Live, Screen, ViewArg};
 use crate::log::Log;
-use crate::operator::{open, Client, Losses};
+use crate::operator::{is_serial, open, serial_shortfall, Client, Losses};
 use crate::output::Outputs;
 use crate::scenario::{plan, GripOptions, ScenarioOptions};
 
@@ -159,6 +159,12 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     if let Some(n) = args.decimation {
         client.request(&Down::SetDecimation(n))?;
         eprintln!("telemetry every {n} ticks");
+        if let Some(w) = is_serial(&args.port)
+            .then(|| serial_shortfall(f64::from(config.control_rate_hz), n))
+            .flatten()
+        {
+            eprintln!("warning: {w}");
+        }
     }
     let rate_hz = f64::from(config.control_rate_hz);
     let mut pending: Vec<(f64, Command)> = Vec::new();

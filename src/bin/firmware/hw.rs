@@ -47,8 +47,8 @@ pub const TELEMETRY_DECIMATION: u32 = 10;
 /// APB1 clock (USART2), Hz.
 const PCLK1_HZ: u32 = 42_000_000;
 
-/// The host link's baud rate (USART2).
-pub const LINK_BAUD: u32 = 460_800;
+/// The host link's baud rate (USART2), the one the host's `stty` sets.
+pub const LINK_BAUD: u32 = cable_joint::link::SERIAL_BAUD;
 
 /// Timer clock of TIM6 (APB1 ×2) and the rate TIM8 counts at, Hz.
 const TIMER_COUNT_HZ: u32 = 84_000_000;

@@ -20,7 +20,7 @@ use anyhow::{bail, Result};
 use cable_joint::fusion::flags;
 use cable_joint::Config;
 
-use crate::derive::{config_for_log_noted, derive};
+use crate::derive::{config_for_log_noted, derive, log_clock};
 use crate::log::Log;
 use crate::stats::{Acc, Summary};
 
@@ -46,6 +46,24 @@ pub struct EstimateSummary {
     /// (estimate − reference), N, and the bound's coverage (share of rows
     /// whose reference lies inside it).
     pub against_reference: Option<ReferenceErrors>,
+    /// With the log's own on-line estimate (a recording's `f_ext_fused_n`,
+    /// computed every tick on the board): how far the replay's is from it.
+    pub against_log: Option<LogDifference>,
+}
+
+/// The replay's estimates against those a recording carries (the board's,
+/// computed on line at every tick, with the configuration of the run).
+#[derive(Clone, Copy, Debug)]
+pub struct LogDifference {
+    /// Fused force, replay − log, N.
+    pub fused_n: Summary,
+    /// Joint angle, replay − log, rad (when the log has `theta_hat_rad`).
+    pub theta_rad: Option<Summary>,
+    /// Rows compared (before the replay's first fault and the log's, both
+    /// finite).
+    pub rows: usize,
+    /// The log's row step in control ticks (1: every tick).
+    pub decimation: u32,
 }
 
 /// Errors against a logged reference force.
@@ -136,6 +154,33 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
         }
         None => None,
     };
+    let against_log = match log.col("f_ext_fused_n") {
+        Some(board) => {
+            let logged_fault = log.col("fault_code");
+            let board_theta = log.col("theta_hat_rad");
+            let theta = col("theta_hat_rad")?;
+            let (mut ef, mut et) = (Acc::default(), Acc::default());
+            for k in 0..live {
+                if logged_fault.is_some_and(|c| c[k] != 0.0) {
+                    break;
+                }
+                if board[k].is_finite() {
+                    ef.push(fused[k] - board[k]);
+                }
+                if let Some(b) = board_theta.filter(|b| b[k].is_finite()) {
+                    et.push(theta[k] - b[k]);
+                }
+            }
+            let (fused_n, theta) = (ef.summary(1.0), et.summary(1.0));
+            (fused_n.n > 0).then(|| LogDifference {
+                fused_n,
+                theta_rad: (theta.n > 0).then_some(theta),
+                rows: fused_n.n as usize,
+                decimation: log_clock(log).map_or(1, |c| c.decimation),
+            })
+        }
+        None => None,
+    };
     Ok((
         out,
         EstimateSummary {
@@ -146,6 +191,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             inconsistent_share: share(flags::INCONSISTENT),
             mean_bound_width_n: width.summary(1.0).mean,
             against_reference,
+            against_log,
         },
     ))
 }

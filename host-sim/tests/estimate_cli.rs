@@ -445,3 +445,53 @@ fn after_a_latched_fault_the_bound_width_is_that_of_the_rows_before_it() {
     let after = width(cut, out.len());
     assert!((after - width(0, cut)).abs() > 0.1, "{after}");
 }
+
+/// A recording carries the board's own estimates, computed on line every
+/// tick: the summary says how far the replay is from them. With every
+/// tick the replay is the board's computation (the same core on the same
+/// samples); with a row every 10th tick it interpolates between rows and
+/// the two part, which the summary says.
+#[test]
+fn a_recording_is_compared_with_the_estimate_the_board_computed_on_line() {
+    let (config, _) = Config::default().at_rate(1000.0);
+    let opts = ScenarioOptions {
+        duration_scale: 1.0,
+        angle_deg: Some(30.0),
+        mass_g: Some(30.0),
+        direction: Some(Direction::Pos),
+        ..ScenarioOptions::default()
+    };
+    let mut rec = LogRecorder::new(true);
+    scenario::run(
+        "loading",
+        PlantParams::default(),
+        config,
+        Some(3),
+        &opts,
+        &mut rec,
+    )
+    .unwrap();
+    let every_tick = rec.to_log().unwrap();
+    let (_, s) = estimate(&every_tick, &config).unwrap();
+    let d = s.against_log.expect("the log has f_ext_fused_n");
+    assert_eq!((d.rows, d.decimation), (every_tick.len(), 1));
+    assert!(d.fused_n.max_abs() < 1e-6, "{:?}", d.fused_n);
+    assert!(d.theta_rad.unwrap().max_abs() < 1e-9);
+
+    let tenth = host_sim::sim::recorded_every(&every_tick, 10, true).unwrap();
+    for c in host_sim::sim::ONBOARD_COLUMNS {
+        assert!(tenth.has(c), "{c}: the board's records carry it");
+    }
+    let (_, s) = estimate(&tenth, &config).unwrap();
+    let d = s.against_log.expect("the recording has f_ext_fused_n");
+    assert_eq!((d.rows, d.decimation), (tenth.len(), 10));
+    assert!(d.fused_n.max_abs() > 1e-3, "interpolated between rows");
+    let text = host_sim::cli::estimate::format_summary("tenth.csv", &s);
+    assert!(
+        text.contains("against the log's own estimate on") && text.contains("a row every 10 ticks"),
+        "{text}"
+    );
+    // Without the board's columns there is nothing to compare.
+    let (_, s) = estimate(&loading_log_1khz(), &Config::default()).unwrap();
+    assert!(s.against_log.is_none());
+}

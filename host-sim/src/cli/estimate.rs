@@ -116,6 +116,34 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
             ""
         }
     );
+    if let Some(d) = &s.against_log {
+        let theta = d.theta_rad.map_or(String::new(), |t| {
+            format!(
+                "; joint angle rms {:.4}°, max |d| {:.4}°",
+                t.rms.to_degrees(),
+                t.max_abs().to_degrees()
+            )
+        });
+        let _ = writeln!(
+            t,
+            "  against the log's own estimate on {} rows (computed on line every tick, with the \
+             run's configuration): fused force replay − log mean {:+.3} N, rms {:.3} N, max |d| \
+             {:.3} N{theta}",
+            d.rows,
+            d.fused_n.mean,
+            d.fused_n.rms,
+            d.fused_n.max_abs()
+        );
+        if d.decimation > 1 {
+            let _ = writeln!(
+                t,
+                "    the log has a row every {} ticks: between rows the replay interpolates the \
+                 sensors and holds the mean current, which the board did not; where they part, \
+                 the log's own estimate is the one measured",
+                d.decimation
+            );
+        }
+    }
     if let Some(r) = &s.against_reference {
         let _ = writeln!(
             t,

@@ -11,13 +11,14 @@ use host_sim::plant::PlantParams;
 use host_sim::scenario::{self, Direction, ScenarioOptions};
 use host_sim::sim::{LogRecorder, LOG_COLUMNS};
 
-/// A loading case (100 g, positive, at 0°) logged by a 1 kHz controller.
-fn loading_log_1khz() -> Log {
+/// A loading case (`mass_g`, positive, at `angle_deg`) run by a 1 kHz
+/// controller: the simulator's whole log.
+fn loading_run_1khz(angle_deg: f64, mass_g: f64) -> Log {
     let (config, _) = Config::default().at_rate(1000.0);
     let opts = ScenarioOptions {
         duration_scale: 1.0,
-        angle_deg: Some(0.0),
-        mass_g: Some(100.0),
+        angle_deg: Some(angle_deg),
+        mass_g: Some(mass_g),
         direction: Some(Direction::Pos),
         ..ScenarioOptions::default()
     };
@@ -32,8 +33,13 @@ fn loading_log_1khz() -> Log {
     )
     .expect("loading at 1 kHz");
     assert_eq!(s.fault, None);
+    rec.to_log().expect("log")
+}
+
+/// A loading case (100 g, positive, at 0°) logged by a 1 kHz controller.
+fn loading_log_1khz() -> Log {
+    let full = loading_run_1khz(0.0, 100.0);
     // Keep only the DESIGN.md columns a rig records.
-    let full = rec.to_log().expect("log");
     let mut log = Log::with_columns(&[
         "t_s", "x1_m", "x2_m", "phi_rad", "i_ref_a", "i_meas_a", "f_ext_n",
     ])
@@ -454,24 +460,7 @@ fn after_a_latched_fault_the_bound_width_is_that_of_the_rows_before_it() {
 #[test]
 fn a_recording_is_compared_with_the_estimate_the_board_computed_on_line() {
     let (config, _) = Config::default().at_rate(1000.0);
-    let opts = ScenarioOptions {
-        duration_scale: 1.0,
-        angle_deg: Some(30.0),
-        mass_g: Some(30.0),
-        direction: Some(Direction::Pos),
-        ..ScenarioOptions::default()
-    };
-    let mut rec = LogRecorder::new(true);
-    scenario::run(
-        "loading",
-        PlantParams::default(),
-        config,
-        Some(3),
-        &opts,
-        &mut rec,
-    )
-    .unwrap();
-    let every_tick = rec.to_log().unwrap();
+    let every_tick = loading_run_1khz(30.0, 30.0);
     let (_, s) = estimate(&every_tick, &config).unwrap();
     let d = s.against_log.expect("the log has f_ext_fused_n");
     assert_eq!((d.rows, d.decimation), (every_tick.len(), 1));

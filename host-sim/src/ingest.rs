@@ -92,19 +92,26 @@ pub fn read_stream(path: &Path) -> anyhow::Result<Vec<Record>> {
     }
 }
 
+/// The estimates a firmware record carries, computed on line at every
+/// control tick: columns of [`to_log`], and of a simulated recording
+/// ([`crate::sim::recorded_every`]).
+pub const ONBOARD_COLUMNS: [&str; 5] = [
+    "theta_hat_rad",
+    "f_ext_hat_n",
+    "f_ext_fused_n",
+    "f_ext_lo_n",
+    "f_ext_hi_n",
+];
+
 /// Column names of [`to_log`].
 pub fn columns(opts: &LogOptions) -> Vec<&'static str> {
     let mut c = vec!["t_s", "x1_m", "x2_m", "phi_rad", "i_ref_a", "i_meas_a"];
     if opts.magnetic {
         c.push("theta_rad");
     }
+    c.push("theta_ref_rad");
+    c.extend(ONBOARD_COLUMNS);
     c.extend([
-        "theta_ref_rad",
-        "theta_hat_rad",
-        "f_ext_hat_n",
-        "f_ext_fused_n",
-        "f_ext_lo_n",
-        "f_ext_hi_n",
         "i_applied_a",
         "dac_code",
         "mode",

@@ -468,7 +468,7 @@ fn a_recording_is_compared_with_the_estimate_the_board_computed_on_line() {
     assert!(d.theta_rad.unwrap().max_abs() < 1e-9);
 
     let tenth = host_sim::sim::recorded_every(&every_tick, 10, true).unwrap();
-    for c in host_sim::sim::ONBOARD_COLUMNS {
+    for c in host_sim::ingest::ONBOARD_COLUMNS {
         assert!(tenth.has(c), "{c}: the board's records carry it");
     }
     let (_, s) = estimate(&tenth, &config).unwrap();

@@ -28,8 +28,7 @@ use crate::plant::{Plant, PlantParams, PlantState, Tensions, TipObject};
 
 mod record;
 pub use record::{
-    recorded_every, AngleErrors, LogRecorder, RawRecord, RawTrace, Table, LOG_COLUMNS,
-    ONBOARD_COLUMNS, RAW_COLUMNS,
+    recorded_every, AngleErrors, LogRecorder, RawRecord, RawTrace, Table, LOG_COLUMNS, RAW_COLUMNS,
 };
 
 /// External tip force over time, N (> 0 opposes positive rotation). Time is

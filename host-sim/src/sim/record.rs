@@ -215,8 +215,8 @@ impl Recorder for LogRecorder {
 /// What a board streaming a record every `every`-th control tick would
 /// have written of `log` (a row a tick, as [`LogRecorder`] writes it): the
 /// CSV log's measured columns (`t_s` to `f_ext_n`), the estimates the
-/// firmware's records carry ([`ONBOARD_COLUMNS`], computed on line every
-/// tick) when `log` has them, the `tick` column, and with `applied_mean`
+/// firmware's records carry ([`crate::ingest::ONBOARD_COLUMNS`], computed
+/// on line every tick) when `log` has them, the `tick` column, and with `applied_mean`
 /// the mean current reference over the ticks since the record before
 /// (`i_applied_a`, telemetry format 3; without it, what a format-2 board
 /// sent: one sampled current a record). For tests and studies of
@@ -227,7 +227,7 @@ pub fn recorded_every(log: &Log, every: usize, applied_mean: bool) -> anyhow::Re
         "a record every {every} ticks: must be at least 1"
     );
     let mut names = LOG_COLUMNS[..9].to_vec();
-    names.extend(ONBOARD_COLUMNS.iter().filter(|n| log.has(n)));
+    names.extend(crate::ingest::ONBOARD_COLUMNS.iter().filter(|n| log.has(n)));
     let mut cols = names.clone();
     cols.push("tick");
     if applied_mean {
@@ -254,16 +254,6 @@ pub fn recorded_every(log: &Log, every: usize, applied_mean: bool) -> anyhow::Re
     }
     Ok(out)
 }
-
-/// The estimates a firmware record carries (`host-sim link`'s log has
-/// them), computed on line at every control tick.
-pub const ONBOARD_COLUMNS: [&str; 5] = [
-    "theta_hat_rad",
-    "f_ext_hat_n",
-    "f_ext_fused_n",
-    "f_ext_lo_n",
-    "f_ext_hi_n",
-];
 
 /// One tick of a raw trace: the sample the board read and the controller's
 /// answer.

@@ -393,11 +393,8 @@ impl Client {
     /// stay for [`Client::take_telemetry`].
     pub fn poll(&mut self) -> anyhow::Result<Vec<Record>> {
         let filled = self.fill();
-        for f in self.incoming.drain(..) {
-            if let Frame::Telemetry(r) = f {
-                self.pending.push(r);
-            }
-        }
+        // No request waits here: its acknowledgements are stale.
+        self.incoming.retain(|f| matches!(f, Frame::Telemetry(_)));
         filled?;
         Ok(self.take_telemetry())
     }

@@ -20,7 +20,7 @@ use anyhow::{bail, Result};
 use cable_joint::fusion::flags;
 use cable_joint::Config;
 
-use crate::derive::{config_for_log_noted, derive, log_clock};
+use crate::derive::derive_noted;
 use crate::log::Log;
 use crate::stats::{Acc, Summary};
 
@@ -88,8 +88,7 @@ pub struct ReferenceErrors {
 
 /// Replay `log` with `config` (rate derived from the log) and summarise.
 pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
-    let (cfg, derived) = config_for_log_noted(log, config)?;
-    let out = derive(log, &cfg)?;
+    let (out, clock, derived) = derive_noted(log, config)?;
     check_finite(log, &out)?;
     let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);
     let (fault, fl) = (col("fault_code")?, col("fusion_flags")?);
@@ -176,7 +175,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
                 fused_n,
                 theta_rad: (theta.n > 0).then_some(theta),
                 rows: fused_n.n as usize,
-                decimation: log_clock(log).map_or(1, |c| c.decimation),
+                decimation: clock.decimation,
             })
         }
         None => None,

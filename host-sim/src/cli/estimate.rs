@@ -138,8 +138,9 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
             let _ = writeln!(
                 t,
                 "    the log has a row every {} ticks: between rows the replay interpolates the \
-                 sensors and holds the mean current, which the board did not; where they part, \
-                 the log's own estimate is the one measured",
+                 sensors and rebuilds the current from its mean and one sample of its chatter, \
+                 where the board had every tick's; where they part, the log's own estimate is the \
+                 one measured",
                 d.decimation
             );
         }

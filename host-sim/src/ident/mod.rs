@@ -14,7 +14,7 @@
 //!
 //! # Data
 //!
-//! Every log is first replayed through the core ([`crate::derive::derive`]):
+//! Every log is first replayed through the core ([`crate::derive::TickReplay`]):
 //! the regressors are the firmware's own signals (the tracking-observer
 //! velocities and accelerations, the held friction signs of
 //! [`SignMemory`](cable_joint::filter::SignMemory) with the configuration's switching speeds, the DOB's

@@ -1,6 +1,6 @@
 //! Model outputs over a whole log, for the figures of the identified models
 //! (seed Figs. 14-17): the log is replayed through the core
-//! ([`crate::derive::derive`]) and each regressor column is built from the
+//! ([`crate::derive::TickReplay`]) and each regressor column is built from the
 //! replay's signals the way [`crate::ident`] builds its design (held signs
 //! with the configuration's switching speeds, the joint angle's velocity
 //! and acceleration from the core's tracking observer, every column of a

@@ -312,7 +312,7 @@ pub enum CurrentFill {
     /// the spring rate through the motor fits with 2.5 % sigma and 0.036 N
     /// residual held, 4.1 % and 0.060 N with [`Self::Chatter`]).
     Mean,
-    /// The estimators' input ([`derive`], `host-sim estimate`): the current
+    /// The estimators' input ([`derive()`], `host-sim estimate`): the current
     /// does not sit at its mean but chatters from tick to tick (the loops'
     /// noise, a limit cycle), and the DOB's interval widens by that chatter
     /// (the fusion's ripple term), so a mean held hides it and narrows the
@@ -375,7 +375,7 @@ pub fn derive(log: &Log, config: &Config) -> Result<Log> {
     derive_noted(log, config).map(|(d, _, _)| d)
 }
 
-/// [`derive`], with the log's control clock and the lines the replay
+/// [`derive()`], with the log's control clock and the lines the replay
 /// prints about it and about the settings derived from its rate
 /// ([`Config::at_rate`]).
 pub fn derive_noted(log: &Log, config: &Config) -> Result<(Log, Clock, Vec<String>)> {

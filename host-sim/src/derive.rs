@@ -360,6 +360,47 @@ pub fn applied_in_step(
     mean_a + alternating + shift
 }
 
+/// The log's current references (`i_ref_a`, and `i_applied_a` when it has
+/// one) lie within what the board's DAC can command with these `scales`
+/// (codes 0 to 4095, half a code either side for rounding): a current
+/// beyond it was not commanded by a board with this configuration (a log in
+/// milliamps, another drive's scales, a corrupt cell), and the replay
+/// would drive the core's estimators with it. Blank and non-finite cells
+/// are left to the log's own checks.
+fn check_current_range(log: &Log, s: &cable_joint::units::Scales) -> Result<()> {
+    use cable_joint::units::{DacCode, CODE_MAX_12BIT};
+    let half = 0.5 * f64::from(s.dac_a_per_code).abs();
+    let (a, b) = (
+        f64::from(s.dac_a(DacCode(0))),
+        f64::from(s.dac_a(DacCode(CODE_MAX_12BIT))),
+    );
+    let (lo, hi) = (a.min(b) - half, a.max(b) + half);
+    for name in ["i_ref_a", "i_applied_a"] {
+        let Some(col) = log.col(name) else { continue };
+        if let Some(k) = col
+            .iter()
+            .position(|v| v.is_finite() && !(lo..=hi).contains(v))
+        {
+            let v = col[k];
+            let value = if v.abs() < 1e6 {
+                format!("{v}")
+            } else {
+                format!("{v:e}")
+            };
+            bail!(
+                "line {}: column {} = {value} A is beyond the current the board's DAC can \
+                 command, {:.3} to {:.3} A (scales.dac_a_per_code, scales.dac_zero_code): check \
+                 the log's units or the configuration's scales",
+                crate::log::line_of_row(k),
+                crate::log::quoted(name),
+                a.min(b),
+                a.max(b)
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Most control ticks the replay fills into one hole of a log: 1e6, some
 /// ten minutes at 2 kHz. A longer step of the time column is not a lost
 /// frame but another recording or a broken clock, and is refused.
@@ -475,6 +516,7 @@ fn replay(
     // recording's mean over the step (`i_applied_a`, telemetry format 3)
     // when the log carries it.
     let i_applied = log.col("i_applied_a");
+    check_current_range(log, s)?;
     let row_step = decimation.max(1) as usize;
     let applied = |k: usize, j: usize, ticks: usize| -> f64 {
         if k == 0 {

@@ -531,12 +531,21 @@ fn identify_leaves_out_one_row_for_an_empty_theta_rad_cell_and_says_so() {
 fn identify_warns_when_a_replay_fault_leaves_rows_out() {
     let dir = tempfile::tempdir().unwrap();
     let clean = simulated(dir.path(), "tension-ident", 3.0, "ten.csv");
-    let big = with_cell(&clean, "i_ref_a", 3000, Some(1e308), "big.csv");
-    let err = stderr(&identify(&big, "tension"));
+    // Slider 1's grating jumps a centimetre in one row: an encoder jump
+    // the core latches as a fault (a current beyond the DAC's range, the
+    // cause this test used before, is now refused up front).
+    let x1 = host_sim::log::Log::read(&clean)
+        .unwrap()
+        .col_required("x1_m")
+        .unwrap()[3000];
+    let jump = with_cell(&clean, "x1_m", 3000, Some(x1 + 0.01), "jump.csv");
+    let err = stderr(&identify(&jump, "tension"));
     assert!(
-        err.contains(&format!("warning: {}: the tension fit uses", big.display()))
-            && err.contains("from where the replay latched")
-            && err.contains("column i_ref_a = 1e308 on line 3002"),
+        err.contains(&format!(
+            "warning: {}: the tension fit uses",
+            jump.display()
+        )) && err.contains("from where the replay latched")
+            && err.contains("line 3002"),
         "{err}"
     );
     assert!(!stderr(&identify(&clean, "tension")).contains("warning"));
@@ -614,9 +623,10 @@ fn a_generic_fit_with_an_empty_input_cell_loses_that_row_only_and_says_so() {
 }
 
 /// `estimate` on a log whose current command is beyond the core's `f32`
-/// range names the input file, line and cell, not the output file.
+/// range (and so beyond the DAC's) names the input file, line and cell,
+/// not the output file.
 #[test]
-fn estimate_names_the_input_cell_beyond_the_cores_range() {
+fn estimate_names_the_input_cell_beyond_the_drives_range() {
     let dir = tempfile::tempdir().unwrap();
     let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
     let bad = with_cell(&fit, "i_ref_a", 3000, Some(1e308), "bad.csv");
@@ -630,7 +640,7 @@ fn estimate_names_the_input_cell_beyond_the_cores_range() {
     );
     assert!(
         err.contains("bad.csv")
-            && err.contains("\"i_ref_a\" = 1e308 on line 3002")
+            && err.contains("line 3002: column \"i_ref_a\" = 1e308 A is beyond")
             && !err.contains("est.csv"),
         "{err}"
     );

@@ -156,6 +156,34 @@ fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
         "{stderr}"
     );
     assert!(!out2.exists());
+
+    // A current the board's DAC cannot command (here milliamps where amps
+    // belong): refused with the line, the column and the range, nothing
+    // written.
+    let mut log = loading_log_1khz();
+    let mut i_ref = log.col_required("i_ref_a").unwrap().to_vec();
+    i_ref[7] = 350.0;
+    log.set_col("i_ref_a", i_ref).unwrap();
+    let milliamps = dir.path().join("milliamps.csv");
+    log.write(&milliamps).unwrap();
+    let out3 = dir.path().join("est3.csv");
+    let o = Command::new(exe)
+        .args(["estimate", "--log"])
+        .arg(&milliamps)
+        .arg("--out")
+        .arg(&out3)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("milliamps.csv")
+            && stderr.contains("line 9")
+            && stderr.contains("\"i_ref_a\" = 350 A")
+            && stderr.contains("-2.500 to 2.499 A"),
+        "{stderr}"
+    );
+    assert!(!out3.exists());
 }
 
 /// A configuration file that sets only a 1 kHz control rate: `simulate` and

@@ -64,6 +64,11 @@ pub struct LogDifference {
     pub rows: usize,
     /// The log's row step in control ticks (1: every tick).
     pub decimation: u32,
+    /// With a reference force and the board's bound (`f_ext_lo_n`,
+    /// `f_ext_hi_n`): the share of the rows compared whose reference lies
+    /// inside the board's bound, beside the replay's
+    /// ([`ReferenceErrors::coverage`]).
+    pub board_coverage: Option<f64>,
 }
 
 /// Errors against a logged reference force.
@@ -158,13 +163,22 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             let logged_fault = log.col("fault_code");
             let board_theta = log.col("theta_hat_rad");
             let theta = col("theta_hat_rad")?;
+            let board_bound = log.col("f_ext_lo_n").zip(log.col("f_ext_hi_n"));
+            let reference = log.col("f_ext_n");
             let (mut ef, mut et) = (Acc::default(), Acc::default());
+            let (mut inside, mut judged) = (0usize, 0usize);
             for k in 0..live {
                 if logged_fault.is_some_and(|c| c[k] != 0.0) {
                     break;
                 }
                 if board[k].is_finite() {
                     ef.push(fused[k] - board[k]);
+                }
+                if let (Some((lo, hi)), Some(f)) = (board_bound, reference) {
+                    if f[k].is_finite() && lo[k].is_finite() && hi[k].is_finite() {
+                        judged += 1;
+                        inside += usize::from(lo[k] <= f[k] && f[k] <= hi[k]);
+                    }
                 }
                 if let Some(b) = board_theta.filter(|b| b[k].is_finite()) {
                     et.push(theta[k] - b[k]);
@@ -176,6 +190,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
                 theta_rad: (theta.n > 0).then_some(theta),
                 rows: fused_n.n as usize,
                 decimation: clock.decimation,
+                board_coverage: (judged > 0).then(|| inside as f64 / judged as f64),
             })
         }
         None => None,

@@ -531,6 +531,15 @@ fn a_decimated_recording_replays_the_current_chatter_the_bound_widens_by() {
     let tenth = host_sim::sim::recorded_every(&every_tick, 10, true).unwrap();
     let (_, s) = estimate(&tenth, &config).unwrap();
     let d = s.against_log.expect("the recording has f_ext_fused_n");
+    // The summary gives the board's own bound's coverage on the recorded
+    // rows: the every-tick replay's (the board's computation) on them.
+    let on_rows = d.board_coverage.expect("the recording has the bound");
+    assert!(
+        (on_rows - board_coverage).abs() < 0.01,
+        "{on_rows} {board_coverage}"
+    );
+    let text = host_sim::cli::estimate::format_summary("tenth.csv", &s);
+    assert!(text.contains("(the board's own bound: "), "{text}");
     assert!(
         d.fused_n.rms < 0.19 && d.fused_n.max_abs() < 1.0,
         "replay - board: {:?}",

@@ -164,9 +164,14 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
                 e.max_abs()
             );
         }
+        let board = s
+            .against_log
+            .and_then(|d| d.board_coverage)
+            .map(|c| format!(" (the board's own bound: {:.1} %)", 100.0 * c))
+            .unwrap_or_default();
         let _ = writeln!(
             t,
-            "  bound covers the reference in {:.1} % of rows",
+            "  bound covers the reference in {:.1} % of rows{board}",
             100.0 * r.coverage
         );
     }

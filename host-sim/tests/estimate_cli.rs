@@ -550,4 +550,28 @@ fn a_decimated_recording_replays_the_current_chatter_the_bound_widens_by() {
         coverage >= 0.995 && coverage >= board_coverage - 0.005,
         "coverage {coverage} against the board's {board_coverage}"
     );
+
+    // A quarter of the records lost on the way (every 4th row from the
+    // third; the mean of the row after a hole covers its last 10 ticks
+    // only): the holes are filled the same way. With the mean held this
+    // replay was 0.68 N RMS from the board (5.6 N at most) and covered
+    // 97.4 %; now 0.23 N (1.2 N) and 98.7 %, against the board's 100 %.
+    let mut lossy = Log::with_columns(&tenth.names()).unwrap();
+    for k in (0..tenth.len()).filter(|k| k % 4 != 2) {
+        let row: Vec<f64> = tenth
+            .names()
+            .iter()
+            .map(|n| tenth.col(n).unwrap()[k])
+            .collect();
+        lossy.push_row(&row).unwrap();
+    }
+    let (_, s) = estimate(&lossy, &config).unwrap();
+    let d = s.against_log.unwrap();
+    let coverage = s.against_reference.unwrap().coverage;
+    let board = d.board_coverage.unwrap();
+    assert!(
+        d.fused_n.rms < 0.4 && d.fused_n.max_abs() < 3.0 && coverage >= 0.98 && board >= 0.99,
+        "lossy: replay - board {:?}, coverage {coverage} against the board's {board}",
+        d.fused_n
+    );
 }

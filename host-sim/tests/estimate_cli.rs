@@ -111,20 +111,24 @@ fn a_1khz_log_runs_with_the_default_configuration_and_says_what_it_derived() {
     );
 }
 
+/// `host-sim estimate --log log --out out`.
+fn run_estimate(log: &std::path::Path, out: &std::path::Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["estimate", "--log"])
+        .arg(log)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("run_1khz.csv");
     let output = dir.path().join("est.csv");
     loading_log_1khz().write(&input).unwrap();
-    let exe = env!("CARGO_BIN_EXE_host-sim");
-    let o = Command::new(exe)
-        .args(["estimate", "--log"])
-        .arg(&input)
-        .arg("--out")
-        .arg(&output)
-        .output()
-        .unwrap();
+    let o = run_estimate(&input, &output);
     let stderr = String::from_utf8_lossy(&o.stderr);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{stderr}\n{stdout}");
@@ -142,13 +146,7 @@ fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
     )
     .unwrap();
     let out2 = dir.path().join("est2.csv");
-    let o = Command::new(exe)
-        .args(["estimate", "--log"])
-        .arg(&bad)
-        .arg("--out")
-        .arg(&out2)
-        .output()
-        .unwrap();
+    let o = run_estimate(&bad, &out2);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(
@@ -167,13 +165,7 @@ fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
     let milliamps = dir.path().join("milliamps.csv");
     log.write(&milliamps).unwrap();
     let out3 = dir.path().join("est3.csv");
-    let o = Command::new(exe)
-        .args(["estimate", "--log"])
-        .arg(&milliamps)
-        .arg("--out")
-        .arg(&out3)
-        .output()
-        .unwrap();
+    let o = run_estimate(&milliamps, &out3);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(

@@ -180,6 +180,58 @@ pub fn log_clock(log: &Log) -> Result<Clock> {
     })
 }
 
+/// Give a log recorded every `ticks_per_row` control ticks by another
+/// logger (no firmware `tick` column, so [`log_clock`] would take its row
+/// step for the control period) the tick column the firmware's records
+/// carry: each row's tick is its time from the first row over the control
+/// period, the median time step over `ticks_per_row`, rounded; a row
+/// missing from the log is then a hole of the time it spans. Returns the
+/// line the command prints about it.
+///
+/// # Errors
+/// A log that has a `tick` column already, `ticks_per_row` of 0, or two
+/// rows less than half a control period apart (they would be one tick);
+/// each names the line.
+pub fn set_ticks_per_row(log: &mut Log, ticks_per_row: u32) -> Result<String> {
+    if ticks_per_row == 0 {
+        bail!("--ticks-per-row must be at least 1");
+    }
+    if log.has("tick") {
+        bail!(
+            "the log has a tick column (the firmware's counter): its control clock is read from \
+             it, so --ticks-per-row is for logs without one"
+        );
+    }
+    let t = log.time_s()?;
+    let row_s = median_period_s(t).context("log has fewer than two rows")?;
+    if !(row_s.is_finite() && row_s > 0.0) {
+        bail!("log time step is not positive (median {row_s} s)");
+    }
+    let period_s = row_s / f64::from(ticks_per_row);
+    let mut ticks = Vec::with_capacity(t.len());
+    for (k, tk) in t.iter().enumerate() {
+        let tick = ((tk - t[0]) / period_s).round();
+        if let Some(&before) = ticks.last() {
+            if tick <= before {
+                bail!(
+                    "line {}: t_s = {tk} is less than half a control period ({period_s:.3e} s at \
+                     {ticks_per_row} ticks per row) after the row before, so the two would be \
+                     one tick",
+                    crate::log::line_of_row(k)
+                );
+            }
+        }
+        ticks.push(tick);
+    }
+    log.set_col("tick", ticks)?;
+    Ok(format!(
+        "a row every {ticks_per_row} control ticks (--ticks-per-row): the log's rows are {:.4} \
+         ms apart at the median, so the control period is {:.4} ms",
+        row_s * 1e3,
+        period_s * 1e3
+    ))
+}
+
 /// [`log_clock`], with the lines the replay prints about it: the control
 /// rate and where it came from, then, when there is any, what the replay
 /// fills between rows ([`Holes::note`]).
@@ -721,6 +773,29 @@ mod tests {
         // A row every tick: the recorded mean is the one current applied.
         assert_eq!(step(0.5, Some(0.3), 1), vec![0.3]);
         assert_eq!(step(0.5, None, 1), vec![0.5]);
+    }
+
+    #[test]
+    fn ticks_per_row_rebuilds_the_tick_column_from_the_times_and_names_a_bad_row() {
+        use super::set_ticks_per_row;
+        use crate::log::Log;
+        let log = |t: &[f64]| {
+            let mut l = Log::with_columns(&["t_s", "x1_m"]).unwrap();
+            for v in t {
+                l.push_row(&[*v, 0.0]).unwrap();
+            }
+            l
+        };
+        // Rows 5 ms apart, one lost: ticks of a 0.5 ms loop.
+        let mut l = log(&[0.0, 0.005, 0.010, 0.020, 0.025]);
+        let note = set_ticks_per_row(&mut l, 10).unwrap();
+        assert!(note.contains("the control period is 0.5000 ms"), "{note}");
+        assert_eq!(l.col("tick").unwrap(), [0.0, 10.0, 20.0, 40.0, 50.0]);
+        // Two rows within half a period: named by line.
+        let mut l = log(&[0.0, 0.005, 0.005_1, 0.010, 0.015]);
+        let e = set_ticks_per_row(&mut l, 10).unwrap_err().to_string();
+        assert!(e.starts_with("line 4: t_s = 0.0051"), "{e}");
+        assert!(set_ticks_per_row(&mut log(&[0.0, 0.1]), 0).is_err());
     }
 
     #[test]

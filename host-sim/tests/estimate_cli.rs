@@ -567,3 +567,66 @@ fn a_decimated_recording_replays_the_current_chatter_the_bound_widens_by() {
         d.fused_n
     );
 }
+
+/// A log another logger kept at a row every 10th control tick, without the
+/// firmware's `tick` column: read as it is, its row step is taken for the
+/// control period (100 Hz); `--ticks-per-row 10` gives the replay the 1 kHz
+/// loop it came from. A log with the `tick` column refuses the option.
+#[test]
+fn ticks_per_row_gives_a_log_without_a_tick_column_its_control_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let every_tick = loading_run_1khz(30.0, 30.0);
+    let mut tenth = host_sim::sim::recorded_every(&every_tick, 10, true).unwrap();
+    let recording = dir.path().join("recording.csv");
+    tenth.write(&recording).unwrap();
+    tenth.remove_col("tick").unwrap();
+    let foreign = dir.path().join("foreign.csv");
+    tenth.write(&foreign).unwrap();
+    let out = dir.path().join("est.csv");
+
+    let o = run_estimate(&foreign, &out);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("control rate 100.0 Hz (from the log's median time step)"),
+        "{stderr}"
+    );
+
+    let with = |log: &std::path::Path| {
+        Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["estimate", "--ticks-per-row", "10", "--log"])
+            .arg(log)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let o = with(&foreign);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the control period is 1.0000 ms")
+            && stderr.contains(
+                "control rate 1000.0 Hz (from the log's tick column: a row every 10 ticks)"
+            ),
+        "{stderr}"
+    );
+    // Rebuilt from the times, the replay is the recording's own.
+    let replayed = Log::read_with(&out, &Schema::any()).unwrap();
+    let est_rec = dir.path().join("est_rec.csv");
+    let o = run_estimate(&recording, &est_rec);
+    assert!(o.status.success());
+    let from_ticks = Log::read_with(&est_rec, &Schema::any()).unwrap();
+    assert_eq!(
+        replayed.col("f_ext_fused_n").unwrap(),
+        from_ticks.col("f_ext_fused_n").unwrap()
+    );
+
+    let o = with(&recording);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("recording.csv: --ticks-per-row 10: the log has a tick column"),
+        "{stderr}"
+    );
+}

@@ -20,6 +20,13 @@ pub struct EstimateArgs {
     /// Output CSV with every estimate.
     #[arg(long)]
     pub out: PathBuf,
+    /// The log has a row every N control ticks but no `tick` column (a
+    /// logger other than the firmware's link, recording at a fraction of
+    /// the control rate): the control period is the median time step over
+    /// N, not the time step itself. A log with the firmware's `tick` column
+    /// needs nothing: its decimation is read from it.
+    #[arg(long, value_name = "N")]
+    pub ticks_per_row: Option<u32>,
 }
 
 /// `host-sim estimate`.
@@ -29,7 +36,12 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         None => Config::default(),
     };
     let name = args.log.display().to_string();
-    let log = Log::read_with(&args.log, &Schema::project())?;
+    let mut log = Log::read_with(&args.log, &Schema::project())?;
+    if let Some(n) = args.ticks_per_row {
+        let note = crate::derive::set_ticks_per_row(&mut log, n)
+            .with_context(|| format!("{name}: --ticks-per-row {n}"))?;
+        eprintln!("estimate: {note}");
+    }
     let log = crate::ingest::after_homing_noted(log, &name);
     let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
     for d in &s.derived {

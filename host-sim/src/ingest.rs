@@ -171,6 +171,27 @@ pub fn after_homing_noted(log: Log, name: &str) -> Log {
     log
 }
 
+/// Read a project log for a command that replays it: with `ticks_per_row`
+/// (a log kept at a row every N control ticks without the firmware's tick
+/// counter) its tick column is rebuilt from the times
+/// ([`crate::derive::set_ticks_per_row`]), and the rows before the end of
+/// homing are dropped ([`after_homing_noted`]); the notes go to stderr,
+/// each after `command: `.
+pub fn read_for_replay(
+    path: &std::path::Path,
+    ticks_per_row: Option<u32>,
+    command: &str,
+) -> anyhow::Result<Log> {
+    let name = path.display().to_string();
+    let mut log = Log::read(path)?;
+    if let Some(n) = ticks_per_row {
+        let note = crate::derive::set_ticks_per_row(&mut log, n)
+            .with_context(|| format!("{name}: --ticks-per-row {n}"))?;
+        eprintln!("{command}: {name}: {note}");
+    }
+    Ok(after_homing_noted(log, &name))
+}
+
 /// Convert a telemetry stream to the project's CSV log.
 pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow::Result<Log> {
     let start: Option<StartRecord> = records.iter().find_map(|r| match r {

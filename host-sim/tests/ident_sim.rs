@@ -472,6 +472,7 @@ fn the_command_runs_all_three_and_writes_a_config_that_loads_back() {
         prune_all_at_once: false,
         post_filter_hz: 0.0,
         bm_no_coulomb: false,
+        ticks_per_row: None,
     };
     let (rep, config) = identify(&args).unwrap();
     let (bm, jae, ten) = (
@@ -589,4 +590,40 @@ fn a_decimated_log_with_the_applied_mean_current_measures_the_spring_as_every_ti
         "K_s {k:.0} with the mean current vs {:.0} with every tick",
         every.k_s_n_m.0
     );
+}
+
+/// A calibration log kept at a row every 10th tick by a logger without the
+/// firmware's tick counter: `identify --ticks-per-row 10` writes the
+/// configuration the board's recording of the same run gives.
+#[test]
+fn ticks_per_row_identifies_a_log_without_a_tick_column_as_the_recording() {
+    let c = chain();
+    let dir = tempfile::tempdir().unwrap();
+    let mut tenth = recorded_every(&c.jae_log, 10, true);
+    let recording = dir.path().join("recording.csv");
+    tenth.write(&recording).unwrap();
+    tenth.remove_col("tick").unwrap();
+    let foreign = dir.path().join("foreign.csv");
+    tenth.write(&foreign).unwrap();
+    let identify = |log: &std::path::Path, extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["identify", "--procedure", "jae", "--log"])
+            .arg(log)
+            .args(extra)
+            .arg("--config-out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        (std::fs::read_to_string(out).unwrap(), stderr)
+    };
+    let (from_ticks, _) = identify(&recording, &[], "a.toml");
+    let (rebuilt, stderr) = identify(&foreign, &["--ticks-per-row", "10"], "b.toml");
+    assert!(
+        stderr.contains("a row every 10 control ticks (--ticks-per-row)"),
+        "{stderr}"
+    );
+    assert_eq!(rebuilt, from_ticks);
 }

@@ -6,7 +6,6 @@ use anyhow::{Context, Result};
 use cable_joint::Config;
 
 use crate::estimate::{estimate, EstimateSummary};
-use crate::log::{Log, Schema};
 
 /// Arguments of `host-sim estimate`.
 #[derive(clap::Args, Debug, Clone)]
@@ -36,13 +35,7 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         None => Config::default(),
     };
     let name = args.log.display().to_string();
-    let mut log = Log::read_with(&args.log, &Schema::project())?;
-    if let Some(n) = args.ticks_per_row {
-        let note = crate::derive::set_ticks_per_row(&mut log, n)
-            .with_context(|| format!("{name}: --ticks-per-row {n}"))?;
-        eprintln!("estimate: {note}");
-    }
-    let log = crate::ingest::after_homing_noted(log, &name);
+    let log = crate::ingest::read_for_replay(&args.log, args.ticks_per_row, "estimate")?;
     let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
     for d in &s.derived {
         eprintln!("estimate: {d}");

@@ -80,6 +80,11 @@ pub struct IdentifyArgs {
     /// Fit B_m without the Coulomb term sgn(phi') (the seed's model).
     #[arg(long)]
     pub bm_no_coulomb: bool,
+    /// Every log has a row every N control ticks but no `tick` column (a
+    /// logger other than the firmware's link): the control period is the
+    /// median time step over N (as `estimate --ticks-per-row`).
+    #[arg(long, value_name = "N")]
+    pub ticks_per_row: Option<u32>,
 }
 
 /// Split `--log`/`--validate` arguments by procedure.
@@ -123,14 +128,17 @@ fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, Path
     Ok(out)
 }
 
-fn read_logs(files: &[(Procedure, PathBuf)], p: Procedure) -> Result<Vec<(String, Log)>> {
+fn read_logs(
+    files: &[(Procedure, PathBuf)],
+    p: Procedure,
+    ticks_per_row: Option<u32>,
+) -> Result<Vec<(String, Log)>> {
     files
         .iter()
         .filter(|(q, _)| *q == p)
         .map(|(_, f)| {
-            let name = f.display().to_string();
-            let log = crate::ingest::after_homing_noted(Log::read(f)?, &name);
-            Ok((name, log))
+            let log = crate::ingest::read_for_replay(f, ticks_per_row, "identify")?;
+            Ok((f.display().to_string(), log))
         })
         .collect()
 }
@@ -164,11 +172,11 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
         if !wants(p) {
             continue;
         }
-        let logs = read_logs(&fits, p)?;
+        let logs = read_logs(&fits, p, args.ticks_per_row)?;
         if logs.is_empty() {
             bail!("no log for the {p:?} procedure");
         }
-        read.push((p, logs, read_logs(&vals, p)?));
+        read.push((p, logs, read_logs(&vals, p, args.ticks_per_row)?));
     }
     let runs = |p: Procedure| {
         read.iter().find(|(q, _, _)| *q == p).map(|(_, f, v)| Runs {

@@ -90,6 +90,16 @@ pub fn median_period_s(t_s: &[f64]) -> Option<f64> {
     Some(d[d.len() / 2])
 }
 
+/// [`median_period_s`] of a log's time column, refused when the log has
+/// fewer than two rows or the median step is not positive.
+fn median_row_step_s(t_s: &[f64]) -> Result<f64> {
+    let dt = median_period_s(t_s).context("log has fewer than two rows")?;
+    if !(dt.is_finite() && dt > 0.0) {
+        bail!("log time step is not positive (median {dt} s)");
+    }
+    Ok(dt)
+}
+
 /// How a log's rows sit on the firmware's control clock.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Clock {
@@ -133,10 +143,7 @@ pub fn log_clock(log: &Log) -> Result<Clock> {
     let t = log.time_s()?;
     let tick = log.col("tick").filter(|c| c.iter().all(|v| v.is_finite()));
     let Some(tick) = tick else {
-        let dt = median_period_s(t).context("log has fewer than two rows")?;
-        if !(dt.is_finite() && dt > 0.0) {
-            bail!("log time step is not positive (median {dt} s)");
-        }
+        let dt = median_row_step_s(t)?;
         return Ok(Clock {
             period_s: dt,
             decimation: 1,
@@ -203,10 +210,7 @@ pub fn set_ticks_per_row(log: &mut Log, ticks_per_row: u32) -> Result<String> {
         );
     }
     let t = log.time_s()?;
-    let row_s = median_period_s(t).context("log has fewer than two rows")?;
-    if !(row_s.is_finite() && row_s > 0.0) {
-        bail!("log time step is not positive (median {row_s} s)");
-    }
+    let row_s = median_row_step_s(t)?;
     let period_s = row_s / f64::from(ticks_per_row);
     let mut ticks = Vec::with_capacity(t.len());
     for (k, tk) in t.iter().enumerate() {

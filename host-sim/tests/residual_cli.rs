@@ -257,3 +257,74 @@ fn bad_requests_fail_with_one_clear_message() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("x1_m"));
 }
+
+/// A log kept at a row every 10th tick by a logger without the firmware's
+/// tick counter: `residual --ticks-per-row 10` fits and validates it as the
+/// board's recording of the same run (tick column kept), value for value.
+/// Without the option the rows are taken for ticks of a 10× slower loop,
+/// and the fit differs; on an MRDLab run the option is refused.
+#[test]
+fn ticks_per_row_fits_a_log_without_a_tick_column_as_the_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, log) = sim_log(dir.path());
+    let mut tenth = host_sim::sim::recorded_every(&log, 10, true).expect("a decimated recording");
+    let (board, foreign) = (dir.path().join("board"), dir.path().join("foreign"));
+    std::fs::create_dir_all(&board).unwrap();
+    std::fs::create_dir_all(&foreign).unwrap();
+    tenth.write(board.join("run.csv")).unwrap();
+    tenth.remove_col("tick").unwrap();
+    tenth.write(foreign.join("run.csv")).unwrap();
+    let fit = |d: &Path, extra: &[&str], json: &str| -> (Value, String) {
+        let out = host_sim()
+            .args([
+                "residual",
+                "--model",
+                "tension",
+                "--max-terms",
+                "2",
+                "--log",
+            ])
+            .arg(d.join("run.csv"))
+            .args(extra)
+            .arg("--json")
+            .arg(dir.path().join(json))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        (read_json(&dir.path().join(json)), stderr)
+    };
+    let (recording, _) = fit(&board, &[], "board.json");
+    let (rebuilt, stderr) = fit(&foreign, &["--ticks-per-row", "10"], "rebuilt.json");
+    assert!(
+        stderr.contains("residual:") && stderr.contains("a row every 10 control ticks"),
+        "{stderr}"
+    );
+    assert_eq!(rebuilt["before_rmse"], recording["before_rmse"]);
+    assert_eq!(rebuilt["after_rmse"], recording["after_rmse"]);
+    assert_eq!(rebuilt["effects"], recording["effects"]);
+    let (rows, _) = fit(&foreign, &[], "rows.json");
+    assert_ne!(
+        rows["before_rmse"], recording["before_rmse"],
+        "rows taken for ticks fit as the recording: the option would not matter"
+    );
+
+    let out = host_sim()
+        .args([
+            "residual",
+            "--model",
+            "jae",
+            "--ticks-per-row",
+            "10",
+            "--log",
+        ])
+        .arg(format!("{MRDLAB}/00.TXT.gz"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("00.TXT.gz") && err.contains("--ticks-per-row 10") && err.contains("MRDLab"),
+        "{err}"
+    );
+}

@@ -19,7 +19,7 @@ fn runs(names: &[&str], zero: MrdlabZero) -> Vec<NamedLog> {
         .iter()
         .map(|n| dir.join(format!("{n}.TXT.gz")))
         .collect();
-    read_logs(&paths, false, zero, None).expect("MRDLab runs import")
+    read_logs(&paths, false, zero, None, None).expect("MRDLab runs import")
 }
 
 fn data() -> &'static (Vec<NamedLog>, Vec<NamedLog>) {

@@ -91,6 +91,11 @@ pub struct ResidualArgs {
     /// sensor fusion, not a physical effect, and is labelled `fusion`.
     #[arg(long = "other-sensors")]
     pub other_sensors: bool,
+    /// jae/tension/force: every log has a row every N control ticks but no
+    /// `tick` column (a logger other than the firmware's link): the control
+    /// period is the median time step over N (as `estimate --ticks-per-row`).
+    #[arg(long, value_name = "N", requires = "model")]
+    pub ticks_per_row: Option<u32>,
 }
 
 /// Run the subcommand.
@@ -118,8 +123,14 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     } else {
         MrdlabZero::Encoder
     };
-    let fit = read_logs(&args.logs, project, zero, args.t_max_s)?;
-    let validate = read_logs(&args.validate, project, zero, args.t_max_s)?;
+    let fit = read_logs(&args.logs, project, zero, args.t_max_s, args.ticks_per_row)?;
+    let validate = read_logs(
+        &args.validate,
+        project,
+        zero,
+        args.t_max_s,
+        args.ticks_per_row,
+    )?;
     let options = SelectOptions {
         max_terms: args.max_terms.unwrap_or(kind.max_terms().0),
         min_gain: args.min_gain,

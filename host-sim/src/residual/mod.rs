@@ -84,17 +84,19 @@ pub fn truncate(log: &crate::log::Log, t_max_s: f64) -> Result<crate::log::Log> 
     Ok(log.rows(0..n))
 }
 
-/// Read logs (see [`load_log`]), optionally truncated.
+/// Read logs (see [`load_log`]), optionally truncated (after the tick
+/// column is rebuilt, so the ticks count from the log's first row).
 pub fn read_logs(
     paths: &[PathBuf],
     project: bool,
     zero: MrdlabZero,
     t_max_s: Option<f64>,
+    ticks_per_row: Option<u32>,
 ) -> Result<Vec<NamedLog>> {
     paths
         .iter()
         .map(|p| {
-            let mut log = load_log(p, project, zero)?;
+            let mut log = load_log(p, project, zero, ticks_per_row)?;
             if let Some(t) = t_max_s {
                 log = truncate(&log, t).with_context(|| p.display().to_string())?;
             }

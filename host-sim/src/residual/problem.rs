@@ -115,20 +115,38 @@ pub fn is_reference(name: &str) -> bool {
 
 /// Read a log: MRDLab raw runs (`.TXT`, `.TXT.gz`) are imported with their
 /// angles on `zero` ([`MrdlabRun::set_zero`](crate::import::MrdlabRun::set_zero)), anything else is read as a
-/// CSV log (`project`: with the project's required columns; otherwise any
-/// columns, `t_s` required).
-pub fn load_log(path: &Path, project: bool, zero: MrdlabZero) -> Result<Log> {
+/// CSV log (`project`: with the project's required columns, through
+/// [`read_for_replay`](crate::ingest::read_for_replay), so `ticks_per_row`
+/// rebuilds a missing tick column; otherwise any columns, `t_s` required).
+/// `ticks_per_row` is refused on anything but a project log: an MRDLab run
+/// and a generic fit are not replayed tick by tick.
+pub fn load_log(
+    path: &Path,
+    project: bool,
+    zero: MrdlabZero,
+    ticks_per_row: Option<u32>,
+) -> Result<Log> {
+    let refuse_ticks = |what: &str| -> Result<()> {
+        if let Some(n) = ticks_per_row {
+            bail!(
+                "{}: --ticks-per-row {n} applies to a project log replayed through the core \
+                 (--model jae, tension or force); {what}",
+                path.display()
+            );
+        }
+        Ok(())
+    };
     if is_mrdlab_path(path) {
+        refuse_ticks("this is an MRDLab run, read on its own clock")?;
         let mut run = import_mrdlab_run(path)?;
         run.set_zero(zero)?;
         return Ok(run.log);
     }
-    let schema = if project {
-        Schema::project()
-    } else {
-        Schema::with_required(&["t_s"])
-    };
-    let log = Log::read_with(path, &schema)?;
+    if project {
+        return crate::ingest::read_for_replay(path, ticks_per_row, "residual");
+    }
+    refuse_ticks("a generic fit (--target) reads the rows as they are")?;
+    let log = Log::read_with(path, &Schema::with_required(&["t_s"]))?;
     Ok(crate::ingest::after_homing_noted(
         log,
         &path.display().to_string(),

@@ -72,7 +72,7 @@ fn figures(v: &Value) -> BTreeMap<String, f64> {
 }
 
 /// Keys every evaluated variant has (scripts rely on these names).
-const EVALUATION_KEYS: [&str; 24] = [
+const EVALUATION_KEYS: [&str; 26] = [
     "jae.error.mean_abs_deg",
     "jae.error.max_abs_deg",
     "track_motor.desired_minus_actual.mean_abs_deg",
@@ -85,6 +85,8 @@ const EVALUATION_KEYS: [&str; 24] = [
     "robust_2n5.desired_minus_actual.mean_deg",
     "robust_2n5.desired_minus_actual.max_abs_deg",
     "robust_2n5.actual_minus_estimated.max_abs_deg",
+    "track_jae.true_minus_estimated.max_abs_deg",
+    "robust_2n5.true_minus_estimated.max_abs_deg",
     "loading.static_noload.max_abs_n",
     "loading.static_noload_0.max_abs_n",
     "loading.static_noload_30_m40.max_abs_n",
@@ -176,6 +178,43 @@ fn report_json_has_every_key_and_every_figure_is_finite() {
         assert!(a <= b, "{m}: validation RMSE rose from {b} to {a}");
         assert!(a > 0.0, "{m}: zero validation error is not credible");
     }
+}
+
+/// "Actual" is the magnetic encoder's reading of the plant's angle, so the
+/// JAE's error against it and against the plant's true angle differ by the
+/// encoder's rounding, within one count, on every tracking run of every
+/// variant; the two are not the same figure (the encoder's quantum shows).
+#[test]
+fn the_jae_error_against_the_true_angle_is_the_encoders_within_a_count() {
+    let f = figures(&run().json);
+    let count_deg = 360.0
+        / f64::from(
+            cable_joint::Config::default()
+                .scales
+                .magnetic_counts_per_rev,
+        );
+    let mut differs = false;
+    for v in ["clean", "effects_seed_model", "effects_residual"] {
+        for t in ["track_motor", "track_jae", "robust_2n5"] {
+            for stat in ["max_abs_deg", "mean_deg", "rms_deg"] {
+                let key = |d: &str| format!("{v}.{t}.{d}.{stat}");
+                let (actual, truth) = (
+                    f[&key("actual_minus_estimated")],
+                    f[&key("true_minus_estimated")],
+                );
+                assert!(
+                    (actual - truth).abs() <= count_deg,
+                    "{v} {t} {stat}: {actual:.4}° against the encoder, {truth:.4}° against the \
+                     plant's angle: more than a count ({count_deg:.4}°) apart"
+                );
+                differs |= actual != truth;
+            }
+        }
+    }
+    assert!(
+        differs,
+        "the true-angle figures equal the encoder's everywhere"
+    );
 }
 
 #[test]

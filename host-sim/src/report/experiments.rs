@@ -51,6 +51,10 @@ pub struct TrackRun {
     pub desired_minus_actual: Summary,
     /// Actual − estimated (JAE), °, same ticks.
     pub actual_minus_estimated: Summary,
+    /// The plant's true joint angle − estimated (JAE), °, same ticks: the
+    /// estimator's error without the magnetic encoder's quantum (a
+    /// simulator's figure; a rig has only the encoder).
+    pub true_minus_estimated: Summary,
     /// Latched fault, if any.
     pub fault: Option<String>,
     /// Figure trace (every phase).
@@ -61,6 +65,7 @@ pub struct TrackRun {
 struct TrackRec {
     da: Acc,
     ae: Acc,
+    te: Acc,
     fault: Option<String>,
     trace: TrackTrace,
 }
@@ -84,6 +89,7 @@ impl Recorder for TrackRec {
         if active(r) && r.phase == Phase::Track.code() {
             self.da.push(f64::from(e.theta_ref_rad - e.theta_mag_rad));
             self.ae.push(f64::from(e.theta_mag_rad - e.theta_hat_rad));
+            self.te.push(r.state.theta_rad - f64::from(e.theta_hat_rad));
         }
     }
 }
@@ -107,6 +113,7 @@ pub fn tracking(
         seed,
         desired_minus_actual: rec.da.summary(DEG_PER_RAD),
         actual_minus_estimated: rec.ae.summary(DEG_PER_RAD),
+        true_minus_estimated: rec.te.summary(DEG_PER_RAD),
         fault: rec.fault,
         trace: rec.trace,
     })

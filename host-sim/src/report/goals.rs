@@ -141,7 +141,7 @@ impl Step7Row {
 }
 
 /// Step 7's rows.
-pub const STEP7_ROWS: [Step7Row; 17] = [
+pub const STEP7_ROWS: [Step7Row; 19] = [
     Step7Row {
         figure: Figure::jae_error(Stat::MeanAbs),
         quantity: "JAE error on jae-ident, mean |e|",
@@ -173,6 +173,11 @@ pub const STEP7_ROWS: [Step7Row; 17] = [
         unit: "°",
     },
     Step7Row {
+        figure: Figure::track(Track::Jae, Diff::TrueMinusEstimated, Stat::MaxAbs),
+        quantity: "track-jae, max |true − estimated| (the plant's angle)",
+        unit: "°",
+    },
+    Step7Row {
         figure: Figure::track(Track::Robust, Diff::DesiredMinusActual, Stat::MaxAbs),
         quantity: "2.5 N, max |desired − actual|",
         unit: "°",
@@ -180,6 +185,11 @@ pub const STEP7_ROWS: [Step7Row; 17] = [
     Step7Row {
         figure: Figure::track(Track::Robust, Diff::ActualMinusEstimated, Stat::MaxAbs),
         quantity: "2.5 N, max |actual − estimated|",
+        unit: "°",
+    },
+    Step7Row {
+        figure: Figure::track(Track::Robust, Diff::TrueMinusEstimated, Stat::MaxAbs),
+        quantity: "2.5 N, max |true − estimated| (the plant's angle)",
         unit: "°",
     },
     Step7Row {

@@ -100,16 +100,23 @@ pub enum Diff {
     DesiredMinusActual,
     /// Actual − estimated (the JAE).
     ActualMinusEstimated,
+    /// The plant's true angle − estimated (the JAE): no encoder quantum.
+    TrueMinusEstimated,
 }
 
 impl Diff {
     /// Both differences.
-    pub const ALL: [Self; 2] = [Self::DesiredMinusActual, Self::ActualMinusEstimated];
+    pub const ALL: [Self; 3] = [
+        Self::DesiredMinusActual,
+        Self::ActualMinusEstimated,
+        Self::TrueMinusEstimated,
+    ];
 
     fn name(self) -> &'static str {
         match self {
             Self::DesiredMinusActual => "desired_minus_actual",
             Self::ActualMinusEstimated => "actual_minus_estimated",
+            Self::TrueMinusEstimated => "true_minus_estimated",
         }
     }
 
@@ -117,6 +124,7 @@ impl Diff {
         match self {
             Self::DesiredMinusActual => &t.desired_minus_actual,
             Self::ActualMinusEstimated => &t.actual_minus_estimated,
+            Self::TrueMinusEstimated => &t.true_minus_estimated,
         }
     }
 }

@@ -219,8 +219,8 @@ mod tests {
         let all = Figure::all();
         let keys: std::collections::BTreeSet<String> = all.iter().map(|f| f.key()).collect();
         assert_eq!(keys.len(), all.len(), "two figures share a key");
-        // 32 of steps 1, 2, 5; 161 of steps 3, 4, 6; 6 of the residual loop.
-        assert_eq!(all.len(), 32 + 161 + 6);
+        // 32 of steps 1, 2, 5; 179 of steps 3, 4, 6; 6 of the residual loop.
+        assert_eq!(all.len(), 32 + 179 + 6);
     }
 
     #[test]

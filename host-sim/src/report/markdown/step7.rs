@@ -28,6 +28,16 @@ pub(super) fn md_step_7(o: &mut String, r: &Report, fx: &EffectsPart) {
         fx.names.join(", ")
     );
     md_step7_table(o, r);
+    let counts = cable_joint::Config::default()
+        .scales
+        .magnetic_counts_per_rev;
+    let _ = writeln!(
+        o,
+        "\"Actual\" is the magnetic encoder, as in the seed, read to its count ({:.3}° at {counts} counts a \
+         turn); the rows \"true − estimated\" take the plant's own angle instead, a figure only the \
+         simulator has, so a change smaller than a count shows there.\n",
+        360.0 / f64::from(counts)
+    );
     md_residual(o, "JAE", &fx.residual.jae, crate::stats::DEG_PER_RAD, "°");
     md_residual(o, "Tension model", &fx.residual.tension, 1.0, "N");
     let _ = writeln!(o, "Identification on the plant with effects:\n");

@@ -275,9 +275,14 @@ impl SpringFit {
             Some(k) => {
                 config.machine.spring_n_m = k as f32;
                 format!(
-                    "machine.spring_n_m = {k:.0} ± {:.0} (%sigma {pct:.1}, {} sweeps; the datasheet's {:.0} is outside)",
+                    "machine.spring_n_m = {k:.0} ± {:.0} (%sigma {pct:.1}, {} sweeps; {:.0} and {:.0} on \
+                     the earlier and later half of the sweeps, {:.0} without the inertial column; the \
+                     datasheet's {:.0} is outside)",
                     self.uncertainty_n_m(),
                     self.sweeps,
+                    self.halves_n_m.0,
+                    self.halves_n_m.1,
+                    self.without_inertia_n_m,
                     self.datasheet_n_m
                 )
             }

@@ -136,6 +136,17 @@ fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
     assert!(stdout.contains("bound covers the reference"), "{stdout}");
     let est = Log::read_with(&output, &Schema::any()).unwrap();
     assert!(est.has("f_ext_fused_n") && est.len() > 1000);
+    // Without a configuration every force parameter is the datasheet
+    // plant's, and the command says so.
+    for part in [
+        "still the datasheet plant's",
+        "the tension model",
+        "the cables' stiffnesses",
+        "the pin's friction",
+        "the motor's damping",
+    ] {
+        assert!(stderr.contains(part), "no `{part}` in: {stderr}");
+    }
 
     // A log with a non-numeric cell: one error naming file, line and column,
     // and no output written.
@@ -628,5 +639,44 @@ fn ticks_per_row_gives_a_log_without_a_tick_column_its_control_rate() {
     assert!(
         stderr.contains("recording.csv: --ticks-per-row 10: the log has a tick column"),
         "{stderr}"
+    );
+}
+
+/// A configuration whose force parameters were identified (here set to
+/// other values than the datasheet's) draws no warning; one that kept the
+/// datasheet's tension model names it, and only it.
+#[test]
+fn estimate_names_the_force_parameters_still_the_datasheet_plants() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run_1khz.csv");
+    loading_log_1khz().write(&input).unwrap();
+    let run = |toml: &str| {
+        let cfg = dir.path().join("c.toml");
+        std::fs::write(&cfg, toml).unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["estimate", "--log"])
+            .arg(&input)
+            .arg("--config")
+            .arg(&cfg)
+            .arg("--out")
+            .arg(dir.path().join("est.csv"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        stderr
+    };
+    let identified = "control_rate_hz = 1000.0\n[dob]\nviscous_nm_s_rad = 1.8e-5\n\
+                      [stretch]\ncable1_n_m = 9000.0\ncable2_n_m = 11000.0\n\
+                      [fusion]\npin_coulomb_nm = 0.004\n";
+    let tension = "[tension]\nf_sc1_n = 5.0\nf_cp2_n = 2.0\nk_s_n_m = 650.0\nf_0_n = 20.0\n";
+    let all = run(&format!("{identified}{tension}"));
+    assert!(!all.contains("datasheet plant's"), "{all}");
+    let no_tension = run(identified);
+    assert!(
+        no_tension.contains("still the datasheet plant's: the tension model")
+            && !no_tension.contains("stiffnesses")
+            && !no_tension.contains("damping"),
+        "{no_tension}"
     );
 }

@@ -34,6 +34,13 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
+    let what = args.config.as_ref().map_or_else(
+        || "no --config (the datasheet defaults)".to_owned(),
+        |p| p.display().to_string(),
+    );
+    if let Some(w) = crate::io::config::datasheet_force_warning(&config, &what) {
+        eprintln!("estimate: {w}");
+    }
     let name = args.log.display().to_string();
     let log = crate::ingest::read_for_replay(&args.log, args.ticks_per_row, "estimate")?;
     let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;

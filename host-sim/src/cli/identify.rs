@@ -402,6 +402,10 @@ pub fn run(args: IdentifyArgs) -> Result<()> {
     }
     out.commit()?;
     println!("configuration written to {}", args.config_out.display());
+    let written = args.config_out.display().to_string();
+    if let Some(w) = crate::io::config::datasheet_force_warning(&config, &written) {
+        eprintln!("{w}");
+    }
     if let Some(p) = &args.json {
         println!("report written to {}", p.display());
     }

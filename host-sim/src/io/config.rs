@@ -98,6 +98,51 @@ fn set_key(table: &mut toml::Table, field: &str, value: toml::Value) {
     }
 }
 
+/// The parts of `config` the force estimate rests on that are still the
+/// datasheet plant's (equal to [`Config::default`]'s), each named with its
+/// keys: until `host-sim identify` has fitted them on this machine's
+/// calibration runs, the DOB's friction bands, the stretch estimate's scale
+/// and the slack limit are another machine's. Empty when every one was
+/// identified (or set by hand to other values).
+pub fn datasheet_force_parts(config: &Config) -> Vec<&'static str> {
+    let d = Config::default();
+    let (t, dt) = (&config.tension, &d.tension);
+    let mut parts = Vec::new();
+    if (t.f_sc1_n, t.f_cp2_n, t.k_s_n_m, t.f_0_n) == (dt.f_sc1_n, dt.f_cp2_n, dt.k_s_n_m, dt.f_0_n)
+    {
+        parts.push(
+            "the tension model ([tension] f_sc1_n, f_cp2_n, k_s_n_m, f_0_n; --procedure tension)",
+        );
+    }
+    if (config.stretch.cable1_n_m, config.stretch.cable2_n_m)
+        == (d.stretch.cable1_n_m, d.stretch.cable2_n_m)
+    {
+        parts.push("the cables' stiffnesses ([stretch]; --procedure jae)");
+    }
+    if config.fusion.pin_coulomb_nm == d.fusion.pin_coulomb_nm {
+        parts.push("the pin's friction (fusion.pin_coulomb_nm; --procedure jae)");
+    }
+    if config.dob.viscous_nm_s_rad == d.dob.viscous_nm_s_rad {
+        parts.push("the motor's damping (dob.viscous_nm_s_rad; --procedure bm)");
+    }
+    parts
+}
+
+/// A warning naming [`datasheet_force_parts`] of the configuration `what`
+/// (a file name, or "the datasheet defaults"), or `None` when there are none.
+pub fn datasheet_force_warning(config: &Config, what: &str) -> Option<String> {
+    let parts = datasheet_force_parts(config);
+    (!parts.is_empty()).then(|| {
+        format!(
+            "warning: {what}: still the datasheet plant's: {}. Until `host-sim identify \
+             --procedure all` has fitted them on this machine's calibration runs, the DOB's \
+             friction bands, the stretch estimate's scale and the slack limit are another \
+             machine's, and the force bound may miss the load",
+            parts.join("; ")
+        )
+    })
+}
+
 /// [`load_config`] when a file is given, else the datasheet defaults.
 pub fn load_or_default(path: Option<&Path>) -> Result<Config> {
     path.map_or_else(|| Ok(Config::default()), load_config)

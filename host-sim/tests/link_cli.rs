@@ -219,3 +219,41 @@ fn records_lost_after_a_decimation_request_are_counted_at_that_decimation() {
     );
     assert_eq!(text.map(|t| t.lines().count() - 1), Some(rows as usize));
 }
+
+/// Before it touches the board, `link` warns when it would load a
+/// configuration whose force parameters are still the datasheet plant's
+/// for a run that rests on the force estimate (a grip regulates it); not
+/// for a calibration run, which is what identifies them. The port here is
+/// closed, so the command fails after the warning.
+#[test]
+fn a_grip_with_datasheet_force_parameters_is_warned_before_the_board_is_touched() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("c.toml");
+    std::fs::write(&cfg, "control_rate_hz = 2000.0\n").unwrap();
+    let port = {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().port()
+    };
+    let run = |scenario: &str| {
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args([
+                "link",
+                "--port",
+                &format!("tcp:127.0.0.1:{port}"),
+                "--config",
+            ])
+            .arg(&cfg)
+            .args(["--scenario", scenario])
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "nothing listens on port {port}");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let grip = run("grip");
+    assert!(
+        grip.contains("still the datasheet plant's: the tension model"),
+        "{grip}"
+    );
+    let calibration = run("jae-ident");
+    assert!(!calibration.contains("datasheet plant's"), "{calibration}");
+}

@@ -134,6 +134,11 @@ fn schedule(
     })
 }
 
+/// Scenarios whose run rests on the force estimate (`loading` judges it,
+/// `grip` regulates it): `link` warns before them when the configuration
+/// it loads still has force parameters of the datasheet plant.
+const FORCE_SCENARIOS: [&str; 2] = ["loading", "grip"];
+
 /// `host-sim link`.
 pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
@@ -143,6 +148,16 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         .as_deref()
         .map(|name| schedule(name, args.duration_scale, excitation, args.grip.options()))
         .transpose()?;
+    // Before the board is touched: a run that acts on the force estimate
+    // (a grip regulates it) with force parameters of the datasheet plant.
+    if let (Some(path), Some(name)) = (&args.config, args.scenario.as_deref()) {
+        if FORCE_SCENARIOS.contains(&name) {
+            let what = path.display().to_string();
+            if let Some(w) = crate::io::config::datasheet_force_warning(&config, &what) {
+                eprintln!("{w}");
+            }
+        }
+    }
     let mut client = Client::new(open(&args.port)?)?;
     // First, always: a frame the firmware could take for a resend of the
     // last session's last request (link::Repeats) is then a heartbeat.

@@ -113,11 +113,21 @@ fn a_1khz_log_runs_with_the_default_configuration_and_says_what_it_derived() {
 
 /// `host-sim estimate --log log --out out`.
 fn run_estimate(log: &std::path::Path, out: &std::path::Path) -> std::process::Output {
+    run_estimate_with(log, out, &[])
+}
+
+/// `host-sim estimate --log log --out out` and `extra` arguments.
+fn run_estimate_with(
+    log: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&std::ffi::OsStr],
+) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(["estimate", "--log"])
         .arg(log)
         .arg("--out")
         .arg(out)
+        .args(extra)
         .output()
         .unwrap()
 }
@@ -604,13 +614,7 @@ fn ticks_per_row_gives_a_log_without_a_tick_column_its_control_rate() {
     );
 
     let with = |log: &std::path::Path| {
-        Command::new(env!("CARGO_BIN_EXE_host-sim"))
-            .args(["estimate", "--ticks-per-row", "10", "--log"])
-            .arg(log)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap()
+        run_estimate_with(log, &out, &["--ticks-per-row".as_ref(), "10".as_ref()])
     };
     let o = with(&foreign);
     let stderr = String::from_utf8_lossy(&o.stderr);
@@ -653,15 +657,8 @@ fn estimate_names_the_force_parameters_still_the_datasheet_plants() {
     let run = |toml: &str| {
         let cfg = dir.path().join("c.toml");
         std::fs::write(&cfg, toml).unwrap();
-        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-            .args(["estimate", "--log"])
-            .arg(&input)
-            .arg("--config")
-            .arg(&cfg)
-            .arg("--out")
-            .arg(dir.path().join("est.csv"))
-            .output()
-            .unwrap();
+        let out = dir.path().join("est.csv");
+        let o = run_estimate_with(&input, &out, &["--config".as_ref(), cfg.as_os_str()]);
         let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(o.status.success(), "{stderr}");
         stderr

@@ -166,15 +166,17 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
         );
         return fit;
     }
-    let solve = |rows: &[[f64; 4]]| {
-        BatchLsq::<3>::new(3, LsqConfig::default()).and_then(|mut ls| {
+    // The rows' change of tension on their first `columns` regressors
+    // (`x2`, `x2'`, then `x2''`).
+    let solve = |rows: &[[f64; 4]], columns: usize| {
+        BatchLsq::<3>::new(columns, LsqConfig::default()).and_then(|mut ls| {
             for r in rows {
-                ls.push(&[r[0], r[1], r[2]], r[3])?;
+                ls.push(&r[..3], r[3])?;
             }
             ls.solve()
         })
     };
-    let sol = match solve(&rows) {
+    let sol = match solve(&rows, 3) {
         Ok(s) => s,
         Err(e) => {
             fit.note = format!(
@@ -188,16 +190,10 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
     // the sine and the complex trajectory) bound the fit's own error
     // (`SpringFit::uncertainty_n_m`).
     let (early, late) = rows.split_at(rows.len() / 2);
-    if let (Ok(a), Ok(b)) = (solve(early), solve(late)) {
+    if let (Ok(a), Ok(b)) = (solve(early, 3), solve(late, 3)) {
         fit.halves_n_m = (a.params[0], b.params[0]);
     }
-    let without_inertia = BatchLsq::<2>::new(2, LsqConfig::default()).and_then(|mut ls| {
-        for r in &rows {
-            ls.push(&[r[0], r[1]], r[3])?;
-        }
-        ls.solve()
-    });
-    if let Ok(s) = without_inertia {
+    if let Ok(s) = solve(&rows, 2) {
         fit.without_inertia_n_m = s.params[0];
     }
     fit.k_s_n_m = (sol.params[0], 100.0 * sol.std_dev[0] / sol.params[0].abs());

@@ -105,7 +105,7 @@ pub enum Diff {
 }
 
 impl Diff {
-    /// Both differences.
+    /// Every difference.
     pub const ALL: [Self; 3] = [
         Self::DesiredMinusActual,
         Self::ActualMinusEstimated,

@@ -135,15 +135,17 @@ pub fn columns(opts: &LogOptions) -> Vec<&'static str> {
 /// not from the origin homing takes, so a replay through them would see
 /// the origin as a jump; they are left out, and the note says where the
 /// log now starts. A log without `fw_phase`, or running from its first
-/// row, is returned whole and without a note; one that never reaches the
-/// running phase too, with a note saying so.
-pub fn after_homing(log: Log) -> (Log, Option<String>) {
+/// row, is returned whole and without a note. One that never reaches the
+/// running phase is refused: its program never ran, and its positions
+/// count from power-on, so it holds no run to replay (the error says how
+/// start-up ended).
+pub fn after_homing(log: Log) -> anyhow::Result<(Log, Option<String>)> {
     let Some(phase) = log.col("fw_phase") else {
-        return (log, None);
+        return Ok((log, None));
     };
     let running = f64::from(Phase::Running.code());
     match phase.iter().position(|&p| p == running) {
-        Some(0) => (log, None),
+        Some(0) => Ok((log, None)),
         Some(first) => {
             let t = log.col("t_s").map_or(f64::NAN, |t| t[first]);
             let note = format!(
@@ -152,35 +154,104 @@ pub fn after_homing(log: Log) -> (Log, Option<String>) {
                 first + 1
             );
             let n = log.len();
-            (log.rows(first..n), Some(note))
+            Ok((log.rows(first..n), Some(note)))
         }
-        None => (
-            log,
-            Some("fw_phase never reaches 4 (running): homing did not end in this log".into()),
-        ),
+        None => {
+            let last = phase.last().map_or_else(
+                || "it has no rows".to_string(),
+                |&p| {
+                    let name = Phase::from_code(p as u8)
+                        .filter(|_| p.fract() == 0.0 && (0.0..=255.0).contains(&p))
+                        .map_or_else(|| "an unknown phase".into(), |ph| format!("{ph:?}"));
+                    format!("its last row is in phase {p} ({name})")
+                },
+            );
+            let fault = first_recorded_fault(&log, 0).map_or_else(String::new, |(k, code)| {
+                format!(
+                    ", after {} at line {}{}",
+                    fault_words(code),
+                    crate::log::line_of_row(k),
+                    log.col("t_s")
+                        .map_or_else(String::new, |t| format!(" (t = {:.3} s)", t[k]))
+                )
+            });
+            bail!(
+                "fw_phase never reaches 4 (running): start-up did not end ({last}{fault}), so \
+                 the program never ran and the positions count from power-on; there is no run \
+                 to replay (record again once the sensor check and homing pass)"
+            )
+        }
     }
 }
 
-/// [`after_homing`] for a command that replays the log `name`: the note,
-/// if any, goes to stderr.
-pub fn after_homing_noted(log: Log, name: &str) -> Log {
-    let (log, note) = after_homing(log);
-    if let Some(note) = note {
-        eprintln!("{name}: {note}");
+/// A fault code in words: "homing failed (code 23)".
+fn fault_words(code: u8) -> String {
+    cable_joint::Fault::from_code(code)
+        .map_or_else(|| format!("fault code {code}"), |f| format!("{f} (code {code})"))
+}
+
+/// The first row from `from` on whose `fault_code` is not 0, and the code.
+fn first_recorded_fault(log: &Log, from: usize) -> Option<(usize, u8)> {
+    let fault = log.col("fault_code")?;
+    let k = (from..fault.len()).find(|&k| fault[k] != 0.0)?;
+    Some((k, fault[k].clamp(0.0, 255.0) as u8))
+}
+
+/// Where a replay of a firmware log ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReplayEnd {
+    /// At the log's last row (`estimate`: what the board estimated after a
+    /// fault is shown as well).
+    LastRow,
+    /// Before the firmware's first latched fault (`identify`, `residual`):
+    /// from there on the drive is off and the mechanism relaxes, which no
+    /// fitted model describes, and a fault of the board's own (homing,
+    /// command timeout, drive fault line) is not one the core's replay
+    /// latches again.
+    BeforeFault,
+}
+
+/// [`ReplayEnd::BeforeFault`]: the rows of `log` before its first
+/// recorded fault, with a note when rows were left out (naming the line of
+/// the file, whose first `first_row` rows are not in `log`); an error when
+/// the fault was latched on its first row.
+pub fn before_recorded_fault(
+    log: Log,
+    name: &str,
+    first_row: usize,
+) -> anyhow::Result<(Log, Option<String>)> {
+    let Some((k, code)) = first_recorded_fault(&log, 0) else {
+        return Ok((log, None));
+    };
+    let t = log
+        .col("t_s")
+        .map_or_else(String::new, |t| format!(" (t = {:.3} s)", t[k]));
+    if k == 0 {
+        bail!(
+            "{name}: {} is latched on the log's first replayed row{t}: there are no rows \
+             with the drive under control to replay",
+            fault_words(code)
+        );
     }
-    log
+    let note = format!(
+        "the firmware latched {} at line {}{t}: the {} rows from there on (the drive off) \
+         are left out",
+        fault_words(code),
+        crate::log::line_of_row(first_row + k),
+        log.len() - k
+    );
+    Ok((log.rows(0..k), Some(note)))
 }
 
 /// Read a project log for a command that replays it: with `ticks_per_row`
 /// (a log kept at a row every N control ticks without the firmware's tick
 /// counter) its tick column is rebuilt from the times
-/// ([`crate::derive::set_ticks_per_row`]), and the rows before the end of
-/// homing are dropped ([`after_homing_noted`]); the notes go to stderr,
-/// each after `command: `.
+/// ([`crate::derive::set_ticks_per_row`]), then [`trim_for_replay`].
 pub fn read_for_replay(
     path: &std::path::Path,
     ticks_per_row: Option<u32>,
     command: &str,
+    end: ReplayEnd,
 ) -> anyhow::Result<Log> {
     let name = path.display().to_string();
     let mut log = Log::read(path)?;
@@ -189,7 +260,36 @@ pub fn read_for_replay(
             .with_context(|| format!("{name}: --ticks-per-row {n}"))?;
         eprintln!("{command}: {name}: {note}");
     }
-    Ok(after_homing_noted(log, &name))
+    trim_for_replay(log, &name, command, end)
+}
+
+/// The rows of the log `name` a command replays: the rows before the end
+/// of homing are dropped ([`after_homing`]), and with
+/// [`ReplayEnd::BeforeFault`] the rows from the firmware's first latched
+/// fault on ([`before_recorded_fault`]); the notes go to stderr, each
+/// after `command: `.
+pub fn trim_for_replay(
+    log: Log,
+    name: &str,
+    command: &str,
+    end: ReplayEnd,
+) -> anyhow::Result<Log> {
+    let rows = log.len();
+    let (log, note) = after_homing(log).with_context(|| name.to_string())?;
+    if let Some(note) = note {
+        eprintln!("{command}: {name}: {note}");
+    }
+    match end {
+        ReplayEnd::LastRow => Ok(log),
+        ReplayEnd::BeforeFault => {
+            let homing_rows = rows - log.len();
+            let (log, note) = before_recorded_fault(log, name, homing_rows)?;
+            if let Some(note) = note {
+                eprintln!("{command}: {name}: {note}");
+            }
+            Ok(log)
+        }
+    }
 }
 
 /// Convert a telemetry stream to the project's CSV log.
@@ -397,7 +497,7 @@ mod tests {
 
     #[test]
     fn after_homing_starts_a_firmware_log_where_homing_ended() {
-        let (log, note) = after_homing(phased(&[0.0, 1.0, 3.0, 3.0, 4.0, 4.0, 5.0]));
+        let (log, note) = after_homing(phased(&[0.0, 1.0, 3.0, 3.0, 4.0, 4.0, 5.0])).unwrap();
         assert_eq!(log.col("x1_m").unwrap(), [4.0, 5.0, 6.0]);
         assert_eq!(log.col("fw_phase").unwrap(), [4.0, 4.0, 5.0]);
         let note = note.expect("a cut is noted");
@@ -407,15 +507,45 @@ mod tests {
 
     #[test]
     fn after_homing_keeps_a_log_running_from_its_start_or_without_phases() {
-        let (log, note) = after_homing(phased(&[4.0, 4.0]));
+        let (log, note) = after_homing(phased(&[4.0, 4.0])).unwrap();
         assert_eq!((log.len(), note), (2, None));
         let mut plain = Log::with_columns(&["t_s"]).unwrap();
         plain.push_row(&[0.0]).unwrap();
-        let (log, note) = after_homing(plain);
+        let (log, note) = after_homing(plain).unwrap();
         assert_eq!((log.len(), note), (1, None));
-        let (log, note) = after_homing(phased(&[0.0, 3.0, 5.0]));
-        assert_eq!(log.len(), 3);
-        assert!(note.unwrap().contains("never reaches 4"));
+    }
+
+    #[test]
+    fn after_homing_refuses_a_log_whose_start_up_never_ended_naming_the_fault() {
+        let mut log = Log::with_columns(&["t_s", "fault_code", "fw_phase"]).unwrap();
+        for (k, (fault, phase)) in [(0.0, 1.0), (0.0, 3.0), (23.0, 5.0), (23.0, 5.0)]
+            .into_iter()
+            .enumerate()
+        {
+            log.push_row(&[k as f64 * 0.5, fault, phase]).unwrap();
+        }
+        let e = trim_for_replay(log, "bm.csv", "identify", ReplayEnd::LastRow).unwrap_err();
+        let e = format!("{e:#}");
+        for part in ["bm.csv", "never reaches 4", "phase 5 (Failed)", "code 23", "line 4", "t = 1.000 s"] {
+            assert!(e.contains(part), "`{part}` missing from: {e}");
+        }
+    }
+
+    #[test]
+    fn a_replay_before_the_fault_ends_on_the_row_before_the_firmware_latched_one() {
+        let mut log = Log::with_columns(&["t_s", "x1_m", "fault_code"]).unwrap();
+        for (k, fault) in [0.0, 0.0, 0.0, 24.0, 24.0].into_iter().enumerate() {
+            log.push_row(&[k as f64 * 0.5, k as f64, fault]).unwrap();
+        }
+        let (cut, note) = before_recorded_fault(log.clone(), "run.csv", 10).unwrap();
+        assert_eq!(cut.col("x1_m").unwrap(), [0.0, 1.0, 2.0]);
+        let note = note.unwrap();
+        assert!(note.contains("code 24"), "{note}");
+        assert!(note.contains("line 15") && note.contains("the 2 rows"), "{note}");
+        let whole = log.rows(0..3);
+        assert_eq!(before_recorded_fault(whole, "run.csv", 0).unwrap().1, None);
+        let e = before_recorded_fault(log.rows(3..5), "run.csv", 0).unwrap_err();
+        assert!(format!("{e}").contains("run.csv: "), "{e}");
     }
 
     fn line(rec: &Record) -> String {

@@ -558,6 +558,83 @@ fn identify_warns_when_a_replay_fault_leaves_rows_out() {
     );
 }
 
+/// `log` with `fault_code` set to `code` from data row `from` on (the
+/// firmware latched a fault there), and `fw_phase` to `phase` on every
+/// row when given, written to `dir/name`.
+fn with_firmware_fault(log: &Path, from: usize, code: f64, phase: Option<f64>, name: &str) -> PathBuf {
+    let mut l = host_sim::log::Log::read(log).unwrap();
+    let n = l.len();
+    let fault = (0..n).map(|k| if k >= from { code } else { 0.0 }).collect();
+    l.set_col("fault_code", fault).unwrap();
+    if let Some(p) = phase {
+        l.set_col("fw_phase", vec![p; n]).unwrap();
+    }
+    let path = log.with_file_name(name);
+    l.write(&path).unwrap();
+    path
+}
+
+#[test]
+fn identify_fits_only_the_rows_before_the_firmwares_fault_and_refuses_a_failed_start_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = simulated(dir.path(), "tension-ident", 3.0, "ten.csv");
+    // A fault of the board's own (a command timeout) at row 4000: the core
+    // does not latch it again on replay, so only the recorded code can end
+    // the fit there. The fit must be the one of the first 4000 rows.
+    let faulted = with_firmware_fault(&clean, 4000, 24.0, None, "faulted.csv");
+    let cut = dir.path().join("cut.csv");
+    let whole = host_sim::log::Log::read(&clean).unwrap();
+    whole.rows(0..4000).write(&cut).unwrap();
+    let out = identify(&faulted, "tension");
+    let err = stderr(&out);
+    assert!(
+        err.contains(&format!("identify: {}: the firmware latched", faulted.display()))
+            && err.contains("(code 24) at line 4002")
+            && err.contains(&format!("the {} rows from there on", whole.len() - 4000)),
+        "{err}"
+    );
+    identify(&cut, "tension");
+    let read = |p: &Path| std::fs::read_to_string(p.with_extension("toml")).unwrap();
+    assert_eq!(read(&faulted), read(&cut));
+    let model = "simplified model C (Eq. 28-29):";
+    assert_eq!(
+        fit_rows(&String::from_utf8_lossy(&out.stdout), model),
+        fit_rows(&String::from_utf8_lossy(&identify(&cut, "tension").stdout), model)
+    );
+    // Start-up that never ended (homing failed: phase 3 throughout, fault
+    // 23 latched at row 1000): refused by identify, estimate and residual,
+    // naming the file and the fault, and nothing written.
+    let failed = with_firmware_fault(&clean, 1000, 23.0, Some(3.0), "failed.csv");
+    let config_out = dir.path().join("failed-out.toml");
+    let est_out = dir.path().join("failed-est.csv");
+    for cmd in [
+        host_sim()
+            .args(["identify", "--procedure", "tension", "--log"])
+            .arg(&failed)
+            .arg("--config-out")
+            .arg(&config_out),
+        host_sim()
+            .args(["estimate", "--log"])
+            .arg(&failed)
+            .arg("--out")
+            .arg(&est_out),
+        host_sim()
+            .args(["residual", "--model", "tension", "--log"])
+            .arg(&failed)
+            .arg("--config-out")
+            .arg(&config_out),
+    ] {
+        let err = run_err(cmd);
+        assert!(
+            err.contains(&failed.display().to_string())
+                && err.contains("never reaches 4 (running)")
+                && err.contains("(code 23) at line 1002"),
+            "{err}"
+        );
+    }
+    assert!(!config_out.exists() && !est_out.exists());
+}
+
 #[test]
 fn residual_names_left_out_rows_and_why_there_are_no_validation_rows() {
     let dir = tempfile::tempdir().unwrap();

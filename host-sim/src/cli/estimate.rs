@@ -42,7 +42,12 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         eprintln!("estimate: {w}");
     }
     let name = args.log.display().to_string();
-    let log = crate::ingest::read_for_replay(&args.log, args.ticks_per_row, "estimate")?;
+    let log = crate::ingest::read_for_replay(
+        &args.log,
+        args.ticks_per_row,
+        "estimate",
+        crate::ingest::ReplayEnd::LastRow,
+    )?;
     let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
     for d in &s.derived {
         eprintln!("estimate: {d}");

@@ -137,7 +137,12 @@ fn read_logs(
         .iter()
         .filter(|(q, _)| *q == p)
         .map(|(_, f)| {
-            let log = crate::ingest::read_for_replay(f, ticks_per_row, "identify")?;
+            let log = crate::ingest::read_for_replay(
+                f,
+                ticks_per_row,
+                "identify",
+                crate::ingest::ReplayEnd::BeforeFault,
+            )?;
             Ok((f.display().to_string(), log))
         })
         .collect()

@@ -117,7 +117,9 @@ pub fn is_reference(name: &str) -> bool {
 /// angles on `zero` ([`MrdlabRun::set_zero`](crate::import::MrdlabRun::set_zero)), anything else is read as a
 /// CSV log (`project`: with the project's required columns, through
 /// [`read_for_replay`](crate::ingest::read_for_replay), so `ticks_per_row`
-/// rebuilds a missing tick column; otherwise any columns, `t_s` required).
+/// rebuilds a missing tick column; otherwise any columns, `t_s` required),
+/// both from where homing ended to the row before the firmware's first
+/// latched fault ([`trim_for_replay`](crate::ingest::trim_for_replay)).
 /// `ticks_per_row` is refused on anything but a project log: an MRDLab run
 /// and a generic fit are not replayed tick by tick.
 pub fn load_log(
@@ -143,15 +145,16 @@ pub fn load_log(
         return Ok(run.log);
     }
     if project {
-        return crate::ingest::read_for_replay(path, ticks_per_row, "residual");
+        return crate::ingest::read_for_replay(path, ticks_per_row, "residual", BEFORE_FAULT);
     }
     refuse_ticks("a generic fit (--target) reads the rows as they are")?;
     let log = Log::read_with(path, &Schema::with_required(&["t_s"]))?;
-    Ok(crate::ingest::after_homing_noted(
-        log,
-        &path.display().to_string(),
-    ))
+    let name = path.display().to_string();
+    crate::ingest::trim_for_replay(log, &name, "residual", BEFORE_FAULT)
 }
+
+/// A fit ends where the firmware latched a fault.
+const BEFORE_FAULT: crate::ingest::ReplayEnd = crate::ingest::ReplayEnd::BeforeFault;
 
 /// A log with its name.
 #[derive(Clone, Debug)]

@@ -10,15 +10,22 @@
 #      link: the jae-ident scenario's commands (check, homing, motor-side
 #      sines, joint free) at a quarter of their length, telemetry every
 #      4th tick, the magnetic encoder fitted;
-#   3. `host-sim identify` on that recording writes identified.toml;
-#   4. power on again, connect, load identified.toml (validated here and on
+#   3. `host-sim identify --procedure jae` on that recording writes
+#      jae.toml (the JAE, the cables' stiffnesses, the pin's friction);
+#   4. power on again, connect, load jae.toml and record the no-load
+#      tension run through the link (tension-ident, the JAE in the loop,
+#      at a quarter of its length); `host-sim identify --procedure tension`
+#      on it writes identified.toml (the DOB's tension model, model C).
+#      The motor's damping B_m stays the datasheet's: its no-load run
+#      needs the rope wheel unhooked, and the firmware cannot home then;
+#   5. power on again, connect, load identified.toml (validated here and on
 #      the MCU), run the loading scenario's commands (check, homing, 30° and
 #      hold; the simulated 50 g weight is hung at 4.5 s) and record 5.5 s, with
 #      the live view on (in a tmux pane, read back into live-view.txt, and
 #      closed with q as a person would);
-#   5. read the recorded log back: host-sim estimate replays it from where
+#   6. read the recorded log back: host-sim estimate replays it from where
 #      homing ended, with the fused force and its bound;
-#   6. power on with a soft object at the tip (10° out, 1000 N/m), load
+#   7. power on with a soft object at the tip (10° out, 1000 N/m), load
 #      identified.toml and run the grip scenario's commands: the firmware
 #      closes onto the object and regulates its force estimate to 2 N, then
 #      opens; recorded.
@@ -69,11 +76,19 @@ power_on 15 pil-ident --drive-fault-at-s -1 --load-n 0
   --duration-scale 0.25 --magnetic --record "$OUT/calibration.csv"
 wait "$RIG"
 
-say "3. host-sim identify on the recorded run"
-"$HOST_SIM" identify --procedure jae --log "$OUT/calibration.csv" --config-out "$OUT/identified.toml" \
-  --json "$OUT/identified.json" | tail -n 8
+say "3. host-sim identify --procedure jae on the recorded run"
+"$HOST_SIM" identify --procedure jae --log "$OUT/calibration.csv" --config-out "$OUT/jae.toml" \
+  --json "$OUT/jae.json" | tail -n 8
 
-say "4. the loading scenario with identified.toml, recorded, with the live view"
+say "4. the no-load tension run through the link with jae.toml (tension-ident, quarter length), identified"
+power_on 17 pil-tension --drive-fault-at-s -1 --load-n 0
+"$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --config "$OUT/jae.toml" --decimation 4 \
+  --scenario tension-ident --duration-scale 0.25 --record "$OUT/tension.csv"
+wait "$RIG"
+"$HOST_SIM" identify --procedure tension --config "$OUT/jae.toml" --log "$OUT/tension.csv" \
+  --config-out "$OUT/identified.toml" --json "$OUT/identified.json" | tail -n 8
+
+say "5. the loading scenario with identified.toml, recorded, with the live view"
 power_on 7 pil-loading --load-at-s 4.5 --drive-fault-at-s -1
 LINK=("$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --config "$OUT/identified.toml"
   --decimation 1 --scenario loading --duration-s 5.5 --record "$OUT/loading.csv")
@@ -106,10 +121,10 @@ fi
 wait "$RIG"
 RIG=""
 
-say "5. the recorded log, replayed through the core from where homing ended"
+say "6. the recorded log, replayed through the core from where homing ended"
 "$HOST_SIM" estimate --log "$OUT/loading.csv" --config "$OUT/identified.toml" \
   --out "$OUT/loading-estimate.csv"
-say "6. a grip over the link: an object 10° out, 2 N, with identified.toml"
+say "7. a grip over the link: an object 10° out, 2 N, with identified.toml"
 power_on 16 pil-grip --object-at-deg 10 --drive-fault-at-s -1 --load-n 0
 "$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --config "$OUT/identified.toml" \
   --decimation 1 --scenario grip --record "$OUT/grip.csv"

@@ -184,10 +184,11 @@ pub fn after_homing(log: Log) -> anyhow::Result<(Log, Option<String>)> {
     }
 }
 
-/// A fault code in words: "homing failed (code 23)".
-fn fault_words(code: u8) -> String {
+/// A fault code in words, with the code: "measured current above its
+/// limit (code 15)", or "code 99" for a code no fault has.
+pub fn fault_words(code: u8) -> String {
     cable_joint::Fault::from_code(code)
-        .map_or_else(|| format!("fault code {code}"), |f| format!("{f} (code {code})"))
+        .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"))
 }
 
 /// The first row from `from` on whose `fault_code` is not 0, and the code.
@@ -268,12 +269,7 @@ pub fn read_for_replay(
 /// [`ReplayEnd::BeforeFault`] the rows from the firmware's first latched
 /// fault on ([`before_recorded_fault`]); the notes go to stderr, each
 /// after `command: `.
-pub fn trim_for_replay(
-    log: Log,
-    name: &str,
-    command: &str,
-    end: ReplayEnd,
-) -> anyhow::Result<Log> {
+pub fn trim_for_replay(log: Log, name: &str, command: &str, end: ReplayEnd) -> anyhow::Result<Log> {
     let rows = log.len();
     let (log, note) = after_homing(log).with_context(|| name.to_string())?;
     if let Some(note) = note {
@@ -526,7 +522,14 @@ mod tests {
         }
         let e = trim_for_replay(log, "bm.csv", "identify", ReplayEnd::LastRow).unwrap_err();
         let e = format!("{e:#}");
-        for part in ["bm.csv", "never reaches 4", "phase 5 (Failed)", "code 23", "line 4", "t = 1.000 s"] {
+        for part in [
+            "bm.csv",
+            "never reaches 4",
+            "phase 5 (Failed)",
+            "code 23",
+            "line 4",
+            "t = 1.000 s",
+        ] {
             assert!(e.contains(part), "`{part}` missing from: {e}");
         }
     }
@@ -541,7 +544,10 @@ mod tests {
         assert_eq!(cut.col("x1_m").unwrap(), [0.0, 1.0, 2.0]);
         let note = note.unwrap();
         assert!(note.contains("code 24"), "{note}");
-        assert!(note.contains("line 15") && note.contains("the 2 rows"), "{note}");
+        assert!(
+            note.contains("line 15") && note.contains("the 2 rows"),
+            "{note}"
+        );
         let whole = log.rows(0..3);
         assert_eq!(before_recorded_fault(whole, "run.csv", 0).unwrap().1, None);
         let e = before_recorded_fault(log.rows(3..5), "run.csv", 0).unwrap_err();

@@ -561,7 +561,13 @@ fn identify_warns_when_a_replay_fault_leaves_rows_out() {
 /// `log` with `fault_code` set to `code` from data row `from` on (the
 /// firmware latched a fault there), and `fw_phase` to `phase` on every
 /// row when given, written to `dir/name`.
-fn with_firmware_fault(log: &Path, from: usize, code: f64, phase: Option<f64>, name: &str) -> PathBuf {
+fn with_firmware_fault(
+    log: &Path,
+    from: usize,
+    code: f64,
+    phase: Option<f64>,
+    name: &str,
+) -> PathBuf {
     let mut l = host_sim::log::Log::read(log).unwrap();
     let n = l.len();
     let fault = (0..n).map(|k| if k >= from { code } else { 0.0 }).collect();
@@ -588,8 +594,10 @@ fn identify_fits_only_the_rows_before_the_firmwares_fault_and_refuses_a_failed_s
     let out = identify(&faulted, "tension");
     let err = stderr(&out);
     assert!(
-        err.contains(&format!("identify: {}: the firmware latched", faulted.display()))
-            && err.contains("(code 24) at line 4002")
+        err.contains(&format!(
+            "identify: {}: the firmware latched",
+            faulted.display()
+        )) && err.contains("(code 24) at line 4002")
             && err.contains(&format!("the {} rows from there on", whole.len() - 4000)),
         "{err}"
     );
@@ -599,7 +607,10 @@ fn identify_fits_only_the_rows_before_the_firmwares_fault_and_refuses_a_failed_s
     let model = "simplified model C (Eq. 28-29):";
     assert_eq!(
         fit_rows(&String::from_utf8_lossy(&out.stdout), model),
-        fit_rows(&String::from_utf8_lossy(&identify(&cut, "tension").stdout), model)
+        fit_rows(
+            &String::from_utf8_lossy(&identify(&cut, "tension").stdout),
+            model
+        )
     );
     // Start-up that never ended (homing failed: phase 3 throughout, fault
     // 23 latched at row 1000): refused by identify, estimate and residual,

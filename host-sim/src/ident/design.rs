@@ -158,8 +158,7 @@ pub(super) fn design(
             .iter()
             .filter_map(|p| {
                 p.first_fault.map(|(t, code)| {
-                    let name = cable_joint::Fault::from_code(code)
-                        .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+                    let name = crate::ingest::fault_words(code);
                     format!("{}: the replay latched {name} at t = {t:.3} s", p.label)
                 })
             })

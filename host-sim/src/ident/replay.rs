@@ -49,8 +49,7 @@ impl LossNotes {
         let fault = fault.iter().position(|f| *f != 0.0).map(|tick| {
             let code = fault[tick] as u8;
             let k = replay.log_row(tick);
-            let name = cable_joint::Fault::from_code(code)
-                .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+            let name = crate::ingest::fault_words(code);
             // A value the core's f32 cannot hold is the likely cause.
             let cause = (k.saturating_sub(2)..=k)
                 .flat_map(|r| log.names().into_iter().map(move |c| (r, c)))

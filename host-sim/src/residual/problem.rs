@@ -486,8 +486,7 @@ fn drop_faulted_rows(name: &str, replay: &TickReplay, target: &mut [f64]) {
     };
     if let Some(k) = fault.iter().position(|f| *f != 0.0) {
         let code = fault[k] as u8;
-        let what = cable_joint::Fault::from_code(code)
-            .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"));
+        let what = crate::ingest::fault_words(code);
         let rows = |faulted: bool| {
             (0..fault.len())
                 .filter(|&j| replay.measured(j) && (!faulted || fault[j] != 0.0))

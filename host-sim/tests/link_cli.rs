@@ -257,3 +257,29 @@ fn a_grip_with_datasheet_force_parameters_is_warned_before_the_board_is_touched(
     let calibration = run("jae-ident");
     assert!(!calibration.contains("datasheet plant's"), "{calibration}");
 }
+
+/// The no-load motor run needs the rope wheel unhooked, and a program over
+/// the link starts with homing, which then cannot find the origin: `link`
+/// refuses `--scenario bm-noload` before it connects, and says what stays
+/// unidentified. The listener here would take a connection; none comes.
+#[test]
+fn a_no_load_motor_run_is_refused_before_the_board_is_touched() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
+        .args(["--scenario", "bm-noload"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("--scenario bm-noload") && err.contains("homing") && err.contains("B_m"),
+        "{err}"
+    );
+    listener.set_nonblocking(true).unwrap();
+    assert!(
+        listener.accept().is_err(),
+        "link connected before refusing: {err}"
+    );
+}

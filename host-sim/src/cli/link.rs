@@ -108,6 +108,16 @@ fn schedule(
         ..ScenarioOptions::default()
     };
     let p = plan(name, &opts)?;
+    if p.motor_decoupled {
+        bail!(
+            "--scenario {name} runs the motor with its rope wheel unhooked (seed Sect. 4.2), \
+             and a program over the link starts with homing, which then cannot find the \
+             origin (the switch is on the joint side): start-up would end in the homing \
+             fault, and with the wheel hooked the motor's sines would drive the joint. No \
+             board was touched. Without this run dob.viscous_nm_s_rad (B_m) stays the \
+             datasheet's; it enters the DOB as B_m phi', in motion and not at a hold"
+        );
+    }
     let mut t = 0.0;
     let mut commands = Vec::new();
     for seg in &p.segments {

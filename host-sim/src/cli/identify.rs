@@ -36,7 +36,8 @@ pub struct IdentifyArgs {
     #[arg(long, value_enum)]
     pub procedure: Procedure,
     /// Logs to fit (CSV). With `all`: three logs in the order bm, jae,
-    /// tension, or any number as `bm=FILE`, `jae=FILE`, `tension=FILE`.
+    /// tension, or any number as `bm=FILE`, `jae=FILE`, `tension=FILE`
+    /// (`bm=` may be left out: `B_m` then stays the configuration's).
     #[arg(long, num_args = 1.., required = true)]
     pub log: Vec<String>,
     /// Logs to validate on (not used for the fit); same form as `--log`.
@@ -178,6 +179,20 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
             continue;
         }
         let logs = read_logs(&fits, p, args.ticks_per_row)?;
+        if logs.is_empty() && p == Procedure::Bm && args.procedure == Procedure::All {
+            // The seed's no-load motor run needs the rope wheel unhooked;
+            // a user may not have one.
+            if vals.iter().any(|(q, _)| *q == Procedure::Bm) {
+                bail!("a bm= log to validate on, but no bm= log to fit B_m on");
+            }
+            eprintln!(
+                "note: no bm= log: B_m is not identified, and the configuration's \
+                 dob.viscous_nm_s_rad = {:e} N·m·s/rad is kept (it enters the DOB as B_m phi', \
+                 in motion and not at a hold)",
+                config.dob.viscous_nm_s_rad
+            );
+            continue;
+        }
         if logs.is_empty() {
             bail!("no log for the {p:?} procedure");
         }

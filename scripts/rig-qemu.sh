@@ -6,18 +6,20 @@
 # `host-sim pil` run is one power-on of the "rig".
 #
 #   1. "flash": build the PIL firmware (cargo fw-pil);
-#   2. power on, connect, and record an identification run through the
-#      link: the jae-ident scenario's commands (check, homing, motor-side
+#   2. power on with the rope wheel unhooked (the simulated plant's
+#      motor_decoupled) and record the no-load motor run through the link
+#      (bm-noload at a quarter of its length: a motor-only program, no
+#      homing, slider 1 must not move);
+#   3. power on with the wheel hooked and record the JAE's identification
+#      run: the jae-ident scenario's commands (check, homing, motor-side
 #      sines, joint free) at a quarter of their length, telemetry every
-#      4th tick, the magnetic encoder fitted;
-#   3. `host-sim identify --procedure jae` on that recording writes
-#      jae.toml (the JAE, the cables' stiffnesses, the pin's friction);
-#   4. power on again, connect, load jae.toml and record the no-load
-#      tension run through the link (tension-ident, the JAE in the loop,
-#      at a quarter of its length); `host-sim identify --procedure tension`
-#      on it writes identified.toml (the DOB's tension model, model C).
-#      The motor's damping B_m stays the datasheet's: its no-load run
-#      needs the rope wheel unhooked, and the firmware cannot home then;
+#      4th tick, the magnetic encoder fitted; `host-sim identify
+#      --procedure jae` on it writes jae.toml;
+#   4. power on again, load jae.toml and record the no-load tension run
+#      (tension-ident, the JAE in the loop, a quarter of its length);
+#      `host-sim identify --procedure all` on the three recordings (bm,
+#      jae, tension, the seed's order: each uses the one before) writes
+#      identified.toml;
 #   5. power on again, connect, load identified.toml (validated here and on
 #      the MCU), run the loading scenario's commands (check, homing, 30° and
 #      hold; the simulated 50 g weight is hung at 4.5 s) and record 5.5 s, with
@@ -66,7 +68,15 @@ say "1. the PIL firmware (cargo fw-pil)"
 cargo fw-pil "${LOCKED[@]}"
 cp "${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/release/firmware" "$OUT/firmware-pil.elf"
 
-say "2. identification run through the link (jae-ident, quarter length)"
+say "2. the no-load motor run through the link, the rope wheel unhooked (bm-noload, quarter length)"
+printf '# the rope wheel unhooked, slider 1 clamped (seed Sect. 4.2)\nmotor_decoupled = true\n' \
+  >"$OUT/unhooked.toml"
+power_on 10 pil-bm --drive-fault-at-s -1 --load-n 0 --plant "$OUT/unhooked.toml"
+"$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --decimation 4 --scenario bm-noload \
+  --duration-scale 0.25 --record "$OUT/bm.csv"
+wait "$RIG"
+
+say "3. the JAE's identification run through the link (jae-ident, quarter length), identified"
 power_on 15 pil-ident --drive-fault-at-s -1 --load-n 0
 # A record every 4th tick, as on the board, whose link carries about 590
 # records a second (78-byte frames at 460 800 baud): each record carries
@@ -75,18 +85,17 @@ power_on 15 pil-ident --drive-fault-at-s -1 --load-n 0
 "$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --decimation 4 --scenario jae-ident \
   --duration-scale 0.25 --magnetic --record "$OUT/calibration.csv"
 wait "$RIG"
-
-say "3. host-sim identify --procedure jae on the recorded run"
 "$HOST_SIM" identify --procedure jae --log "$OUT/calibration.csv" --config-out "$OUT/jae.toml" \
-  --json "$OUT/jae.json" | tail -n 8
+  | tail -n 8
 
-say "4. the no-load tension run through the link with jae.toml (tension-ident, quarter length), identified"
+say "4. the no-load tension run through the link with jae.toml (tension-ident, quarter length); all three identified"
 power_on 17 pil-tension --drive-fault-at-s -1 --load-n 0
 "$HOST_SIM" link --port "tcp:127.0.0.1:$PORT" --config "$OUT/jae.toml" --decimation 4 \
   --scenario tension-ident --duration-scale 0.25 --record "$OUT/tension.csv"
 wait "$RIG"
-"$HOST_SIM" identify --procedure tension --config "$OUT/jae.toml" --log "$OUT/tension.csv" \
-  --config-out "$OUT/identified.toml" --json "$OUT/identified.json" | tail -n 8
+"$HOST_SIM" identify --procedure all --log "bm=$OUT/bm.csv" "jae=$OUT/calibration.csv" \
+  "tension=$OUT/tension.csv" --config-out "$OUT/identified.toml" --json "$OUT/identified.json" \
+  | tail -n 12
 
 say "5. the loading scenario with identified.toml, recorded, with the live view"
 power_on 7 pil-loading --load-at-s 4.5 --drive-fault-at-s -1

@@ -70,6 +70,10 @@ pub enum Fault {
     /// A program that asks for a heartbeat received no request within its
     /// `command_timeout_s` (the host or the link is gone).
     CommandTimeout,
+    /// Slider 1 moved during a motor-only program (the no-load motor run,
+    /// [`crate::board::HomingConfig::motor_only`]): the rope wheel is
+    /// hooked to the cable after all, or slider 1 is not clamped.
+    TransmissionHooked,
     /// The firmware panicked; reported at the next boot from a word kept in
     /// RAM through the reset.
     Panic,
@@ -106,6 +110,7 @@ impl Fault {
             Fault::OriginDuringMotion => 22,
             Fault::Homing => 23,
             Fault::CommandTimeout => 24,
+            Fault::TransmissionHooked => 25,
             Fault::Panic => 30,
             Fault::HardFault => 31,
             Fault::Watchdog => 32,
@@ -133,6 +138,7 @@ impl Fault {
             22 => Fault::OriginDuringMotion,
             23 => Fault::Homing,
             24 => Fault::CommandTimeout,
+            25 => Fault::TransmissionHooked,
             30 => Fault::Panic,
             31 => Fault::HardFault,
             32 => Fault::Watchdog,
@@ -169,6 +175,9 @@ impl fmt::Display for Fault {
             Fault::OriginDuringMotion => f.write_str("origin switch hit during motion"),
             Fault::Homing => f.write_str("start-up check or homing failed"),
             Fault::CommandTimeout => f.write_str("no request within the program's command timeout"),
+            Fault::TransmissionHooked => {
+                f.write_str("slider 1 moved in a motor-only run: the rope wheel is hooked")
+            }
             Fault::Panic => f.write_str("firmware panic (before the last reset)"),
             Fault::HardFault => f.write_str("HardFault (before the last reset)"),
             Fault::Watchdog => f.write_str("watchdog reset: the control task stopped"),
@@ -190,7 +199,7 @@ mod tests {
                 seen[code as usize] = true;
             }
         }
-        assert_eq!(seen.iter().filter(|s| **s).count(), 21);
+        assert_eq!(seen.iter().filter(|s| **s).count(), 22);
         assert_eq!(Fault::from_code(5), None, "code 5 is retired");
         assert_eq!(Fault::from_code(0), None);
         assert_eq!(Fault::code_of(None), 0);

@@ -38,8 +38,8 @@ use crate::controller::{Command, PreparedConfig};
 /// or of a message's encoding (2: `Trajectory::Grip`; 3: the
 /// configuration's `fusion.stiffness_tolerance`; 4: its
 /// `cascade.kd_on_observer_rate`, `jae.sign_travel_m` and the Bouc–Wen
-/// effect kind).
-pub const LINK_VERSION: u8 = 4;
+/// effect kind; 5: the program's `homing.motor_only`).
+pub const LINK_VERSION: u8 = 5;
 
 /// The host link's baud rate on the prototype's serial port (USART2, 8N1:
 /// ten bits a byte on the line).

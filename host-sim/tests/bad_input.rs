@@ -658,7 +658,7 @@ fn identify_all_without_a_no_load_motor_run_keeps_b_m_and_says_so() {
     let start = dir.path().join("start.toml");
     std::fs::write(&start, "[dob]\nviscous_nm_s_rad = 2.5e-5\n").unwrap();
     let out_toml = dir.path().join("id.toml");
-    let mut tagged = |extra: &[&str]| {
+    let tagged = |extra: &[&str]| {
         let mut c = host_sim();
         c.args(["identify", "--procedure", "all", "--config"])
             .arg(&start)

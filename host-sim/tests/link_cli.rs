@@ -258,28 +258,60 @@ fn a_grip_with_datasheet_force_parameters_is_warned_before_the_board_is_touched(
     assert!(!calibration.contains("datasheet plant's"), "{calibration}");
 }
 
-/// The no-load motor run needs the rope wheel unhooked, and a program over
-/// the link starts with homing, which then cannot find the origin: `link`
-/// refuses `--scenario bm-noload` before it connects, and says what stays
-/// unidentified. The listener here would take a connection; none comes.
-#[test]
-fn a_no_load_motor_run_is_refused_before_the_board_is_touched() {
+/// The program `link --scenario NAME` sends first, as the firmware's link
+/// receives and checks it (a stand-in that acknowledges the heartbeat and
+/// the program, then closes).
+fn program_sent_for(scenario: &str) -> cable_joint::board::Program {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
     let port = listener.local_addr().unwrap().port();
+    let firmware = std::thread::spawn(move || {
+        let (mut s, _) = listener.accept().unwrap();
+        let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
+        let mut up_seq = 0u8;
+        let mut requests = Vec::new();
+        let mut buf = [0u8; 256];
+        while requests.len() < 2 {
+            let n = s.read(&mut buf).unwrap();
+            assert!(n > 0, "the host closed before its program");
+            for &b in &buf[..n] {
+                if let Pushed::Frame(len) = reader.push(b) {
+                    let r = receive(reader.frame(), len);
+                    send(
+                        &mut s,
+                        &mut up_seq,
+                        &Up::Ack {
+                            seq: r.seq,
+                            refused: None,
+                        },
+                    );
+                    requests.push(r.outcome.expect("a valid request"));
+                }
+            }
+        }
+        requests
+    });
     let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
-        .args(["--scenario", "bm-noload"])
+        .args(["--scenario", scenario, "--idle-timeout-s", "0.5"])
         .output()
         .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "{err}");
-    assert!(
-        err.contains("--scenario bm-noload") && err.contains("homing") && err.contains("B_m"),
-        "{err}"
-    );
-    listener.set_nonblocking(true).unwrap();
-    assert!(
-        listener.accept().is_err(),
-        "link connected before refusing: {err}"
-    );
+    let requests = firmware.join().unwrap();
+    assert!(!o.status.success(), "the stand-in closed the link");
+    match requests[1] {
+        cable_joint::board::Request::Program(p) => p,
+        other => panic!("second request {other:?}, not a program"),
+    }
+}
+
+/// The no-load motor run needs the rope wheel unhooked, where homing cannot
+/// find the origin: `link --scenario bm-noload` sends a motor-only program
+/// (no homing; the firmware faults if slider 1 moves), any other scenario
+/// one that homes.
+#[test]
+fn the_no_load_motor_run_is_sent_as_a_motor_only_program() {
+    let bm = program_sent_for("bm-noload");
+    assert!(bm.homing.motor_only);
+    assert_eq!(bm.command.mode, cable_joint::Mode::MotorPosition);
+    let jae = program_sent_for("jae-ident");
+    assert!(!jae.homing.motor_only);
 }

@@ -125,8 +125,9 @@ impl ControlLoop {
         self.tick
     }
 
-    /// Requests refused so far (a command before homing, a configuration
-    /// with another control rate).
+    /// Requests refused so far (a command before homing or, in a
+    /// motor-only program, one that drives the joint; a configuration with
+    /// another control rate).
     pub fn rejected_requests(&self) -> u32 {
         self.rejected
     }
@@ -155,11 +156,11 @@ impl ControlLoop {
                 true
             }
             Request::SetCommand(c) => {
-                let homed = self.seq.phase() == Phase::Running;
-                if homed {
+                let taken = self.seq.accepts(&c);
+                if taken {
                     self.ctrl.set_command(c);
                 }
-                homed
+                taken
             }
             Request::SetConfig(c) => {
                 // The control timer's period is set at boot: another rate

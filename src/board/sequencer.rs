@@ -36,6 +36,7 @@ use crate::controller::{Command, Controller, Mode, Output, RawSample};
 use crate::fault::Fault;
 use crate::math;
 use crate::trajectory::Trajectory;
+use crate::units::GratingCount;
 
 use super::io::Events;
 
@@ -55,7 +56,22 @@ pub struct HomingConfig {
     /// After homing, an origin edge farther than this from zero (joint
     /// estimate) is a fault, rad.
     pub origin_tolerance_rad: f32,
+    /// A motor-only program, the seed's no-load motor run (Sect. 4.2) for
+    /// `B_m`: the rope wheel is unhooked and slider 1 clamped, so the
+    /// origin switch on the joint side cannot be found and there is no
+    /// homing. After the check the counters are zeroed where the mechanism
+    /// rests, the slack checks are off (the motor holds no cable), and
+    /// only [`Mode::MotorPosition`] commands run. Slider 1 moving more
+    /// than [`MOTOR_ONLY_MAX_X1_M`] from where it rested is
+    /// [`Fault::TransmissionHooked`], latched before that tick's step.
+    pub motor_only: bool,
 }
+
+/// How far slider 1 may move in a motor-only program, m. Clamped, it moves
+/// by its grating's noise (a count or two); hooked, it follows the rope
+/// wheel at `r_m / z_i` = 0.17 mm per motor radian, so 50 µm is 0.29 motor
+/// rad, or 0.7° of the joint on its 4 mm pulley.
+pub const MOTOR_ONLY_MAX_X1_M: f32 = 50e-6;
 
 impl Default for HomingConfig {
     fn default() -> Self {
@@ -65,6 +81,7 @@ impl Default for HomingConfig {
             search_rad: 2.5,
             speed_rad_s: 2.0,
             origin_tolerance_rad: 0.1,
+            motor_only: false,
         }
     }
 }
@@ -143,6 +160,13 @@ impl Program {
     /// Check the homing settings, the command's trajectory and the timeout.
     pub fn validate(&self) -> Result<(), crate::ConfigError> {
         self.homing.validate()?;
+        if self.homing.motor_only && !motor_only_allows(&self.command) {
+            return Err(crate::ConfigError {
+                field: "program.command.mode",
+                expected: "MotorPosition or Idle in a motor-only program (homing.motor_only): \
+                           the joint is not driven with the rope wheel unhooked",
+            });
+        }
         self.command
             .trajectory
             .validate()
@@ -204,6 +228,12 @@ impl Phase {
     }
 }
 
+/// Whether a motor-only program ([`HomingConfig::motor_only`]) runs
+/// `command`: the motor's own position loop, or nothing.
+fn motor_only_allows(command: &Command) -> bool {
+    matches!(command.mode, Mode::MotorPosition | Mode::Idle)
+}
+
 /// The start-up state machine (configuration: the [`Program`]; state: phase
 /// and ticks in it).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -217,6 +247,8 @@ pub struct Sequencer {
     user_limits: Option<(f32, f32)>,
     /// Ticks since the last operator request (command timeout).
     ticks_since_request: u32,
+    /// In a motor-only program, slider 1's count where it rested.
+    motor_only_rest: Option<GratingCount>,
 }
 
 /// Ticks in `s` seconds at `period_s`, at least one.
@@ -251,8 +283,16 @@ impl Sequencer {
         self.restart(ctrl);
     }
 
+    /// Whether a command sent while running is taken: in a motor-only
+    /// program only the motor's own position loop (or idle) is.
+    pub fn accepts(&self, command: &Command) -> bool {
+        self.phase == Phase::Running
+            && (self.motor_only_rest.is_none() || motor_only_allows(command))
+    }
+
     /// Start again from the check (after a cleared fault).
     pub fn restart(&mut self, ctrl: &mut Controller) {
+        self.motor_only_rest = None;
         self.restore_range(ctrl);
         ctrl.set_command(Command::default());
         self.enter(if self.program.is_some() {
@@ -286,16 +326,16 @@ impl Sequencer {
         Ok(())
     }
 
-    /// Widen the range and slack checks for the search (unknown angle,
-    /// possibly slack cables).
-    fn widen_range(&mut self, ctrl: &mut Controller, homing: &HomingConfig) {
+    /// Widen the range check by `span_rad` each way and switch the slack
+    /// checks off: for the search (unknown angle, possibly slack cables),
+    /// or a motor-only run (span 0: the motor holds no cable).
+    fn widen_range(&mut self, ctrl: &mut Controller, span_rad: f32) {
         if self.user_limits.is_some() {
             return;
         }
         let mut l = ctrl.config().limits;
         let user = (l.max_joint_angle_rad, l.min_tension_fraction);
-        let span = math::abs(homing.search_rad);
-        l.max_joint_angle_rad = user.0 + 2.0 * span;
+        l.max_joint_angle_rad = user.0 + 2.0 * math::abs(span_rad);
         l.min_tension_fraction = 0.0;
         if ctrl.set_limits(l).is_ok() {
             self.user_limits = Some(user);
@@ -353,13 +393,29 @@ impl Sequencer {
             return None;
         }
         match self.phase {
-            Phase::Waiting | Phase::Running | Phase::Failed => None,
+            Phase::Running => {
+                if let Some(rest) = self.motor_only_rest {
+                    let moved = GratingCount(raw.grating1.0.wrapping_sub(rest.0));
+                    if math::abs(ctrl.config().scales.grating_m(moved)) > MOTOR_ONLY_MAX_X1_M {
+                        self.fail_with(ctrl, Fault::TransmissionHooked);
+                    }
+                }
+                None
+            }
+            Phase::Waiting | Phase::Failed => None,
             Phase::Check => {
                 if self.ticks_in_phase > ticks(h.check_s, ctrl.period_s()) {
                     // Counters relative to where the joint rests now.
                     ctrl.set_origin(raw);
                     self.last_ref_rad = 0.0;
-                    self.widen_range(ctrl, h);
+                    if h.motor_only {
+                        self.widen_range(ctrl, 0.0);
+                        self.motor_only_rest = Some(raw.grating1);
+                        ctrl.set_command(program.command);
+                        self.enter(Phase::Running);
+                        return Some(*raw);
+                    }
+                    self.widen_range(ctrl, h.search_rad);
                     if origin_level {
                         self.move_by(ctrl, h, -h.search_rad);
                         self.enter(Phase::Leaving);
@@ -526,6 +582,105 @@ mod tests {
         assert_eq!(out.mode, Mode::JointClosedLoop);
         assert_eq!(out.est.x2_m, 0.0, "counters zeroed at the origin sample");
         assert!(events.origin_expected(), "joint at zero: edges expected");
+    }
+
+    /// The no-load motor run's program: a motor-position hold.
+    fn motor_only() -> Program {
+        Program {
+            homing: HomingConfig {
+                motor_only: true,
+                ..HomingConfig::default()
+            },
+            command: Command {
+                mode: Mode::MotorPosition,
+                trajectory: Trajectory::Hold { angle_rad: 0.0 },
+            },
+            command_timeout_s: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_motor_only_program_runs_after_the_check_without_homing_and_without_slack_checks() {
+        let mut ctrl = Controller::new(config()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        let slack = ctrl.config().limits.min_tension_fraction;
+        assert!(slack > 0.0);
+        seq.start(&mut ctrl, motor_only());
+        let mut raw = rest();
+        raw.grating1 = GratingCount(-1_000);
+        for _ in 0..(0.05 * 2000.0) as usize {
+            run(&mut seq, &mut ctrl, &raw, false, false, &events);
+            assert_eq!(seq.phase(), Phase::Check);
+        }
+        let (origin, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        assert_eq!(origin, Some(raw), "the counters zeroed where it rests");
+        assert_eq!(
+            (seq.phase(), out.mode),
+            (Phase::Running, Mode::MotorPosition)
+        );
+        assert!(out.drive_enable);
+        assert_eq!(ctrl.config().limits.min_tension_fraction, 0.0);
+        // Only the motor's own loop (or idle) is taken while it runs.
+        let joint = Command {
+            mode: Mode::JointClosedLoop,
+            trajectory: Trajectory::Hold { angle_rad: 0.0 },
+        };
+        assert!(!seq.accepts(&joint));
+        assert!(seq.accepts(&motor_only().command));
+        assert!(seq.accepts(&Command::default()));
+        // A homed program takes the joint's commands.
+        let homed = Sequencer {
+            phase: Phase::Running,
+            ..Sequencer::default()
+        };
+        assert!(homed.accepts(&joint));
+        // A restart puts the user's slack check back.
+        seq.restart(&mut ctrl);
+        assert_eq!(ctrl.config().limits.min_tension_fraction, slack);
+        assert!(!seq.accepts(&motor_only().command));
+    }
+
+    #[test]
+    fn slider_1_moving_in_a_motor_only_program_disables_the_drive_on_that_tick() {
+        let mut ctrl = Controller::new(config()).unwrap();
+        let mut seq = Sequencer::default();
+        let events = Events::new();
+        seq.start(&mut ctrl, motor_only());
+        let mut raw = rest();
+        raw.grating1 = GratingCount(1_000);
+        for _ in 0..=(0.05 * 2000.0) as usize {
+            run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        }
+        assert_eq!(seq.phase(), Phase::Running);
+        let per_count = ctrl.config().scales.grating_m(GratingCount(1));
+        let limit_counts = (MOTOR_ONLY_MAX_X1_M / per_count) as i32;
+        // Within the limit either way: still running, drive on.
+        for d in [limit_counts, -limit_counts] {
+            raw.grating1 = GratingCount(1_000 + d);
+            let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+            assert_eq!(seq.phase(), Phase::Running, "{d} counts");
+            assert!(out.drive_enable && out.fault.is_none());
+        }
+        raw.grating1 = GratingCount(1_000 - limit_counts - 2);
+        let (_, out) = run(&mut seq, &mut ctrl, &raw, false, false, &events);
+        assert_eq!(seq.phase(), Phase::Failed);
+        assert_eq!(out.fault, Some(Fault::TransmissionHooked));
+        assert!(!out.drive_enable, "off on the tick that saw it");
+        assert_eq!(
+            ctrl.config().limits.min_tension_fraction,
+            config().limits.min_tension_fraction
+        );
+    }
+
+    #[test]
+    fn a_motor_only_program_that_drives_the_joint_is_refused() {
+        let mut p = motor_only();
+        assert!(p.validate().is_ok());
+        p.command.mode = Mode::JointClosedLoop;
+        let e = p.validate().unwrap_err();
+        assert_eq!(e.field, "program.command.mode");
+        assert!(Program::default().validate().is_ok());
     }
 
     #[test]

@@ -108,16 +108,6 @@ fn schedule(
         ..ScenarioOptions::default()
     };
     let p = plan(name, &opts)?;
-    if p.motor_decoupled {
-        bail!(
-            "--scenario {name} runs the motor with its rope wheel unhooked (seed Sect. 4.2), \
-             and a program over the link starts with homing, which then cannot find the \
-             origin (the switch is on the joint side): start-up would end in the homing \
-             fault, and with the wheel hooked the motor's sines would drive the joint. No \
-             board was touched. Without this run dob.viscous_nm_s_rad (B_m) stays the \
-             datasheet's; it enters the DOB as B_m phi', in motion and not at a hold"
-        );
-    }
     let mut t = 0.0;
     let mut commands = Vec::new();
     for seg in &p.segments {
@@ -132,7 +122,12 @@ fn schedule(
     };
     let first = commands.first().map_or(hold, |&(_, c)| c);
     let program = Program {
-        homing: HomingConfig::default(),
+        // `bm-noload` runs with the rope wheel unhooked: no homing, and
+        // the firmware faults if slider 1 moves (HomingConfig::motor_only).
+        homing: HomingConfig {
+            motor_only: p.motor_decoupled,
+            ..HomingConfig::default()
+        },
         command: first,
         // The host sends a heartbeat every 0.2 s of firmware time.
         command_timeout_s: 1.0,
@@ -198,8 +193,14 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
             client.request(&Down::Program(s.program))?;
             pending = s.commands.iter().skip(1).rev().copied().collect();
             eprintln!(
-                "scenario {}: check, homing, then {} commands over {:.1} s",
+                "scenario {}: check, {}then {} commands over {:.1} s",
                 args.scenario.as_deref().unwrap_or_default(),
+                if s.program.homing.motor_only {
+                    "no homing (motor only: the rope wheel unhooked, slider 1 clamped; \
+                     slider 1 moving is a fault), "
+                } else {
+                    "homing, "
+                },
                 s.commands.len(),
                 s.length_s
             );

@@ -148,9 +148,18 @@ pub fn after_homing(log: Log) -> anyhow::Result<(Log, Option<String>)> {
         Some(0) => Ok((log, None)),
         Some(first) => {
             let t = log.col("t_s").map_or(f64::NAN, |t| t[first]);
+            // A motor-only program (the no-load motor run) has no homing.
+            let homed = phase[..first].iter().any(|&p| {
+                p == f64::from(Phase::Leaving.code()) || p == f64::from(Phase::Homing.code())
+            });
+            let (before, ended) = if homed {
+                ("sensor check and homing", "homing ended")
+            } else {
+                ("sensor check", "the check ended (no homing)")
+            };
             let note = format!(
-                "the log starts with {first} rows of sensor check and homing (fw_phase < 4), \
-                 counted from power-on: replayed from row {} (t = {t:.3} s), where homing ended",
+                "the log starts with {first} rows of {before} (fw_phase < 4), counted from \
+                 power-on: replayed from row {} (t = {t:.3} s), where {ended}",
                 first + 1
             );
             let n = log.len();
@@ -499,6 +508,15 @@ mod tests {
         let note = note.expect("a cut is noted");
         assert!(note.contains("4 rows of sensor check and homing"), "{note}");
         assert!(note.contains("row 5 (t = 0.002 s)"), "{note}");
+        // A motor-only program: a check, no homing.
+        let (log, note) = after_homing(phased(&[0.0, 1.0, 1.0, 4.0])).unwrap();
+        assert_eq!(log.len(), 1);
+        let note = note.unwrap();
+        assert!(
+            note.contains("3 rows of sensor check (fw_phase < 4)")
+                && note.contains("the check ended (no homing)"),
+            "{note}"
+        );
     }
 
     #[test]

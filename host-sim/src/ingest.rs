@@ -175,7 +175,7 @@ pub fn after_homing(log: Log) -> anyhow::Result<(Log, Option<String>)> {
                     format!("its last row is in phase {p} ({name})")
                 },
             );
-            let fault = first_recorded_fault(&log, 0).map_or_else(String::new, |(k, code)| {
+            let fault = first_recorded_fault(&log).map_or_else(String::new, |(k, code)| {
                 format!(
                     ", after {} at line {}{}",
                     fault_words(code),
@@ -200,10 +200,10 @@ pub fn fault_words(code: u8) -> String {
         .map_or_else(|| format!("code {code}"), |f| format!("{f} (code {code})"))
 }
 
-/// The first row from `from` on whose `fault_code` is not 0, and the code.
-fn first_recorded_fault(log: &Log, from: usize) -> Option<(usize, u8)> {
+/// The first row whose `fault_code` is not 0, and the code.
+fn first_recorded_fault(log: &Log) -> Option<(usize, u8)> {
     let fault = log.col("fault_code")?;
-    let k = (from..fault.len()).find(|&k| fault[k] != 0.0)?;
+    let k = fault.iter().position(|&f| f != 0.0)?;
     Some((k, fault[k].clamp(0.0, 255.0) as u8))
 }
 
@@ -230,7 +230,7 @@ pub fn before_recorded_fault(
     name: &str,
     first_row: usize,
 ) -> anyhow::Result<(Log, Option<String>)> {
-    let Some((k, code)) = first_recorded_fault(&log, 0) else {
+    let Some((k, code)) = first_recorded_fault(&log) else {
         return Ok((log, None));
     };
     let t = log

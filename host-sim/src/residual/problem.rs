@@ -38,6 +38,7 @@ use super::generic::{generic_columns, generic_run};
 use super::select::{Problem, RunData};
 use crate::derive::{held_sign, held_sign_travelled, low_pass_column, median_period_s, TickReplay};
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
+use crate::ingest::ReplayEnd;
 use crate::log::{Log, Schema};
 
 /// Which model to fit.
@@ -145,16 +146,18 @@ pub fn load_log(
         return Ok(run.log);
     }
     if project {
-        return crate::ingest::read_for_replay(path, ticks_per_row, "residual", BEFORE_FAULT);
+        return crate::ingest::read_for_replay(
+            path,
+            ticks_per_row,
+            "residual",
+            ReplayEnd::BeforeFault,
+        );
     }
     refuse_ticks("a generic fit (--target) reads the rows as they are")?;
     let log = Log::read_with(path, &Schema::with_required(&["t_s"]))?;
     let name = path.display().to_string();
-    crate::ingest::trim_for_replay(log, &name, "residual", BEFORE_FAULT)
+    crate::ingest::trim_for_replay(log, &name, "residual", ReplayEnd::BeforeFault)
 }
-
-/// A fit ends where the firmware latched a fault.
-const BEFORE_FAULT: crate::ingest::ReplayEnd = crate::ingest::ReplayEnd::BeforeFault;
 
 /// A log with its name.
 #[derive(Clone, Debug)]

@@ -705,3 +705,50 @@ fn the_stiffness_tolerance_reaches_to_a_loose_spring_fit_when_the_datasheet_rate
         r.spring
     );
 }
+
+/// Identifying again from a configuration `identify` wrote, on the same
+/// calibration log, writes the same stiffness tolerance: the written one
+/// stands as the floor and is not added to. Drawn plant 76 (its spring
+/// measured 27 % stiff and written, then standing as the datasheet's on
+/// the second pass, as in `identify --procedure all --config jae.toml`)
+/// and drawn plant 72 at a row every 10th tick (the datasheet's rate
+/// kept). Until stop 45 each pass added `c4`'s part once more (drawn plant
+/// 72: 0.263 → 0.286 over five passes).
+#[test]
+fn identifying_again_from_the_written_configuration_keeps_the_stiffness_tolerance() {
+    let base = Config::default().at_rate(1000.0).0;
+    for (draw, every) in [(76, 1), (72, 10)] {
+        let plant = host_sim::report::variants::drawn(draw);
+        let full = simulate_on(plant, "jae-ident", &base, None, 42.0);
+        let log = if every > 1 {
+            recorded_every(&full, every, true)
+        } else {
+            full
+        };
+        let pass = |cfg: &Config| {
+            let r = identify_jae_with(&[("jae", &log)], cfg, &IdentOptions::default()).unwrap();
+            let mut out = *cfg;
+            r.apply(&mut out);
+            out
+        };
+        let first = pass(&base);
+        let second = pass(&first);
+        let third = pass(&second);
+        for (n, cfg) in [(2, &second), (3, &third)] {
+            assert_eq!(
+                cfg.fusion.stiffness_tolerance, first.fusion.stiffness_tolerance,
+                "drawn plant {draw}: pass {n}"
+            );
+            assert_eq!(
+                cfg.machine.spring_n_m, first.machine.spring_n_m,
+                "drawn plant {draw}"
+            );
+        }
+        if draw == 76 {
+            assert_ne!(
+                first.machine.spring_n_m, base.machine.spring_n_m,
+                "drawn plant 76's spring is measured on the first pass"
+            );
+        }
+    }
+}

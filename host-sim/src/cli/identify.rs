@@ -339,9 +339,15 @@ pub fn format_report(r: &IdentifyReport) -> String {
             sp.note
         );
         let [tol, tol_spring, tol_c4] = j.stiffness_tolerance;
+        let floor = if tol > tol_spring + tol_c4 {
+            " (at least the configuration's tolerance, the datasheet's or an earlier \
+             identification's, with its spring rate kept)"
+        } else {
+            ""
+        };
         let _ = writeln!(
             s,
-            "  -> fusion.stiffness_tolerance = {tol:.3}: the spring rate's relative uncertainty {tol_spring:.3} plus c4's through c4 r - 1, {tol_c4:.3}"
+            "  -> fusion.stiffness_tolerance = {tol:.3}: the spring rate's relative uncertainty {tol_spring:.3} plus c4's through c4 r - 1, {tol_c4:.3}{floor}"
         );
         let jf = &j.joint;
         let _ = writeln!(

@@ -100,13 +100,22 @@ impl JaeResult {
 
     /// Relative uncertainty of the cables' stiffnesses, the stretch
     /// estimate's force scale (`fusion.stiffness_tolerance`), given the
-    /// spring datasheet's tolerance: the spring rate's
-    /// ([`SpringFit::relative_uncertainty`](super::SpringFit::relative_uncertainty))
-    /// plus `c4`'s carried through `K_w2 = K_s / (c4 r - 1)`, two effective
-    /// standard deviations, `2 r std_eff(c4) / (c4 r - 1)`. Returns the
-    /// tolerance and its two parts ([`JaeResult::stiffness_tolerance`]).
-    fn scale_tolerance(&self, datasheet_tol: f64, pulley_radius_m: f64) -> [f64; 3] {
-        let spring = self.spring.relative_uncertainty(datasheet_tol);
+    /// configuration's `prior_tol`: the spring rate's
+    /// ([`SpringFit::relative_uncertainty`](super::SpringFit::relative_uncertainty),
+    /// with the datasheet's tolerance the lesser of `prior_tol` and a stock
+    /// spring's, the default configuration's 10 %) plus `c4`'s carried
+    /// through `K_w2 = K_s / (c4 r - 1)`, two effective standard
+    /// deviations, `2 r std_eff(c4) / (c4 r - 1)`. When the configuration's
+    /// spring rate stands, `prior_tol` is also the floor of the total: a
+    /// configuration an earlier identification wrote carries its measured
+    /// rate as the datasheet's and the uncertainty it was measured with,
+    /// which stays. So identifying again from a configuration `identify`
+    /// wrote, on the same log, writes the same tolerance; until stop 45
+    /// each pass added `c4`'s part once more. Returns the tolerance and
+    /// its two parts ([`JaeResult::stiffness_tolerance`]).
+    fn scale_tolerance(&self, prior_tol: f64, pulley_radius_m: f64) -> [f64; 3] {
+        let stock_tol = f64::from(Config::default().fusion.stiffness_tolerance);
+        let spring = self.spring.relative_uncertainty(prior_tol.min(stock_tol));
         let c4 = self.chi_s[3];
         let excess = c4 * pulley_radius_m - 1.0;
         let c4_part = self
@@ -115,7 +124,12 @@ impl JaeResult {
             .map(|std| 2.0 * pulley_radius_m * std / excess)
             .filter(|v| excess > 0.0 && v.is_finite())
             .unwrap_or(0.0);
-        [(spring + c4_part).min(1.0), spring, c4_part]
+        let measured = spring + c4_part;
+        let total = match self.spring.value() {
+            Some(_) => measured,
+            None => measured.max(prior_tol),
+        };
+        [total.min(1.0), spring, c4_part]
     }
 
     /// The JAE error the force bound allows beyond the sign band it builds

@@ -222,8 +222,8 @@ impl SpringFit {
     /// What the measurement's interval does to the force bound when the
     /// datasheet's rate is kept ([`Self::reach_n_m`]).
     fn interval_note(&self) -> String {
-        let (k, pct) = self.k_s_n_m;
-        let two_sigma = 0.02 * pct * k;
+        let k = self.k_s_n_m.0;
+        let two_sigma = self.two_sigma_n_m();
         format!(
             "the force bound's stiffness scale reaches to the fit's two-standard-deviation \
              interval, {:.0} to {:.0} N/m ({:.3} of the datasheet's rate), where that is further \
@@ -265,13 +265,20 @@ impl SpringFit {
     /// two-standard-deviation interval reaches, N/m (zero when the rate was
     /// not measured).
     pub fn reach_n_m(&self) -> f64 {
-        let (k, pct) = self.k_s_n_m;
-        let reach = (k - self.datasheet_n_m).abs() + 0.02 * pct * k;
+        let k = self.k_s_n_m.0;
+        let reach = (k - self.datasheet_n_m).abs() + self.two_sigma_n_m();
         if k > 0.0 && reach.is_finite() {
             reach
         } else {
             0.0
         }
+    }
+
+    /// Two standard deviations of the fitted rate, N/m (from its
+    /// `%sigma`).
+    fn two_sigma_n_m(&self) -> f64 {
+        let (k, pct) = self.k_s_n_m;
+        0.02 * pct * k.abs()
     }
 
     /// How far the rate may be off, N/m: two standard deviations, the
@@ -280,11 +287,11 @@ impl SpringFit {
     /// with the fit without the inertial column (the sweeps' rows cannot
     /// tell the spring from a mass there), whichever is largest.
     pub fn uncertainty_n_m(&self) -> f64 {
-        let (k, pct) = self.k_s_n_m;
+        let k = self.k_s_n_m.0;
         let finite_or_inf = |d: f64| if d.is_finite() { d } else { f64::INFINITY };
         let spread = finite_or_inf((self.halves_n_m.0 - self.halves_n_m.1).abs());
         let structure = finite_or_inf((k - self.without_inertia_n_m).abs());
-        (0.02 * pct * k.abs()).max(spread).max(structure)
+        self.two_sigma_n_m().max(spread).max(structure)
     }
 
     /// Write the measured rate into `machine.spring_n_m`; returns what was

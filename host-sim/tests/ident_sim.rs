@@ -710,9 +710,9 @@ fn the_stiffness_tolerance_reaches_to_a_loose_spring_fit_when_the_datasheet_rate
 /// calibration log, writes the same stiffness tolerance: the written one
 /// stands as the floor and is not added to. Drawn plant 76 (its spring
 /// measured 27 % stiff and written, then standing as the datasheet's on
-/// the second pass, as in `identify --procedure all --config jae.toml`)
-/// and drawn plant 72 at a row every 10th tick (the datasheet's rate
-/// kept). Until stop 45 each pass added `c4`'s part once more (drawn plant
+/// the second pass, as when `identify --procedure all` is given the first
+/// pass's configuration) and drawn plant 72 at a row every 10th tick (the
+/// datasheet's rate kept). Until stop 45 each pass added `c4`'s part once more (drawn plant
 /// 72: 0.263 → 0.286 over five passes).
 #[test]
 fn identifying_again_from_the_written_configuration_keeps_the_stiffness_tolerance() {

@@ -473,6 +473,8 @@ fn the_command_runs_all_three_and_writes_a_config_that_loads_back() {
         post_filter_hz: 0.0,
         bm_no_coulomb: false,
         ticks_per_row: None,
+        reference_tolerance: 0.01,
+        settle_s: 1.0,
     };
     let (rep, config) = identify(&args).unwrap();
     let (bm, jae, ten) = (

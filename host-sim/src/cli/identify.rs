@@ -9,7 +9,10 @@ use cable_joint::Config;
 use serde::Serialize;
 
 use crate::cli;
-use crate::ident::{identify_in_order, FitReport, IdentOptions, IdentifyReport, Runs};
+use crate::ident::{
+    calibrate_weights, identify_in_order, FitReport, IdentOptions, IdentifyReport, Runs,
+    WeightsFit, WeightsOptions,
+};
 use crate::io::config::stage_config;
 use crate::log::Log;
 use crate::output::Outputs;
@@ -27,6 +30,9 @@ pub enum Procedure {
     Tension,
     /// All three, in that order (each uses the previous results).
     All,
+    /// The stretch estimate's force scale from holds with known weights at
+    /// the tip (the reference force in `f_ext_n`), after `all`.
+    Weights,
 }
 
 /// Arguments of `host-sim identify`.
@@ -64,6 +70,15 @@ pub struct IdentifyArgs {
     #[arg(long, default_value_t = IdentOptions::default().holdoff_s,
           value_parser = cli::f64_in(0.0, 1e6))]
     pub holdoff_s: f64,
+    /// Weights: relative tolerance of the reference force itself (the
+    /// weights' mass and the lever arm they hang at).
+    #[arg(long, default_value_t = WeightsOptions::default().reference_tolerance,
+          value_parser = cli::f64_in(0.0, 1.0))]
+    pub reference_tolerance: f64,
+    /// Weights: time after the reference settled before a hold's rows count, s.
+    #[arg(long, default_value_t = WeightsOptions::default().settle_s,
+          value_parser = cli::f64_in(0.0, 1e6))]
+    pub settle_s: f64,
     /// Do not pass the regressors through the DOB's low-pass (the seed's plain fit).
     #[arg(long)]
     pub no_filter: bool,
@@ -97,6 +112,7 @@ fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, Path
             "bm" => Procedure::Bm,
             "jae" => Procedure::Jae,
             "tension" => Procedure::Tension,
+            "weights" => Procedure::Weights,
             _ => return None,
         };
         Some((p, PathBuf::from(file)))
@@ -171,6 +187,34 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
     let fits = assign(&args.log, args.procedure)?;
     let vals = assign(&args.validate, args.procedure)?;
+    if args.procedure == Procedure::Weights {
+        let wopts = WeightsOptions {
+            settle_s: args.settle_s,
+            reference_tolerance: args.reference_tolerance,
+            ..WeightsOptions::default()
+        };
+        let (fit, val) = (
+            read_logs(&fits, Procedure::Weights, args.ticks_per_row)?,
+            read_logs(&vals, Procedure::Weights, args.ticks_per_row)?,
+        );
+        let (w, calibrated) = calibrate_weights(&refs(&fit), &refs(&val), &config, &wopts)?;
+        let rep = IdentifyReport {
+            weights: Some(w),
+            ..IdentifyReport::default()
+        };
+        return Ok((rep, calibrated));
+    }
+    if let Some((_, f)) = fits
+        .iter()
+        .chain(&vals)
+        .find(|(p, _)| *p == Procedure::Weights)
+    {
+        bail!(
+            "`{}` is tagged weights=: the weights calibration runs on its own, after \
+             the other procedures (--procedure weights --config <their output>)",
+            f.display()
+        );
+    }
     let wants = |p: Procedure| args.procedure == p || args.procedure == Procedure::All;
     // Every log is read before the first fit: a bad file fails fast.
     let mut read = Vec::new();
@@ -279,9 +323,66 @@ pub fn format_stats(e: &ErrorStats) -> String {
     )
 }
 
+/// The weights calibration as text: the scale, what it wrote, and every
+/// hold before and after.
+fn format_weights(w: &WeightsFit) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "force scale from known weights ({} holds, {} logs fitted): the stretch estimate changes by {:.4} N per newton of reference (%sigma {:.2})",
+        w.holds.iter().filter(|h| h.fitted).count(),
+        w.logs_fitted,
+        w.scale.0,
+        w.scale.1
+    );
+    let _ = writeln!(
+        s,
+        "  -> machine.spring_n_m {:.1} -> {:.1} N/m, the stretch cables' stiffnesses with it; \
+         fusion.stiffness_tolerance {:.3} -> {:.3}",
+        w.spring_n_m.0, w.spring_n_m.1, w.stiffness_tolerance.0, w.stiffness_tolerance.1,
+    );
+    let validation = if w.validation_error_n.0.is_nan() {
+        "no validation log with a change of load".to_owned()
+    } else {
+        format!(
+            "validation {:.4} -> {:.4} N",
+            w.validation_error_n.0, w.validation_error_n.1
+        )
+    };
+    let _ = writeln!(
+        s,
+        "  the stretch estimate's change less the reference's, RMS over the holds (each log about its own zero): fitted {:.4} -> {:.4} N, {validation}",
+        w.fit_error_n.0, w.fit_error_n.1
+    );
+    let _ = writeln!(
+        s,
+        "  {:<28} {:>6} {:>15} {:>10} {:>20} {:>20}",
+        "log", "set", "settled, s", "ref, N", "stretch before/after", "fused before/after"
+    );
+    for h in &w.holds {
+        let _ = writeln!(
+            s,
+            "  {:<28} {:>6} {:>7.1}-{:<7.1} {:>10.3} {:>9.3} {:>10.3} {:>9.3} {:>10.3}",
+            h.log,
+            if h.fitted { "fit" } else { "valid." },
+            h.t_s.0,
+            h.t_s.1,
+            h.reference_n,
+            h.stretch_before_n,
+            h.stretch_after_n,
+            h.fused_before_n,
+            h.fused_after_n
+        );
+    }
+    s
+}
+
 /// The whole report as text.
 pub fn format_report(r: &IdentifyReport) -> String {
     let mut s = String::new();
+    if let Some(w) = &r.weights {
+        s.push_str(&format_weights(w));
+    }
     if let Some(b) = &r.bm {
         s.push_str(&format_fit(&b.fit));
         if let Some(p) = b.coulomb_dropped_pct_sigma {

@@ -91,6 +91,7 @@ mod sequence;
 mod spring;
 mod tension;
 mod terms;
+mod weights;
 
 pub use bm::{decoupled, identify_bm, identify_bm_with, validate_bm};
 pub use jae::{identify_jae, identify_jae_with, validate_jae};
@@ -108,3 +109,4 @@ pub use terms::{
     nonnegative_by_physics, physically_required, ModelTerm, Regressor, BM_TERMS, JAE_TERMS,
     MAX_REGRESSORS, MODEL_A, MODEL_B, MODEL_C, SIMPLIFIED_C,
 };
+pub use weights::{calibrate_weights, WeightsFit, WeightsHold, WeightsOptions};

@@ -164,6 +164,8 @@ pub struct IdentifyReport {
     pub jae: Option<JaeResult>,
     /// Tension models.
     pub tension: Option<TensionResult>,
+    /// The stretch estimate's force scale from known weights.
+    pub weights: Option<super::WeightsFit>,
     /// Errors on the validation logs.
     pub validation: Vec<Validation>,
     /// Options used.

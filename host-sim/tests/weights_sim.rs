@@ -6,6 +6,7 @@ use std::process::Command;
 
 use cable_joint::Config;
 use host_sim::ident::{calibrate_weights, identify_jae_with, IdentOptions, WeightsOptions};
+use host_sim::io::config::load_config;
 use host_sim::log::Log;
 use host_sim::plant::PlantParams;
 use host_sim::scenario::{self, Direction, ScenarioOptions};
@@ -183,4 +184,58 @@ fn weights_without_a_reference_or_a_change_of_load_are_refused_and_nothing_is_wr
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("weights"), "{err}");
     assert!(!out.exists(), "nothing written");
+}
+
+/// A rig's recording has no `f_ext_n`: the weights given as steps by the
+/// log's time (`FILE@T0=F0,...`) calibrate exactly as the same logs with the
+/// column (default plant, four holds at 0°).
+#[test]
+fn weights_given_as_steps_by_time_calibrate_as_the_reference_column_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = Config::default();
+    let (mut with_column, mut with_steps) = (Vec::new(), Vec::new());
+    for m in [100.0, 250.0] {
+        for d in [Direction::Pos, Direction::Neg] {
+            let mut log = loading(PlantParams::default(), &config, 0.0, m, d);
+            let name = format!("w{m}{d:?}");
+            let full = dir.path().join(format!("{name}.csv"));
+            log.write(&full).unwrap();
+            with_column.push(full.display().to_string());
+            // The column's steps, as an operator would note them.
+            let (t, f) = (
+                log.time_s().unwrap().to_vec(),
+                log.col("f_ext_n").unwrap().to_vec(),
+            );
+            let mut steps = vec![format!("{}={}", t[0], f[0])];
+            for k in 1..t.len() {
+                if f[k] != f[k - 1] {
+                    steps.push(format!("{}={}", t[k], f[k]));
+                }
+            }
+            assert!(steps.len() >= 2, "the loading case changes its load");
+            log.remove_col("f_ext_n");
+            let bare = dir.path().join(format!("{name}-bare.csv"));
+            log.write(&bare).unwrap();
+            with_steps.push(format!("{}@{}", bare.display(), steps.join(",")));
+        }
+    }
+    let run = |logs: &[String], out: &str| {
+        let out = dir.path().join(out);
+        let mut args = vec!["identify", "--procedure", "weights", "--log"];
+        args.extend(logs.iter().map(String::as_str));
+        args.extend(["--config-out", out.to_str().unwrap()]);
+        let o = host_sim(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            std::fs::read_to_string(&out).unwrap(),
+            load_config(&out).unwrap(),
+        )
+    };
+    let (a, b) = (run(&with_column, "a.toml"), run(&with_steps, "b.toml"));
+    assert_eq!(a.0, b.0);
+    assert!(
+        a.1.fusion.stiffness_tolerance < config.fusion.stiffness_tolerance,
+        "a calibration was written: {:?}",
+        a.1.fusion
+    );
 }

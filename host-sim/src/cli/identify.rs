@@ -10,8 +10,8 @@ use serde::Serialize;
 
 use crate::cli;
 use crate::ident::{
-    calibrate_weights, identify_in_order, FitReport, IdentOptions, IdentifyReport, Runs,
-    WeightsFit, WeightsOptions,
+    calibrate_weights, identify_in_order, parse_reference_steps, set_reference_steps, FitReport,
+    IdentOptions, IdentifyReport, Runs, WeightsFit, WeightsOptions,
 };
 use crate::io::config::stage_config;
 use crate::log::Log;
@@ -43,7 +43,10 @@ pub struct IdentifyArgs {
     pub procedure: Procedure,
     /// Logs to fit (CSV). With `all`: three logs in the order bm, jae,
     /// tension, or any number as `bm=FILE`, `jae=FILE`, `tension=FILE`
-    /// (`bm=` may be left out: `B_m` then stays the configuration's).
+    /// (`bm=` may be left out: `B_m` then stays the configuration's). With
+    /// `weights`: logs with the reference force in `f_ext_n`, or
+    /// `FILE@T0=F0,T1=F1,...` giving it as steps (force F_k N from the
+    /// log's time T_k s).
     #[arg(long, num_args = 1.., required = true)]
     pub log: Vec<String>,
     /// Logs to validate on (not used for the fit); same form as `--log`.
@@ -165,6 +168,37 @@ fn read_logs(
         .collect()
 }
 
+/// The weights procedure's logs, each `FILE` with its own `f_ext_n` or
+/// `FILE@T0=F0,T1=F1,...` with the reference force as steps by the log's
+/// time (a rig's recording, which has none).
+fn read_weight_logs(
+    files: &[(Procedure, PathBuf)],
+    ticks_per_row: Option<u32>,
+) -> Result<Vec<(String, Log)>> {
+    let mut out = Vec::new();
+    for (_, arg) in files.iter().filter(|(q, _)| *q == Procedure::Weights) {
+        let text = arg.display().to_string();
+        let (path, steps) = match text.rsplit_once('@') {
+            Some((path, spec)) if spec.contains('=') => {
+                (PathBuf::from(path), Some(parse_reference_steps(spec)?))
+            }
+            _ => (arg.clone(), None),
+        };
+        let mut log = crate::ingest::read_for_replay(
+            &path,
+            ticks_per_row,
+            "identify",
+            crate::ingest::ReplayEnd::BeforeFault,
+        )?;
+        let label = path.display().to_string();
+        if let Some(steps) = steps {
+            set_reference_steps(&mut log, &steps, &label)?;
+        }
+        out.push((label, log));
+    }
+    Ok(out)
+}
+
 fn refs(logs: &[(String, Log)]) -> Vec<(&str, &Log)> {
     logs.iter().map(|(l, g)| (l.as_str(), g)).collect()
 }
@@ -194,8 +228,8 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
             ..WeightsOptions::default()
         };
         let (fit, val) = (
-            read_logs(&fits, Procedure::Weights, args.ticks_per_row)?,
-            read_logs(&vals, Procedure::Weights, args.ticks_per_row)?,
+            read_weight_logs(&fits, args.ticks_per_row)?,
+            read_weight_logs(&vals, args.ticks_per_row)?,
         );
         let (w, calibrated) = calibrate_weights(&refs(&fit), &refs(&val), &config, &wopts)?;
         let rep = IdentifyReport {

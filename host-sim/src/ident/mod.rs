@@ -109,4 +109,7 @@ pub use terms::{
     nonnegative_by_physics, physically_required, ModelTerm, Regressor, BM_TERMS, JAE_TERMS,
     MAX_REGRESSORS, MODEL_A, MODEL_B, MODEL_C, SIMPLIFIED_C,
 };
-pub use weights::{calibrate_weights, WeightsFit, WeightsHold, WeightsOptions};
+pub use weights::{
+    calibrate_weights, parse_reference_steps, set_reference_steps, WeightsFit, WeightsHold,
+    WeightsOptions,
+};

@@ -11,7 +11,9 @@
 //! tolerance that says how far it may be off. A load the user knows measures
 //! the scale directly: hang weights at the tip while the joint holds, record
 //! the holds with the reference force in `f_ext_n`, and
-//! `identify --procedure weights` compares the stretch estimate with it.
+//! `identify --procedure weights` compares the stretch estimate with it (a
+//! recording without the column takes the weights as steps by its time,
+//! [`parse_reference_steps`]).
 //!
 //! # The fit
 //!
@@ -119,6 +121,57 @@ pub struct WeightsFit {
     pub fit_error_n: (f64, f64),
     /// The same over the validation logs' holds (NaN without any), N.
     pub validation_error_n: (f64, f64),
+}
+
+/// A step reference written as `T0=F0,T1=F1,...`: the force `F_k`, N,
+/// from the log's time `T_k`, s, until the next step (strictly increasing
+/// times; before the first, not measured).
+pub fn parse_reference_steps(spec: &str) -> Result<Vec<(f64, f64)>> {
+    let mut steps: Vec<(f64, f64)> = Vec::new();
+    for part in spec.split(',') {
+        let parsed = part.split_once('=').and_then(|(t, f)| {
+            let (t, f) = (t.trim().parse::<f64>().ok()?, f.trim().parse::<f64>().ok()?);
+            (t.is_finite() && f.is_finite()).then_some((t, f))
+        });
+        let Some((t, f)) = parsed else {
+            bail!(
+                "`{part}` in the reference steps `{spec}` is not TIME_S=FORCE_N (finite numbers)"
+            );
+        };
+        if let Some(&(before, _)) = steps.last() {
+            if t <= before {
+                bail!(
+                    "the reference steps `{spec}` go back in time at `{part}` (after {before} s)"
+                );
+            }
+        }
+        steps.push((t, f));
+    }
+    Ok(steps)
+}
+
+/// Write the step reference `steps` ([`parse_reference_steps`]) into
+/// `log`'s `f_ext_n` by its `t_s`; refused when the log has its own.
+pub fn set_reference_steps(log: &mut Log, steps: &[(f64, f64)], label: &str) -> Result<()> {
+    if log.has("f_ext_n") {
+        bail!(
+            "`{label}` has its own f_ext_n column: give the reference steps or the column, \
+             not both"
+        );
+    }
+    let t = log.time_s()?.to_vec();
+    let values: Vec<Option<f64>> = t
+        .iter()
+        .map(|&t| {
+            steps
+                .iter()
+                .rev()
+                .find(|(from, _)| t >= *from)
+                .map(|&(_, f)| f)
+        })
+        .collect();
+    log.set_col_opt("f_ext_n", &values)?;
+    Ok(())
 }
 
 /// A settled hold's means.
@@ -500,6 +553,44 @@ mod tests {
             .collect();
         let e = fit_scale(&two, &WeightsOptions::default(), 1.0, 2).unwrap_err();
         assert!(e.to_string().contains("degrees of freedom"), "{e}");
+    }
+
+    #[test]
+    fn reference_steps_fill_the_load_from_each_time_and_refuse_what_they_cannot_read() {
+        assert_eq!(
+            parse_reference_steps("0=0, 5.5=0.981,9=0").unwrap(),
+            vec![(0.0, 0.0), (5.5, 0.981), (9.0, 0.0)]
+        );
+        for (bad, says) in [
+            ("0=0,5", "is not TIME_S=FORCE_N"),
+            ("0=0,x=1", "is not TIME_S=FORCE_N"),
+            ("0=0,inf=1", "is not TIME_S=FORCE_N"),
+            ("1=0,1=2", "go back in time"),
+        ] {
+            let e = parse_reference_steps(bad).unwrap_err().to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+        let mut log = Log::with_columns(&["t_s", "x1_m"]).unwrap();
+        for k in 0..8 {
+            log.push_row(&[f64::from(k), 0.0]).unwrap();
+        }
+        set_reference_steps(&mut log, &[(1.0, 0.0), (3.0, 2.0), (6.0, 0.0)], "w").unwrap();
+        let f = log.col_opt("f_ext_n").unwrap();
+        let want = [
+            None,
+            Some(0.0),
+            Some(0.0),
+            Some(2.0),
+            Some(2.0),
+            Some(2.0),
+            Some(0.0),
+            Some(0.0),
+        ];
+        assert_eq!(f, want);
+        let e = set_reference_steps(&mut log, &[(0.0, 1.0)], "w")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("its own f_ext_n"), "{e}");
     }
 
     #[test]

@@ -18,7 +18,9 @@
 #               their mean; worst0.3 the same over the 30 g holds
 #   faults      holds that latched a fault
 #
-#   bash scripts/weights-heldout.sh 70 89 /tmp/weights    # about 5 minutes
+#   bash scripts/weights-heldout.sh 70 89 /tmp/weights    # about 6 minutes
+#   EVERY=10 bash scripts/weights-heldout.sh 70 89 /tmp/w10  # calibration and
+#       weight holds recorded at a row every 10th tick, as the board streams
 #
 # Needs python3 for the statistics. Writes everything under OUT.
 set -euo pipefail
@@ -30,6 +32,7 @@ mkdir -p "$out"; out="$(cd "$out" && pwd)"
 "$H" report --quiet --draws "$first-$last" --no-effects --out "$out/report" \
   >"$out/report.log" 2>&1
 printf 'control_rate_hz = 1000.0\n' > "$out/1khz.toml"
+R=(); [ "${EVERY:-1}" != 1 ] && R=(--record-every "$EVERY")
 
 stats() {
   python3 - "$@" <<'EOF'
@@ -65,16 +68,16 @@ for d in $(seq "$first" "$last"); do
   P="$out/report/variants/draw-$d/plant.toml"
   w="$out/draw-$d"; mkdir -p "$w"; cd "$w"
   C=(); [ $((d % 2)) -eq 0 ] && C=(--config "$out/1khz.toml")
-  "$H" simulate --scenario bm-noload --plant "$P" "${C[@]}" --out bm.csv >/dev/null
-  "$H" simulate --scenario jae-ident --plant "$P" "${C[@]}" --out cal.csv >/dev/null
-  "$H" identify --procedure jae --log cal.csv "${C[@]}" --config-out id1.toml >id1.txt
-  "$H" simulate --scenario tension-ident --plant "$P" --config id1.toml --out ten.csv >/dev/null
+  "$H" simulate --scenario bm-noload --plant "$P" "${C[@]}" "${R[@]}" --out bm.csv >/dev/null 2>&1
+  "$H" simulate --scenario jae-ident --plant "$P" "${C[@]}" "${R[@]}" --out cal.csv >/dev/null 2>&1
+  "$H" identify --procedure jae --log cal.csv "${C[@]}" --config-out id1.toml >id1.txt 2>&1
+  "$H" simulate --scenario tension-ident --plant "$P" --config id1.toml "${R[@]}" --out ten.csv >/dev/null 2>&1
   "$H" identify --procedure all --log bm=bm.csv jae=cal.csv tension=ten.csv \
-    --config id1.toml --config-out id.toml >id.txt
+    --config id1.toml --config-out id.toml >id.txt 2>&1
   W=()
   for m in 100 250; do for dir in pos neg; do
     "$H" simulate --scenario loading --plant "$P" --config id.toml --angle-deg 0 \
-      --mass-g $m --direction $dir --seed 5 --out "w_${m}_${dir}.csv" >/dev/null
+      --mass-g $m --direction $dir --seed 5 "${R[@]}" --out "w_${m}_${dir}.csv" >/dev/null 2>&1
     W+=("w_${m}_${dir}.csv")
   done; done
   if "$H" identify --procedure weights --log "${W[@]}" --config id.toml \
@@ -88,7 +91,7 @@ for d in $(seq "$first" "$last"); do
     mkdir -p "holds_$c"
     for a in 0 30 -40; do for m in 30 100 250; do for dir in pos neg; do
       "$H" simulate --scenario loading --plant "$P" --config "$c.toml" --angle-deg "$a" \
-        --mass-g $m --direction $dir --seed 3 --out "holds_$c/${a}_${m}_${dir}.csv" >/dev/null
+        --mass-g $m --direction $dir --seed 3 --out "holds_$c/${a}_${m}_${dir}.csv" >/dev/null 2>&1
     done; done; done
     echo "draw $d $c $(stats holds_$c/*.csv)"
     rm -f holds_$c/*.csv

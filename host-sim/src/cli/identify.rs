@@ -156,16 +156,19 @@ fn read_logs(
     files
         .iter()
         .filter(|(q, _)| *q == p)
-        .map(|(_, f)| {
-            let log = crate::ingest::read_for_replay(
-                f,
-                ticks_per_row,
-                "identify",
-                crate::ingest::ReplayEnd::BeforeFault,
-            )?;
-            Ok((f.display().to_string(), log))
-        })
+        .map(|(_, f)| Ok((f.display().to_string(), read_replay(f, ticks_per_row)?)))
         .collect()
+}
+
+/// One log as `identify` replays it: from the end of homing to the first
+/// latched fault.
+fn read_replay(path: &std::path::Path, ticks_per_row: Option<u32>) -> Result<Log> {
+    crate::ingest::read_for_replay(
+        path,
+        ticks_per_row,
+        "identify",
+        crate::ingest::ReplayEnd::BeforeFault,
+    )
 }
 
 /// The weights procedure's logs, each `FILE` with its own `f_ext_n` or
@@ -184,12 +187,7 @@ fn read_weight_logs(
             }
             _ => (arg.clone(), None),
         };
-        let mut log = crate::ingest::read_for_replay(
-            &path,
-            ticks_per_row,
-            "identify",
-            crate::ingest::ReplayEnd::BeforeFault,
-        )?;
+        let mut log = read_replay(&path, ticks_per_row)?;
         let label = path.display().to_string();
         if let Some(steps) = steps {
             set_reference_steps(&mut log, &steps, &label)?;

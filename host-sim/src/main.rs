@@ -46,7 +46,7 @@ enum Command {
     Payload(host_sim::cli::payload::PayloadArgs),
     /// Design an identification excitation (Fourier series, least condition number) for `--scenario excite`.
     Excite(host_sim::cli::excite::ExciteArgs),
-    /// Identify B_m, the JAE and the tension models from logs; write the configuration.
+    /// Identify B_m, the JAE and the tension models from logs, or the force scale from known weights; write the configuration.
     Identify(host_sim::cli::identify::IdentifyArgs),
     /// Replay a log (any rate) through the core; write every estimate and the force bound.
     Estimate(host_sim::cli::estimate::EstimateArgs),

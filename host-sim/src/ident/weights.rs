@@ -242,14 +242,10 @@ fn holds(
     Ok(points)
 }
 
-/// Each point's `(reference, estimate)` about its log's means, for the logs
-/// whose reference changes by at least `min_step_n`, and how many logs
-/// those are.
-fn about_log_means(
-    points: &[Point],
-    estimate: &[f64],
-    min_step_n: f64,
-) -> (Vec<(f64, f64)>, usize) {
+/// Each point's `(reference, stretch estimate)` about its log's means, for
+/// the logs whose reference changes by at least `min_step_n`, and how many
+/// logs those are.
+fn about_log_means(points: &[Point], min_step_n: f64) -> (Vec<(f64, f64)>, usize) {
     let (mut out, mut used) = (Vec::new(), 0);
     let mut logs: Vec<usize> = points.iter().map(|p| p.log).collect();
     logs.dedup();
@@ -265,10 +261,10 @@ fn about_log_means(
         }
         let n = idx.len() as f64;
         let r0 = refs.sum::<f64>() / n;
-        let e0 = idx.iter().map(|&i| estimate[i]).sum::<f64>() / n;
+        let e0 = idx.iter().map(|&i| points[i].stretch_n).sum::<f64>() / n;
         out.extend(
             idx.iter()
-                .map(|&i| (points[i].reference_n - r0, estimate[i] - e0)),
+                .map(|&i| (points[i].reference_n - r0, points[i].stretch_n - e0)),
         );
         used += 1;
     }
@@ -288,17 +284,24 @@ fn direction_spread(points: &[Point], min_step_n: f64) -> f64 {
             .signum()
     };
     let scale = |sign: f64| {
-        let part: Vec<&Point> = points.iter().filter(|p| way(p.log) == sign).collect();
-        let own: Vec<Point> = part.into_iter().copied().collect();
-        let est: Vec<f64> = own.iter().map(|p| p.stretch_n).collect();
-        let (pairs, _) = about_log_means(&own, &est, min_step_n);
-        let sxx: f64 = pairs.iter().map(|(r, _)| r * r).sum();
-        (sxx > 0.0).then(|| pairs.iter().map(|(r, e)| r * e).sum::<f64>() / sxx)
+        let own: Vec<Point> = points
+            .iter()
+            .filter(|p| way(p.log) == sign)
+            .copied()
+            .collect();
+        slope(&about_log_means(&own, min_step_n).0)
     };
     match (scale(1.0), scale(-1.0)) {
         (Some(a), Some(b)) => (a - b).abs(),
         _ => 0.0,
     }
+}
+
+/// The least-squares slope through the origin of `(reference, estimate)`
+/// pairs (`None` when the reference does not change).
+fn slope(pairs: &[(f64, f64)]) -> Option<f64> {
+    let sxx: f64 = pairs.iter().map(|(r, _)| r * r).sum();
+    (sxx > 0.0).then(|| pairs.iter().map(|(r, e)| r * e).sum::<f64>() / sxx)
 }
 
 /// The two-sided 95 % quantile of Student's t with `dof` degrees of
@@ -309,13 +312,16 @@ fn student_t_975(dof: usize) -> f64 {
         2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056,
         2.052, 2.048, 2.045, 2.042,
     ];
-    T.get(dof.wrapping_sub(1)).copied().unwrap_or(1.96)
+    dof.checked_sub(1)
+        .and_then(|i| T.get(i))
+        .copied()
+        .unwrap_or(1.96)
 }
 
-/// RMS of `estimate − reference` about each log's means (NaN when no log
-/// changes its reference).
-fn change_error_n(points: &[Point], estimate: &[f64], min_step_n: f64) -> f64 {
-    let (d, _) = about_log_means(points, estimate, min_step_n);
+/// RMS of the stretch estimate less the reference about each log's means
+/// (NaN when no log changes its reference).
+fn change_error_n(points: &[Point], min_step_n: f64) -> f64 {
+    let (d, _) = about_log_means(points, min_step_n);
     crate::stats::rms(&d.iter().map(|(r, e)| e - r).collect::<Vec<_>>())
 }
 
@@ -328,11 +334,9 @@ fn fit_scale(
     prior: f64,
     logs_given: usize,
 ) -> Result<ScaleFit> {
-    let stretch: Vec<f64> = fitted.iter().map(|p| p.stretch_n).collect();
-    let (pairs, logs_fitted) = about_log_means(fitted, &stretch, opts.min_step_n);
-    let sxx: f64 = pairs.iter().map(|(r, _)| r * r).sum();
+    let (pairs, logs_fitted) = about_log_means(fitted, opts.min_step_n);
     let dof = pairs.len() as i64 - logs_fitted as i64 - 1;
-    if logs_fitted == 0 || sxx <= 0.0 {
+    let Some(s) = slope(&pairs).filter(|_| logs_fitted > 0) else {
         bail!(
             "no log changes its reference force by {} N or more between settled holds \
              ({} holds of at least {} s, {} s after the reference settled, in {} logs): \
@@ -343,7 +347,7 @@ fn fit_scale(
             opts.settle_s,
             logs_given
         );
-    }
+    };
     if dof < 2 {
         bail!(
             "{} settled holds in {} logs leave {} degrees of freedom for the scale's \
@@ -354,7 +358,7 @@ fn fit_scale(
             dof.max(0)
         );
     }
-    let s = pairs.iter().map(|(r, e)| r * e).sum::<f64>() / sxx;
+    let sxx: f64 = pairs.iter().map(|(r, _)| r * r).sum();
     let sse: f64 = pairs.iter().map(|(r, e)| (e - s * r).powi(2)).sum();
     let std = (sse / dof as f64 / sxx).sqrt();
     let pct = 100.0 * std / s.abs();
@@ -426,9 +430,18 @@ pub fn calibrate_weights(
     let mut holds_out = Vec::new();
     let mut errors = [(f64::NAN, f64::NAN); 2];
     for (set, runs) in [fit, validate].into_iter().enumerate() {
-        let (mut before, mut after) = (Vec::new(), Vec::new());
+        // The fitted logs' holds with the configuration given are `fitted`.
+        let replayed = set == 0;
+        let mut before = if replayed {
+            std::mem::take(&mut fitted)
+        } else {
+            Vec::new()
+        };
+        let mut after = Vec::new();
         for (i, (label, log)) in runs.iter().enumerate() {
-            before.extend(holds(label, i, log, config, opts)?);
+            if !replayed {
+                before.extend(holds(label, i, log, config, opts)?);
+            }
             after.extend(holds(label, i, log, &calibrated, opts)?);
         }
         if before.len() != after.len() {
@@ -451,10 +464,9 @@ pub fn calibrate_weights(
                 fused_after_n: a.fused_n,
             });
         }
-        let est = |v: &[Point]| v.iter().map(|p| p.stretch_n).collect::<Vec<_>>();
         errors[set] = (
-            change_error_n(&before, &est(&before), opts.min_step_n),
-            change_error_n(&after, &est(&after), opts.min_step_n),
+            change_error_n(&before, opts.min_step_n),
+            change_error_n(&after, opts.min_step_n),
         );
     }
     Ok((

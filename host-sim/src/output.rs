@@ -20,6 +20,11 @@
 //!
 //! [`write_atomic`] is the one-output case.
 //!
+//! What a command prints on standard output goes through [`stdout!`](crate::stdout) and
+//! [`stdoutln!`](crate::stdoutln): a reader that goes away early (`host-sim
+//! residual ... | head`) ends the printing, not the command, so the files
+//! it was asked for are still written and it exits as it would have.
+//!
 //! ```
 //! use host_sim::output::Outputs;
 //! let dir = tempfile::tempdir().unwrap();
@@ -35,6 +40,7 @@ use std::fmt;
 use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// An output that could not be written: which target, and why.
 #[derive(Debug)]
@@ -410,6 +416,42 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let mut out = Outputs::new();
     out.bytes(path, bytes)?;
     out.commit().map(drop)
+}
+
+/// Set by the first write to standard output that failed: the reader has
+/// gone away (a closed pipe) or the file behind it cannot take more.
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Print `args` on standard output, flushed. Once a write has failed
+/// nothing more is printed, and nothing panics: `println!` would panic on
+/// the closed pipe of `host-sim ... | head` before the command wrote its
+/// files. Through [`stdout!`](crate::stdout) and [`stdoutln!`](crate::stdoutln).
+pub fn print_stdout(args: fmt::Arguments<'_>) {
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        return;
+    }
+    let mut out = io::stdout().lock();
+    if out.write_fmt(args).and_then(|()| out.flush()).is_err() {
+        STDOUT_CLOSED.store(true, Ordering::Relaxed);
+    }
+}
+
+/// `print!` for the commands' standard output, which a closed pipe does
+/// not stop ([`print_stdout`]).
+#[macro_export]
+macro_rules! stdout {
+    ($($arg:tt)*) => {
+        $crate::output::print_stdout(format_args!($($arg)*))
+    };
+}
+
+/// `println!` for the commands' standard output, which a closed pipe does
+/// not stop ([`print_stdout`]).
+#[macro_export]
+macro_rules! stdoutln {
+    ($($arg:tt)*) => {
+        $crate::output::print_stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
 }
 
 #[cfg(test)]

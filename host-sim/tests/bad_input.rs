@@ -95,6 +95,38 @@ fn residual_writes_neither_output_when_one_cannot_be_written() {
     assert_eq!(dir_entries(d), ["c.toml", "run.csv"]);
 }
 
+/// `host-sim residual ... | head`: the reader of standard output goes away
+/// before the command has printed its table. The command still writes
+/// every file it was asked for and exits as it would have; it does not
+/// panic on the closed pipe (as `println!` does) before writing them.
+#[test]
+fn a_reader_that_goes_away_does_not_cost_the_commands_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = simulated(d, "track-motor", 3.0, "run.csv");
+    let (config, json) = (d.join("c.toml"), d.join("r.json"));
+    let mut child = host_sim()
+        .args(["residual", "--model", "jae", "--log"])
+        .arg(&log)
+        .arg("--config-out")
+        .arg(&config)
+        .arg("--json")
+        .arg(&json)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("host-sim runs");
+    // Close the only read end before the command writes anything.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("host-sim ends");
+    let err = stderr(&out);
+    assert!(out.status.success(), "exit {:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(config.is_file() && json.is_file(), "{:?}", dir_entries(d));
+    let text = std::fs::read_to_string(&json).unwrap();
+    assert!(text.trim_end().ends_with('}'), "a whole JSON report");
+}
+
 #[cfg(unix)]
 #[test]
 fn outputs_refuse_a_fifo_and_new_files_are_mode_0644() {

@@ -56,8 +56,8 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         eprintln!("{w}");
     }
     out.write(&args.out)?;
-    println!("{}", format_summary(&name, &s));
-    println!("wrote {} ({} rows)", args.out.display(), s.rows);
+    crate::stdoutln!("{}", format_summary(&name, &s));
+    crate::stdoutln!("wrote {} ({} rows)", args.out.display(), s.rows);
     Ok(())
 }
 

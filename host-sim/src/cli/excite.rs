@@ -107,7 +107,7 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
         ..replacing
     };
     let before = excite::condition(&references, PREDICTION_RATE_HZ);
-    println!(
+    crate::stdoutln!(
         "{}: {:.1} s, {}; predicted condition number {before:.1}",
         args.like,
         hand_made.duration_s(),
@@ -143,7 +143,7 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     )?;
     let run_references = run.references();
     let after = excite::condition(&run_references, PREDICTION_RATE_HZ);
-    println!(
+    crate::stdoutln!(
         "excite: {:.1} s ({:.1} s of {:.3} Hz, 1 s hold, 1 s return), {}; predicted condition number {after:.1} ({:.2}x {}), {} evaluations",
         run.duration_s(),
         design.duration_s,
@@ -162,13 +162,13 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
         .zip(b.iter())
         .map(|(a, b)| format!("{:.2}", b / a))
         .collect();
-    println!(
+    crate::stdoutln!(
         "predicted std ratio per column [q'', q', sgn, q, 1]: {}",
         ratios.join(" ")
     );
     write_atomic(&args.out, excite::to_toml(&design)?.as_bytes())
         .with_context(|| format!("writing {}", args.out.display()))?;
-    println!(
+    crate::stdoutln!(
         "wrote {}: `host-sim simulate --scenario excite --excitation {0} --out run.csv`, on the rig `host-sim link ... --scenario excite --excitation {0} --magnetic --record run.csv`",
         args.out.display()
     );

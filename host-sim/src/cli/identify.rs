@@ -551,7 +551,7 @@ pub fn format_report(r: &IdentifyReport) -> String {
 /// Run the subcommand.
 pub fn run(args: IdentifyArgs) -> Result<()> {
     let (rep, config) = identify(&args)?;
-    print!("{}", format_report(&rep));
+    crate::stdout!("{}", format_report(&rep));
     // The configuration and the report are written together, or neither is.
     let mut out = Outputs::new();
     stage_config(&mut out, &args.config_out, &config)?;
@@ -560,13 +560,13 @@ pub fn run(args: IdentifyArgs) -> Result<()> {
         out.bytes(p, text.as_bytes())?;
     }
     out.commit()?;
-    println!("configuration written to {}", args.config_out.display());
+    crate::stdoutln!("configuration written to {}", args.config_out.display());
     let written = args.config_out.display().to_string();
     if let Some(w) = crate::io::config::datasheet_force_warning(&config, &written) {
         eprintln!("{w}");
     }
     if let Some(p) = &args.json {
-        println!("report written to {}", p.display());
+        crate::stdoutln!("report written to {}", p.display());
     }
     Ok(())
 }

@@ -72,7 +72,7 @@ pub fn run(args: ImportArgs) -> anyhow::Result<()> {
         ImportFormat::Mrdlab => {
             let run = import_mrdlab_run(&args.input)?;
             run.log.write(&args.out)?;
-            println!("{} -> {}", summary(&run), args.out.display());
+            crate::stdoutln!("{} -> {}", summary(&run), args.out.display());
         }
     }
     Ok(())

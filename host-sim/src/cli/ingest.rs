@@ -67,7 +67,7 @@ pub fn run(args: IngestArgs) -> anyhow::Result<()> {
     );
     if args.stats {
         if let Some(s) = cycle_stats(&ticks) {
-            println!("{s}");
+            crate::stdoutln!("{s}");
         }
     }
     Ok(())

@@ -143,7 +143,7 @@ impl PayloadArgs {
 /// `host-sim payload`.
 pub fn run(args: PayloadArgs) -> Result<()> {
     let (report, estimates) = analyse(&args.options())?;
-    print!("{}", format_report(&report));
+    crate::stdout!("{}", format_report(&report));
     // Every output is written, or none is.
     let mut out = Outputs::new();
     if let Some(path) = &args.json {
@@ -157,7 +157,7 @@ pub fn run(args: PayloadArgs) -> Result<()> {
         plot_runs(&mut out, &estimates, dir)?;
     }
     for p in out.commit()? {
-        println!("wrote {}", p.display());
+        crate::stdoutln!("wrote {}", p.display());
     }
     Ok(())
 }

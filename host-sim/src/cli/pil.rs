@@ -72,7 +72,7 @@ pub fn run(args: PilArgs) -> anyhow::Result<()> {
         "wrote {}/{{pil.csv, host.csv, pil.txt}}",
         args.out.display()
     ))?;
-    println!("{summary}");
+    crate::stdoutln!("{summary}");
     eprintln!(
         "wrote {}/{{pil.csv, host.csv, pil.txt}}",
         args.out.display()

@@ -108,7 +108,7 @@ impl ReportArgs {
 pub fn run(args: ReportArgs) -> Result<()> {
     let mut r = generate(&args.options())?;
     let text = write(&mut r)?;
-    print!("{text}");
+    crate::stdout!("{text}");
     Ok(())
 }
 

@@ -146,7 +146,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         holdout_with_validate: false,
     };
     let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
-    print!("{}", report::table(&a));
+    crate::stdout!("{}", report::table(&a));
     // Every output is staged first and written only if all of them can be:
     // a failure leaves every existing file as it was.
     let mut out = Outputs::new();
@@ -172,7 +172,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         .map(|p| p.display().to_string())
         .collect();
     if !written.is_empty() {
-        println!("wrote {}", written.join(", "));
+        crate::stdoutln!("wrote {}", written.join(", "));
     }
     Ok(())
 }

@@ -190,7 +190,7 @@ fn fmt_stats(s: &Option<Summary>) -> String {
 pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     if args.list {
         for s in SCENARIOS {
-            println!("{:<14} seed {:<4} {}", s.name, s.seed, s.description);
+            crate::stdoutln!("{:<14} seed {:<4} {}", s.name, s.seed, s.description);
         }
         return Ok(());
     }
@@ -202,7 +202,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     }
     plant.validate()?;
     if args.print_plant {
-        print!("{}", plant.to_toml_string()?);
+        crate::stdout!("{}", plant.to_toml_string()?);
         return Ok(());
     }
     let name = args
@@ -229,7 +229,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     }
     outputs.commit()?;
     let effects = plant.effects.enabled();
-    println!(
+    crate::stdoutln!(
         "{}: seed {}, {} rows{}, {:.2} s simulated{} -> {}",
         summary.name,
         summary.seed,
@@ -249,27 +249,27 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     // Under a grip the reference is the force law's, not a trajectory:
     // its distance from the joint says nothing about tracking.
     if summary.grip.is_none() {
-        println!(
+        crate::stdoutln!(
             "  tracking (desired - magnetic): {}",
             fmt_stats(&summary.tracking)
         );
     }
-    println!(
+    crate::stdoutln!(
         "  JAE (estimate - magnetic):     {}",
         fmt_stats(&summary.jae)
     );
     if let Some((mean, max)) = summary.force_error_n {
-        println!(
+        crate::stdoutln!(
             "  force estimate (DOB) in stable regions: mean error {mean:+.3} N, max |error| {max:.3} N"
         );
     }
     if let Some((mean, max)) = summary.force_stretch_error_n {
-        println!(
+        crate::stdoutln!(
             "  force estimate (stretch) in stable regions: mean error {mean:+.3} N, max |error| {max:.3} N"
         );
     }
     if let Some(g) = &summary.grip {
-        println!(
+        crate::stdoutln!(
             "  grip at {:.2} N, true force over its last second: {:.3} N ({:+.1} %), overshoot {:.1} %, within ±5 % {}",
             g.set_n,
             g.steady_true_n,
@@ -278,7 +278,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             g.settling_s
                 .map_or("never".to_owned(), |t| format!("after {t:.2} s")),
         );
-        println!(
+        crate::stdoutln!(
             "  grip: fused estimate {:.3} N, bound [{:.3}, {:.3}] N, covers the true force on {:.0} % of that second",
             g.steady_est_n,
             g.steady_lo_n,
@@ -287,7 +287,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         );
     }
     if let Some(f) = summary.fault {
-        println!("  FAULT latched: {f} (code {})", f.code());
+        crate::stdoutln!("  FAULT latched: {f} (code {})", f.code());
     }
     Ok(())
 }

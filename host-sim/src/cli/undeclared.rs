@@ -79,8 +79,8 @@ pub fn run(args: UndeclaredArgs) -> Result<()> {
     out.bytes(&json, serde_json::to_string_pretty(&p)?.as_bytes())?;
     out.commit()?;
     for l in programme::summary(&p) {
-        println!("{l}");
+        crate::stdoutln!("{l}");
     }
-    println!("wrote {} and {}", md.display(), json.display());
+    crate::stdoutln!("wrote {} and {}", md.display(), json.display());
     Ok(())
 }

@@ -507,10 +507,19 @@ mod tests {
             assert_ne!(o.record.fault, 0);
             assert!(!o.record.drive_enable && o.record.current_ref_a == 0.0);
         }
-        let first_fault = rec.outcomes.iter().find(|o| o.record.fault != 0).unwrap();
-        if first_fault.record.tick as usize == fault_tick {
-            assert_eq!(first_fault.record.fault, Fault::DriveFault.code());
-        }
+        // And the fault line is what cut it: no fault before it, the drive
+        // on until then, and the line's own fault code on that tick.
+        let first_fault = rec
+            .outcomes
+            .iter()
+            .position(|o| o.record.fault != 0)
+            .unwrap();
+        assert_eq!(first_fault, fault_tick, "the first fault latched elsewhere");
+        assert_eq!(
+            rec.outcomes[fault_tick].record.fault,
+            Fault::DriveFault.code()
+        );
+        assert!(rec.outcomes[fault_tick - 1].record.drive_enable);
         // The trace round-trips.
         let bytes = rec.trace_bytes();
         let t = cable_joint::board::Trace::parse(&bytes).unwrap();

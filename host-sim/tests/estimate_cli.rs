@@ -94,7 +94,11 @@ fn a_1khz_log_runs_with_the_default_configuration_and_says_what_it_derived() {
     }
     assert_eq!(s.first_fault, None, "no false fault on a clean loading run");
     // The bound is a bound: it covers the applied force on nearly every row
-    // (the ramps' filter lag may leave a few out) and is not vacuous.
+    // (the ramps' filter lag may leave a few out) and is finite. With the
+    // datasheet's bands and nothing identified it is wide: about -0.7 to
+    // 2.8 N around this 0.98 N hold, so it cannot tell the weight from none
+    // (measured while checking this test; the identified configurations'
+    // widths are the report's).
     let r = s.against_reference.expect("the log has f_ext_n");
     assert!(r.coverage >= 0.95, "coverage {}", r.coverage);
     assert!(

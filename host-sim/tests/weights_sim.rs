@@ -88,21 +88,23 @@ fn known_weights_recover_the_force_scale_where_the_spring_fit_through_the_motor_
         "the stretch estimate read the load {:.3} times",
         w.scale.0
     );
+    // Recovered: the calibrated rate (the stretch estimate's scale, written
+    // as the spring's) nearer the plant's spring than a quarter of the
+    // datasheet's distance from it.
+    let truth = plant.spring.stiffness_n_m;
+    let off = |k: f32| (f64::from(k) / truth - 1.0).abs();
     assert!(
-        calibrated.machine.spring_n_m < config.machine.spring_n_m,
-        "{:?}",
-        w.spring_n_m
+        off(calibrated.machine.spring_n_m) < 0.25 * off(config.machine.spring_n_m),
+        "{:?} for the plant's {truth:.0} N/m, the datasheet's {}",
+        w.spring_n_m,
+        config.machine.spring_n_m
     );
     let tol = f64::from(calibrated.fusion.stiffness_tolerance);
     assert!(tol < f64::from(config.fusion.stiffness_tolerance), "{w:?}");
-    // Each fitted log's loaded hold against its unloaded one.
-    for pair in w
-        .holds
-        .iter()
-        .filter(|h| h.fitted)
-        .collect::<Vec<_>>()
-        .chunks(2)
-    {
+    // Each fitted log's loaded hold against its unloaded one: four logs.
+    let fitted: Vec<_> = w.holds.iter().filter(|h| h.fitted).collect();
+    assert_eq!(fitted.len(), 2 * fit.len(), "{:?}", w.holds);
+    for pair in fitted.chunks(2) {
         let [zero, load] = pair else {
             panic!("two holds per fitted log: {pair:?}");
         };

@@ -724,6 +724,8 @@ mod tests {
             assert!(out.est.theta_ref_rad <= last, "leaving moves negative");
             last = out.est.theta_ref_rad;
         }
+        // A reference that stood still would pass the loop above.
+        assert!(last < -1e-4, "left by {last} rad in 100 ticks");
         run(&mut seq, &mut ctrl, &rest(), false, false, &events);
         assert_eq!(seq.phase(), Phase::Homing);
     }

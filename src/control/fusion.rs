@@ -527,8 +527,9 @@ mod tests {
     }
 
     /// A load seen by both estimates: the bound contains it, and where the
-    /// DOB is narrow (slider 1 slipping) the intersection is tighter than
-    /// either interval alone.
+    /// two intervals overlap without one holding the other (here the
+    /// stretch reads 0.3 N high, inside its band) the intersection is
+    /// tighter than either interval alone.
     #[test]
     fn intersection_is_tighter_than_either_and_contains_a_consistent_load() {
         let (f, c) = fusion();
@@ -543,7 +544,7 @@ mod tests {
             tension1_dob_n: c.tension.f_0_n + fric + tension,
             tension1_model_n: c.tension.f_0_n + fric,
             tension1_friction_n: fric,
-            joint_torque_nm: load_n * m.gripper_length_m + c.fusion.pin_coulomb_nm,
+            joint_torque_nm: (load_n + 0.3) * m.gripper_length_m + c.fusion.pin_coulomb_nm,
             ..FusionIn::default()
         };
         let mut out = FusionOut::default();
@@ -554,6 +555,19 @@ mod tests {
         }
         assert_eq!(out.flags, 0, "both sliders slip, consistent");
         assert!(out.lo_n <= load_n && load_n <= out.hi_n, "{out:?}");
+        let width = |(lo, hi): (f32, f32)| hi - lo;
+        let (dob, stretch) = (s.sources.dob_n, s.sources.stretch_n);
+        assert!(
+            dob.0 < stretch.0 && dob.1 < stretch.1,
+            "overlapping, not nested: {:?}",
+            s.sources
+        );
+        let fused = out.hi_n - out.lo_n;
+        assert!(
+            fused < width(dob) - 0.1 && fused < width(stretch) - 0.1,
+            "{fused} N against {:?}",
+            s.sources
+        );
         assert!((out.f_ext_n - load_n).abs() < 0.5 * (out.hi_n - out.lo_n) + 1e-6);
     }
 

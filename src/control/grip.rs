@@ -270,7 +270,8 @@ mod tests {
         for k in [40.0, 400.0] {
             let (f, peak, k_hat) = close_on_spring(k, 2.0, 3.0);
             assert!((f - 2.0).abs() < 0.02, "k {k}: force {f}");
-            assert!(peak < 2.0 * 1.2, "k {k}: peak {peak}");
+            // No overshoot beyond the settling tolerance.
+            assert!(peak < 2.0 + 0.02, "k {k}: peak {peak}");
             assert!(
                 k_hat > 0.5 * k && k_hat < 1.5 * k,
                 "k {k}: measured {k_hat}"

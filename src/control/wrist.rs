@@ -472,23 +472,30 @@ mod tests {
         }
     }
 
-    /// Eq. 5 on exact data: jaws squeezing an object with 2 N each (equal
-    /// and opposite in the wrist frame) give a clamp force of 2 N and a
-    /// total force of zero across the closing direction.
+    /// Eq. 5 on exact data: jaws squeezing an object with 2 N each give a
+    /// clamp force of 2 N and no net force across the closing direction,
+    /// at a pose where every component is observed (pitched wrist). Jaw
+    /// A's closing direction in the wrist frame is `y2` turned by `-q3`
+    /// about `x2`, `(0, cos q3, -sin q3)`, jaw B's its mirror image through
+    /// the `x2 z2` plane, `(0, -cos q3, -sin q3)`: the `x` and `y` parts of
+    /// the squeeze cancel and the `z` parts add to `-4 sin q3` N (both
+    /// jaws push the object out along the wrist's axis).
     #[test]
     fn eq5_a_pure_squeeze_has_its_clamp_force_and_no_net_force() {
         let g = Geometry::default();
-        let (q2, q3) = (0.0, 0.2);
+        let (q2, q3) = (0.6, 0.2);
         let squeeze = [0.0f32, 2.0, 0.0];
         let a = jaw_force(&g, q2, q3, tau_of(&g, q2, q3, squeeze));
         let b = jaw_force(&g, q2, q3, tau_of(&g, q2, q3, squeeze));
+        assert_eq!(a.observable, [true, true, true]);
         let cp = clamp_force(a.force_n[1], b.force_n[1]);
         assert!((cp.mid() - 2.0).abs() < 1e-5 && cp.width() < 1e-5);
         let total = total_force(&a, q3, &b, q3);
-        assert!(total[0].mid().abs() < 1e-5);
-        // y: jaw A pushes +y2 by 2 cos q3 (plus its unobserved F_z's share),
-        // jaw B -y2 by as much: with F_z unobservable the bound says so.
-        assert!(total[1].lo.is_infinite() && total[1].hi.is_infinite());
+        let want = [0.0, 0.0, -4.0 * q3.sin()];
+        for (got, want) in total.iter().zip(want) {
+            assert!((got.mid() - want).abs() < 1e-4, "{total:?}");
+            assert!(got.width() < 1e-4, "{total:?}");
+        }
     }
 
     #[test]

@@ -211,6 +211,58 @@ mod tests {
         }
     }
 
+    /// Where the two rules part: a real viscous term `b x2'` (well
+    /// determined alone) beside a junk column nearly collinear with it
+    /// (`x1''` = `x2'` plus a little noise, correlation 0.9993). In the
+    /// full fit both are above 5 %. One at a time drops the junk (the worse
+    /// `%sigma`), after which `b` is pinned down and kept at its value; the
+    /// seed's all-at-once rule drops both.
+    #[test]
+    fn one_at_a_time_keeps_a_term_that_all_at_once_drops_with_its_collinear_twin() {
+        const TERMS6: [ModelTerm; 6] = [
+            term(Regressor::SgnX1Vel, "f_sc1", "N"),
+            term(Regressor::SgnX2Vel, "f_cp2", "N"),
+            term(Regressor::X2, "K_s", "N/m"),
+            term(Regressor::One, "F_0", "N"),
+            term(Regressor::X2Vel, "b", "N s/m"),
+            term(Regressor::X1Acc, "m_0", "kg"),
+        ];
+        let mut rng = Rng(0xc011_1ea4);
+        let mut d = design(400, 0.3, &mut rng);
+        let (mut v, mut twin) = (Vec::new(), Vec::new());
+        for (k, y) in d.y.iter_mut().enumerate() {
+            let vel = 3.9e-3 * (k as f64 * 1.3e-3).cos();
+            v.push(vel);
+            twin.push(vel + 1e-4 * rng.normal());
+            *y += 200.0 * vel;
+        }
+        d.cols[4] = v;
+        d.cols.push(twin);
+        let all: Vec<usize> = (0..TERMS6.len()).collect();
+        let opts = IdentOptions::default();
+        let first = solve(&d, &all, &opts).unwrap();
+        assert!(first.pct_sigma(4) > 5.0 && first.pct_sigma(5) > 5.0);
+        let one = prune(&d, &TERMS6, first.clone(), &opts).unwrap();
+        let regs = |p: &Pruned| -> Vec<Regressor> {
+            p.active.iter().map(|j| TERMS6[*j].regressor).collect()
+        };
+        assert!(regs(&one).contains(&Regressor::X2Vel), "{:?}", regs(&one));
+        assert!(!regs(&one).contains(&Regressor::X1Acc), "{:?}", regs(&one));
+        let b = one.fit.params[one.active.iter().position(|&j| j == 4).unwrap()];
+        assert!((b - 200.0).abs() < 0.05 * 200.0, "b = {b}");
+        let seed = IdentOptions {
+            prune_all_at_once: true,
+            ..IdentOptions::default()
+        };
+        let all_at_once = prune(&d, &TERMS6, first, &seed).unwrap();
+        assert!(
+            !regs(&all_at_once).contains(&Regressor::X2Vel)
+                && !regs(&all_at_once).contains(&Regressor::X1Acc),
+            "{:?}",
+            regs(&all_at_once)
+        );
+    }
+
     #[test]
     fn collinear_friction_signs_are_kept_with_their_sum_determined() {
         let mut rng = Rng(42);

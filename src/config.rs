@@ -1388,6 +1388,13 @@ mod tests {
         // allows all of model C's Coulomb total.
         assert!((c.fusion.pin_coulomb_nm - 19.65e-3).abs() < 0.1e-3);
         assert!((ub - 35.17e-3).abs() < 0.1e-3, "{ub}");
+        assert!(c.fusion.pin_coulomb_nm <= ub);
+        // The bound is the pin's share plus slider 1's band at the pulley.
+        let slider1_nm = c.tension.f_sc1_n * c.machine.pulley_radius_m;
+        assert!(
+            (ub - c.fusion.pin_coulomb_nm - slider1_nm).abs() < 1e-6,
+            "{ub}"
+        );
         let mut lumped = c;
         lumped.tension.f_sc1_n += lumped.tension.f_cp2_n;
         lumped.tension.f_cp2_n = 0.0;

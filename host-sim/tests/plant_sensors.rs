@@ -74,8 +74,10 @@ fn current_monitor_noise_and_offset() {
 }
 
 /// Over many motor revolutions (many 16-bit wraps) the controller's motor
-/// angle stays within one count of the truth, and the gratings within one
-/// micrometre: the raw samples carry the quantized truth.
+/// angle stays within half a count of the truth: the raw samples carry the
+/// quantized truth through the wraps. (The gratings' counts and their wrap
+/// are `counters_quantize_and_wrap`'s; with the motor decoupled here the
+/// sliders do not move.)
 #[test]
 fn controller_reads_the_quantized_truth() {
     let p = PlantParams {

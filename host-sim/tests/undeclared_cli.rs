@@ -5,6 +5,8 @@
 
 use std::process::Command;
 
+use host_sim::residual::programme::VISIBLE_RISE;
+
 #[test]
 fn the_smallest_programme_writes_one_judged_row_per_effect() {
     let dir = tempfile::tempdir().unwrap();
@@ -57,8 +59,42 @@ fn the_smallest_programme_writes_one_judged_row_per_effect() {
             r["after_rmse"].as_f64() <= r["before_rmse"].as_f64(),
             "{effect}"
         );
+        // The verdict the row's own numbers and terms give: below the noise
+        // when the effect raised the error by less than VISIBLE_RISE, else
+        // named when the first term the clean run did not also take is of
+        // the effect's family.
         let verdict = r["verdict"].as_str().unwrap();
-        assert!(["below_noise", "named", "missed"].contains(&verdict));
+        let (clean, before) = (
+            r["clean_rmse"].as_f64().unwrap(),
+            r["before_rmse"].as_f64().unwrap(),
+        );
+        let strs = |k: &str| -> Vec<String> {
+            r[k].as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_str().unwrap().to_owned())
+                .collect()
+        };
+        let (expected, classes) = (strs("expected"), strs("classes"));
+        let also_clean: Vec<bool> = r["also_clean"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_bool().unwrap())
+            .collect();
+        let first_new = classes
+            .iter()
+            .zip(also_clean.iter().chain(std::iter::repeat(&false)))
+            .find(|(_, c)| !**c)
+            .map(|(c, _)| c);
+        let want = if before < VISIBLE_RISE * clean {
+            "below_noise"
+        } else if first_new == expected.first() {
+            "named"
+        } else {
+            "missed"
+        };
+        assert_eq!(verdict, want, "{effect}: {r}");
     }
     assert_eq!(
         json["clean"].as_array().unwrap().len(),

@@ -1834,7 +1834,16 @@ mod tests {
         }
         let k = at.expect("the tracking check must trip");
         assert!(i_ref.abs() > 0.5, "the loop asked for {i_ref} A");
-        assert!(k < 40, "within 20 ms: tick {k}");
+        // At the predicted tick, not merely within 20 ms: a filter several
+        // times too slow would still trip inside that.
+        let cfg = Config::default();
+        let limit = cfg.limits.max_current_error_a;
+        let trip_s = -cfg.limits.current_error_time_s * libm::logf(1.0 - limit / i_ref.abs());
+        let predicted = trip_s * cfg.control_rate_hz;
+        assert!(
+            (k as f32 - predicted).abs() <= 2.0 + 0.1 * predicted,
+            "tick {k}, predicted {predicted:.1} ({limit} A limit, {i_ref} A asked)"
+        );
     }
 
     #[test]

@@ -695,6 +695,17 @@ mod tests {
         let out = f.update(&mut s, &input);
         assert_ne!(out.flags & flags::INCONSISTENT, 0);
         assert!(out.lo_n < 0.0 && out.hi_n > 15.0, "{out:?}");
+        // The hull of the two intervals, the point in the middle of the gap.
+        let (d, st) = (s.sources.dob_n, s.sources.stretch_n);
+        assert!(d.0 > st.1 || st.0 > d.1, "they overlap: {:?}", s.sources);
+        let near = |a: f32, b: f32| math::abs(a - b) < 1e-4;
+        assert!(
+            near(out.lo_n, d.0.min(st.0)) && near(out.hi_n, d.1.max(st.1)),
+            "{out:?} from {:?}",
+            s.sources
+        );
+        let gap = 0.5 * (d.0.max(st.0) + d.1.min(st.1));
+        assert!(near(out.f_ext_n, gap), "{out:?} from {:?}", s.sources);
     }
 
     /// A slow creep below the switching speed still counts as a slip after

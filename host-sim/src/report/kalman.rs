@@ -237,6 +237,14 @@ mod tests {
         };
         let white = step(Design::White, (5.0 / g * rate) as usize);
         assert!((white.last().unwrap() - 1.0).abs() < 0.02, "{white:?}");
+        // At the low-pass's pace: a first-order response's 1 - e^-1 and
+        // 1 - e^-2 one and two time constants `1/g` after the step.
+        assert!(white[0] < 0.2, "{}", white[0]);
+        for n in [1.0, 2.0] {
+            let got = white[(n / g * rate) as usize];
+            let want = 1.0 - (-n).exp();
+            assert!((got - want).abs() < 0.05, "{n}/g: {got} against {want}");
+        }
         let states = step(
             Design::FrictionStates { tau_s },
             (5.0 * tau_s * rate) as usize,

@@ -42,6 +42,10 @@ pub struct EstimateSummary {
     /// Mean width of the bound over the rows before the first fault, N
     /// (NaN when the fault came at the first row).
     pub mean_bound_width_n: f64,
+    /// Share of the rows before the first fault whose bound excludes zero
+    /// force (`lo > 0` or `hi < 0`): where it does not, the estimate cannot
+    /// tell a load from none, nor its direction.
+    pub excludes_zero_share: f64,
     /// With a reference force: errors of the DOB, stretch and fused estimate
     /// (estimate − reference), N, and the bound's coverage (share of rows
     /// whose reference lies inside it).
@@ -121,6 +125,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
     for k in 0..live {
         width.push(hi[k] - lo[k]);
     }
+    let excludes_zero = (0..live).filter(|&k| lo[k] > 0.0 || hi[k] < 0.0).count();
     let against_reference = match log.col("f_ext_n") {
         Some(reference) => {
             let (dob, stretch) = (col("f_ext_hat_n")?, col("f_ext_stretch_n")?);
@@ -204,6 +209,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             slider1_stuck_share: share(flags::SLIDER1_STUCK),
             inconsistent_share: share(flags::INCONSISTENT),
             mean_bound_width_n: width.summary(1.0).mean,
+            excludes_zero_share: excludes_zero as f64 / live.max(1) as f64,
             against_reference,
             against_log,
         },

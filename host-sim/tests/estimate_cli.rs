@@ -106,6 +106,17 @@ fn a_1khz_log_runs_with_the_default_configuration_and_says_what_it_derived() {
         "bound width {}",
         s.mean_bound_width_n
     );
+    // And the summary says how often it tells a load from none: on this
+    // run, with the datasheet's bands, hardly ever.
+    let (lo, hi) = (
+        out.col_required("f_ext_lo_n").unwrap(),
+        out.col_required("f_ext_hi_n").unwrap(),
+    );
+    let sign_known = (0..lo.len())
+        .filter(|&k| lo[k] > 0.0 || hi[k] < 0.0)
+        .count();
+    assert_eq!(s.excludes_zero_share, sign_known as f64 / lo.len() as f64);
+    assert!(s.excludes_zero_share < 0.05, "{}", s.excludes_zero_share);
     // Fused never worse than the published DOB on this run.
     assert!(
         r.fused_n.rms <= r.dob_n.rms + 1e-3,
@@ -148,6 +159,7 @@ fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
     assert!(o.status.success(), "{stderr}\n{stdout}");
     assert!(stderr.contains("motor_bandwidth_hz = 100"), "{stderr}");
     assert!(stdout.contains("bound covers the reference"), "{stdout}");
+    assert!(stdout.contains("it excludes zero force in"), "{stdout}");
     let est = Log::read_with(&output, &Schema::any()).unwrap();
     assert!(est.has("f_ext_fused_n") && est.len() > 1000);
     // Without a configuration every force parameter is the datasheet

@@ -125,13 +125,15 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
     );
     let _ = writeln!(
         t,
-        "  mean width of the force bound: {:.3} N{}",
+        "  mean width of the force bound: {:.3} N{}; it excludes zero force in {:.1} % {rows} \
+         (elsewhere the estimate cannot tell a load from none, nor its direction)",
         s.mean_bound_width_n,
         if s.first_fault.is_some() {
             " (before the fault)"
         } else {
             ""
-        }
+        },
+        100.0 * s.excludes_zero_share
     );
     if let Some(d) = &s.against_log {
         let theta = d.theta_rad.map_or(String::new(), |t| {

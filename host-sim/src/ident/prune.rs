@@ -219,13 +219,14 @@ mod tests {
     /// seed's all-at-once rule drops both.
     #[test]
     fn one_at_a_time_keeps_a_term_that_all_at_once_drops_with_its_collinear_twin() {
+        // TERMS with `b x2'` before the junk column.
         const TERMS6: [ModelTerm; 6] = [
-            term(Regressor::SgnX1Vel, "f_sc1", "N"),
-            term(Regressor::SgnX2Vel, "f_cp2", "N"),
-            term(Regressor::X2, "K_s", "N/m"),
-            term(Regressor::One, "F_0", "N"),
+            TERMS[0],
+            TERMS[1],
+            TERMS[2],
+            TERMS[3],
             term(Regressor::X2Vel, "b", "N s/m"),
-            term(Regressor::X1Acc, "m_0", "kg"),
+            TERMS[4],
         ];
         let mut rng = Rng(0xc011_1ea4);
         let mut d = design(400, 0.3, &mut rng);

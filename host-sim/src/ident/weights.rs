@@ -160,6 +160,15 @@ pub fn set_reference_steps(log: &mut Log, steps: &[(f64, f64)], label: &str) -> 
         );
     }
     let t = log.time_s()?.to_vec();
+    let (first, last) = (t.first().copied(), t.last().copied());
+    if let (Some(first), Some(last)) = (first, last) {
+        if let Some((from, f)) = steps.iter().find(|(from, _)| *from > last) {
+            bail!(
+                "the reference step `{from}={f}` lies after `{label}`'s last row: the log runs \
+                 from {first} s to {last} s (steps are times in the log's own t_s)"
+            );
+        }
+    }
     let values: Vec<Option<f64>> = t
         .iter()
         .map(|&t| {
@@ -340,7 +349,9 @@ fn fit_scale(
         bail!(
             "no log changes its reference force by {} N or more between settled holds \
              ({} holds of at least {} s, {} s after the reference settled, in {} logs): \
-             record each weight on and off the tip in one log",
+             record each weight on and off the tip in one log (with `FILE@T0=F0,...` the \
+             reference is unknown before the first step: start at the log's first time, e.g. \
+             `0=0`)",
             opts.min_step_n,
             fitted.len(),
             opts.min_settled_s,
@@ -603,6 +614,13 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("its own f_ext_n"), "{e}");
+        // A step the log never reaches is a typo, not a hold.
+        log.remove_col("f_ext_n");
+        let e = set_reference_steps(&mut log, &[(0.0, 0.0), (70.0, 2.0)], "w")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`70=2`") && e.contains("from 0 s to 7 s"), "{e}");
+        assert!(!log.has("f_ext_n"), "nothing written on refusal");
     }
 
     #[test]

@@ -95,6 +95,42 @@ fn residual_writes_neither_output_when_one_cannot_be_written() {
     assert_eq!(dir_entries(d), ["c.toml", "run.csv"]);
 }
 
+/// A validation log that is also fitted (here under another spelling of
+/// its path) is refused by `residual` and `identify`: a model scored on
+/// its own data says nothing about data it has not seen (`identify` per
+/// model: a log fitted for the JAE may validate B_m). Nothing written.
+#[test]
+fn validating_on_a_fitted_log_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let log = simulated(d, "track-motor", 3.0, "run.csv");
+    let other = simulated(d, "track-motor", 3.0, "other.csv");
+    let twin = d.join(".").join("run.csv");
+    let config = d.join("c.toml");
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--model", "jae", "--log"])
+            .arg(&log)
+            .arg(&other)
+            .arg("--validate")
+            .arg(&twin)
+            .arg("--config-out")
+            .arg(&config),
+    );
+    assert!(err.contains("is also a fitted log"), "{err}");
+    let err = run_err(
+        host_sim()
+            .args(["identify", "--procedure", "jae", "--log"])
+            .arg(&log)
+            .arg("--validate")
+            .arg(&twin)
+            .arg("--config-out")
+            .arg(&config),
+    );
+    assert!(err.contains("is also a fitted log"), "{err}");
+    assert!(!config.exists(), "nothing written");
+}
+
 /// `host-sim residual ... | head`: the reader of standard output goes away
 /// before the command has printed its table. The command still writes
 /// every file it was asked for and exits as it would have; it does not

@@ -235,6 +235,21 @@ fn analyse_checks_its_options() {
             },
             "--inertia",
         ),
+        // Validating on the fit run would score the fit on its own data.
+        (
+            PayloadOptions {
+                validate: vec!["2-vibrations".into(), PayloadOptions::default().fit],
+                ..PayloadOptions::default()
+            },
+            "--validate names the fit run",
+        ),
+        (
+            PayloadOptions {
+                validate: vec![String::new()],
+                ..PayloadOptions::default()
+            },
+            "--validate names an empty run",
+        ),
     ];
     for (opts, flag) in cases {
         let msg = format!("{:#}", analyse(&opts).err().expect("must fail"));

@@ -2,7 +2,7 @@
 //! printed report.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use cable_joint::Config;
@@ -174,19 +174,24 @@ fn read_replay(path: &std::path::Path, ticks_per_row: Option<u32>) -> Result<Log
 /// The weights procedure's logs, each `FILE` with its own `f_ext_n` or
 /// `FILE@T0=F0,T1=F1,...` with the reference force as steps by the log's
 /// time (a rig's recording, which has none).
+/// A weights argument's file and its reference steps, if it has them
+/// (`FILE@T0=F0,T1=F1,...`).
+fn file_and_steps(arg: &Path) -> (PathBuf, Option<String>) {
+    let text = arg.display().to_string();
+    match text.rsplit_once('@') {
+        Some((path, spec)) if spec.contains('=') => (PathBuf::from(path), Some(spec.to_owned())),
+        _ => (arg.to_path_buf(), None),
+    }
+}
+
 fn read_weight_logs(
     files: &[(Procedure, PathBuf)],
     ticks_per_row: Option<u32>,
 ) -> Result<Vec<(String, Log)>> {
     let mut out = Vec::new();
     for (_, arg) in files.iter().filter(|(q, _)| *q == Procedure::Weights) {
-        let text = arg.display().to_string();
-        let (path, steps) = match text.rsplit_once('@') {
-            Some((path, spec)) if spec.contains('=') => {
-                (PathBuf::from(path), Some(parse_reference_steps(spec)?))
-            }
-            _ => (arg.clone(), None),
-        };
+        let (path, spec) = file_and_steps(arg);
+        let steps = spec.as_deref().map(parse_reference_steps).transpose()?;
         let mut log = read_replay(&path, ticks_per_row)?;
         let label = path.display().to_string();
         if let Some(steps) = steps {
@@ -219,6 +224,22 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
     let fits = assign(&args.log, args.procedure)?;
     let vals = assign(&args.validate, args.procedure)?;
+    // Per model: a log fitted for one may validate another. A weights
+    // log's reference steps (`FILE@T0=F0,...`) do not make it another
+    // recording.
+    for (q, _) in &vals {
+        let files = |v: &[(Procedure, PathBuf)]| -> Vec<PathBuf> {
+            v.iter()
+                .filter(|(p, _)| p == q)
+                .map(|(_, f)| file_and_steps(f).0)
+                .collect()
+        };
+        let (fit_files, val_files) = (files(&fits), files(&vals));
+        super::refuse_fitted_validation(
+            fit_files.iter().map(PathBuf::as_path),
+            val_files.iter().map(PathBuf::as_path),
+        )?;
+    }
     if args.procedure == Procedure::Weights {
         let wopts = WeightsOptions {
             settle_s: args.settle_s,

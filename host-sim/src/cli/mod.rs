@@ -30,7 +30,30 @@ pub mod trace;
 pub mod undeclared;
 
 use std::fmt::Display;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
+
+/// Refuses a validation file that is also fitted: a model scored on its
+/// own data says nothing about data it has not seen. One file under two
+/// spellings (`./a.csv`, `a.csv`, a link) is the same file; a path that
+/// cannot be resolved is compared as written (reading it fails later with
+/// its own error).
+pub fn refuse_fitted_validation<'a>(
+    fit: impl IntoIterator<Item = &'a Path>,
+    validate: impl IntoIterator<Item = &'a Path>,
+) -> anyhow::Result<()> {
+    let resolved = |p: &Path| -> PathBuf { p.canonicalize().unwrap_or_else(|_| p.to_path_buf()) };
+    let fitted: Vec<PathBuf> = fit.into_iter().map(resolved).collect();
+    for v in validate {
+        if fitted.contains(&resolved(v)) {
+            anyhow::bail!(
+                "--validate {} is also a fitted log: validation needs data the fit did not see",
+                v.display()
+            );
+        }
+    }
+    Ok(())
+}
 
 /// Parses a number and checks it: finite, `>= lo` (or `> lo` when
 /// `lo_open`) and `<= hi`.

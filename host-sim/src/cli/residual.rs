@@ -123,6 +123,10 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     } else {
         MrdlabZero::Encoder
     };
+    super::refuse_fitted_validation(
+        args.logs.iter().map(PathBuf::as_path),
+        args.validate.iter().map(PathBuf::as_path),
+    )?;
     let fit = read_logs(&args.logs, project, zero, args.t_max_s, args.ticks_per_row)?;
     let validate = read_logs(
         &args.validate,

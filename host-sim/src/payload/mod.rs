@@ -143,7 +143,8 @@ impl PayloadOptions {
     ///
     /// # Errors
     /// `tare_s` negative or NaN, `lowpass_hz` negative or not finite, a
-    /// creep time constant not positive and finite.
+    /// creep time constant not positive and finite, a validation run that
+    /// is empty or the fit run.
     pub fn check(&self) -> Result<()> {
         // The same ranges the command line's parsers enforce, so that a
         // library caller cannot pass what the command refuses.
@@ -174,6 +175,16 @@ impl PayloadOptions {
         }
         if self.inertia && !self.rotational {
             bail!("--inertia needs --rotational (the inertia multiplies the rotational terms)");
+        }
+        // Validation is on runs the identification did not see.
+        if self.validate.iter().any(|v| v.trim().is_empty()) {
+            bail!("--validate names an empty run (a doubled or trailing comma?)");
+        }
+        if let Some(v) = self.validate.iter().find(|v| v.trim() == self.fit.trim()) {
+            bail!(
+                "--validate names the fit run {v}: validation needs runs the identification \
+                 did not see"
+            );
         }
         Ok(())
     }

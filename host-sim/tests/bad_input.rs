@@ -513,6 +513,15 @@ fn every_numeric_option_refuses_non_finite_and_out_of_range_values() {
                 "{cmd:?} {opt} {value}: {err}"
             );
         }
+        // A negative value after a space reaches the option's own range
+        // check too (clap would take `-0.3` for an unknown flag `-0`).
+        if bad.starts_with('-') {
+            let err = run_err(host_sim().args(*cmd).args([opt, bad]));
+            assert!(
+                err.contains(&format!("invalid value '{bad}' for '{opt}")),
+                "{cmd:?} {opt} {bad}: {err}"
+            );
+        }
     }
     // Integer options: out of range (a non-number is refused by the parser).
     for (opt, bad) in [

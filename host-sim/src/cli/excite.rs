@@ -27,7 +27,7 @@ pub struct ExciteArgs {
     pub like: String,
     /// Fundamental frequency, Hz (seed 001: 0.1 Hz; default: the best of
     /// 0.05 to 0.5 Hz rounded to whole periods).
-    #[arg(long, value_parser = cli::f64_above(0.0, 10.0))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, 10.0))]
     pub base_freq_hz: Option<f64>,
     /// What the search minimises: `sigma`, the largest predicted standard
     /// deviation of the q'', q' and q parameters relative to `--like`'s, or
@@ -35,19 +35,19 @@ pub struct ExciteArgs {
     #[arg(long, value_enum, default_value_t = ObjectiveArg::Sigma)]
     pub objective: ObjectiveArg,
     /// Length of the series, s (rounded down to whole periods).
-    #[arg(long, value_parser = cli::f64_above(0.0, 1e5))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, 1e5))]
     pub duration_s: Option<f64>,
     /// Angle limit from the start angle, degrees.
-    #[arg(long, value_parser = cli::f64_above(0.0, 180.0))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, 180.0))]
     pub max_angle_deg: Option<f64>,
     /// Velocity limit, degrees/s.
-    #[arg(long, value_parser = cli::f64_above(0.0, 1e5))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, 1e5))]
     pub max_vel_deg_s: Option<f64>,
     /// Acceleration limit, degrees/s².
-    #[arg(long, value_parser = cli::f64_above(0.0, 1e7))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, 1e7))]
     pub max_acc_deg_s2: Option<f64>,
     /// Random starts of the search (per base frequency).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub restarts: u32,
     /// Seed of the random starts.
     #[arg(long, default_value_t = 1)]

@@ -62,38 +62,38 @@ pub struct IdentifyArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Leading seconds of each log left out (observer start-up).
-    #[arg(long, default_value_t = IdentOptions::default().skip_start_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = IdentOptions::default().skip_start_s,
           value_parser = cli::f64_in(0.0, 1e6))]
     pub skip_start_s: f64,
     /// Tension fits: leave out ticks with |theta'| below this, rad/s (0: keep all).
-    #[arg(long, default_value_t = IdentOptions::default().min_joint_vel_rad_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = IdentOptions::default().min_joint_vel_rad_s,
           value_parser = cli::f64_in(0.0, 1e3))]
     pub min_joint_vel_rad_s: f64,
     /// Tension fits: also leave out this long after the joint was still, s.
-    #[arg(long, default_value_t = IdentOptions::default().holdoff_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = IdentOptions::default().holdoff_s,
           value_parser = cli::f64_in(0.0, 1e6))]
     pub holdoff_s: f64,
     /// Weights: relative tolerance of the reference force itself (the
     /// weights' mass and the lever arm they hang at).
-    #[arg(long, default_value_t = WeightsOptions::default().reference_tolerance,
+    #[arg(allow_negative_numbers = true, long, default_value_t = WeightsOptions::default().reference_tolerance,
           value_parser = cli::f64_in(0.0, 1.0))]
     pub reference_tolerance: f64,
     /// Weights: time after the reference settled before a hold's rows count, s.
-    #[arg(long, default_value_t = WeightsOptions::default().settle_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = WeightsOptions::default().settle_s,
           value_parser = cli::f64_in(0.0, 1e6))]
     pub settle_s: f64,
     /// Do not pass the regressors through the DOB's low-pass (the seed's plain fit).
     #[arg(long)]
     pub no_filter: bool,
     /// Pruning limit on %sigma, %.
-    #[arg(long, default_value_t = IdentOptions::default().max_pct_sigma,
+    #[arg(allow_negative_numbers = true, long, default_value_t = IdentOptions::default().max_pct_sigma,
           value_parser = cli::f64_above(0.0, 1e6))]
     pub max_pct_sigma: f64,
     /// Prune as the seed did: every parameter above the limit at once.
     #[arg(long)]
     pub prune_all_at_once: bool,
     /// DOB-based fits: extra low-pass on both sides, Hz (0: none).
-    #[arg(long, default_value_t = IdentOptions::default().post_filter_hz,
+    #[arg(allow_negative_numbers = true, long, default_value_t = IdentOptions::default().post_filter_hz,
           value_parser = cli::f64_in(0.0, 1e4))]
     pub post_filter_hz: f64,
     /// Fit B_m without the Coulomb term sgn(phi') (the seed's model).

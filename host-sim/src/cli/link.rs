@@ -46,7 +46,7 @@ pub struct LinkArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// One telemetry record every this many ticks.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(allow_negative_numbers = true, long, value_parser = clap::value_parser!(u32).range(1..))]
     pub decimation: Option<u32>,
     /// Run a scenario's commands (the names of `host-sim simulate`; e.g.
     /// `id-closed`, `tracking`, `loading`): sensor check and homing, then
@@ -63,7 +63,7 @@ pub struct LinkArgs {
     pub grip: GripArgs,
     /// Scale of every segment of `--scenario` (1 = the full programme; the
     /// same scale as `host-sim simulate --duration-scale`).
-    #[arg(long, default_value_t = 1.0, value_parser = cli::f64_above(0.0, 1e3))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1.0, value_parser = cli::f64_above(0.0, 1e3))]
     pub duration_scale: f64,
     /// Record the telemetry stream to this CSV log.
     #[arg(long)]
@@ -74,14 +74,14 @@ pub struct LinkArgs {
     pub magnetic: bool,
     /// Firmware seconds to record (default: the scenario's length plus
     /// homing, else 1 s).
-    #[arg(long, value_parser = cli::f64_above(0.0, 1e5))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, 1e5))]
     pub duration_s: Option<f64>,
     /// The live view of the stream (recording goes on behind it; `q`
     /// stops early and keeps what was recorded).
     #[command(flatten)]
     pub view: ViewArg,
     /// Give up when no telemetry arrives for this long (wall clock), s.
-    #[arg(long, default_value_t = 60.0, value_parser = cli::f64_above(0.0, 1e5))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 60.0, value_parser = cli::f64_above(0.0, 1e5))]
     pub idle_timeout_s: f64,
 }
 

@@ -4,9 +4,11 @@
 //! below are shared by every subcommand.
 //!
 //! Each numeric option names its range with one of these parsers
-//! (`#[arg(long, value_parser = cli::f64_in(0.0, 1.0))]`), so that `NaN`,
-//! `inf` or an out-of-range value is refused by the argument parser with a
-//! message naming the option:
+//! (`#[arg(allow_negative_numbers = true, long, value_parser =
+//! cli::f64_in(0.0, 1.0))]`), so that `NaN`, `inf` or an out-of-range value,
+//! a negative one included, is refused by the argument parser with a
+//! message naming the option (without `allow_negative_numbers` clap takes
+//! `-0.3` for an unknown flag `-0`):
 //!
 //! ```text
 //! error: invalid value 'NaN' for '--min-gain <MIN_GAIN>': not a finite number
@@ -84,7 +86,15 @@ fn check<T: PartialOrd + Copy + Display + Finite>(
         Ok(v)
     } else {
         let open = if lo_open { "(" } else { "[" };
-        Err(format!("{shown} is outside {open}{lo}, {hi}]"))
+        let hi_text = hi.to_string();
+        if hi_text.len() > 16 {
+            // An upper end that only keeps the value finite (`f64::MAX`)
+            // says nothing in 309 digits.
+            let below = if lo_open { ">" } else { ">=" };
+            Err(format!("{shown} must be {below} {lo}"))
+        } else {
+            Err(format!("{shown} is outside {open}{lo}, {hi_text}]"))
+        }
     }
 }
 
@@ -190,6 +200,10 @@ mod tests {
         let q = f64_above(0.0, 10.0);
         assert_eq!(q("0"), Err("0 is outside (0, 10]".to_owned()));
         assert_eq!(q("1.4e-45"), Ok(1.4e-45));
+        assert_eq!(
+            f64_above(0.0, f64::MAX)("-1"),
+            Err("-1 must be > 0".to_owned())
+        );
         assert!(f32_above(0.0, 1.0)("NaN").is_err());
         assert_eq!(usize_in(1, 4)("0"), Err("0 is outside [1, 4]".to_owned()));
         assert_eq!(usize_in(1, 4)("4"), Ok(4));

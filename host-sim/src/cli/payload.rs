@@ -42,7 +42,7 @@ pub struct PayloadArgs {
     /// Low-pass cut-off applied identically to the wrench and to the
     /// kinematics (two cascaded first-order sections of the core's
     /// `LowPass1`, causal), Hz; 0 = unfiltered.
-    #[arg(long, default_value_t = PayloadOptions::default().lowpass_hz,
+    #[arg(allow_negative_numbers = true, long, default_value_t = PayloadOptions::default().lowpass_hz,
           value_parser = cli::f64_in(0.0, MAX_LOWPASS_HZ))]
     pub lowpass_hz: f64,
     /// Include the rotational terms (angular velocity and acceleration from
@@ -53,11 +53,11 @@ pub struct PayloadArgs {
     #[arg(long, requires = "rotational")]
     pub inertia: bool,
     /// Candidate creep time constants, s, for the compensation selection.
-    #[arg(long, value_delimiter = ',', default_value = default_creep_taus(),
+    #[arg(allow_negative_numbers = true, long, value_delimiter = ',', default_value = default_creep_taus(),
           value_parser = cli::f32_above(0.0, MAX_WINDOW_S as f32))]
     pub creep_taus: Vec<f32>,
     /// Known no-contact window at the start of each run, s (offset tracker).
-    #[arg(long, default_value_t = PayloadOptions::default().tare_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = PayloadOptions::default().tare_s,
           value_parser = cli::f64_in(0.0, MAX_WINDOW_S))]
     pub tare_s: f64,
     /// Write the report as JSON.

@@ -34,7 +34,7 @@ pub struct PilArgs {
     #[command(flatten)]
     pub view: ViewArg,
     /// Longest wait for one tick's answer, s.
-    #[arg(long, default_value_t = 20.0, value_parser = cli::f64_above(0.0, 3600.0))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 20.0, value_parser = cli::f64_above(0.0, 3600.0))]
     pub tick_timeout_s: f64,
     /// The closed-loop run.
     #[command(flatten)]

@@ -19,7 +19,7 @@ pub struct ReportArgs {
     /// Scale of every scenario's duration (1 = the full programme; refused
     /// up front when one run would exceed `simulate`'s 1e6-tick limit,
     /// above about 11.9).
-    #[arg(long, default_value_t = ReportOptions::default().duration_scale,
+    #[arg(allow_negative_numbers = true, long, default_value_t = ReportOptions::default().duration_scale,
           value_parser = crate::cli::f64_above(0.0, 100.0))]
     pub duration_scale: f64,
     /// Skip step 7 (unmodelled effects and the residual loop).

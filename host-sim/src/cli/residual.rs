@@ -44,7 +44,7 @@ pub struct ResidualArgs {
     #[arg(long = "validate", num_args = 1..)]
     pub validate: Vec<PathBuf>,
     /// Share of each fitting log held out when no --validate is given.
-    #[arg(long, default_value_t = 0.3, value_parser = cli::f64_in(0.0, 0.95))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 0.3, value_parser = cli::f64_in(0.0, 0.95))]
     pub holdout: f64,
     /// Write the result as JSON.
     #[arg(long)]
@@ -60,23 +60,23 @@ pub struct ResidualArgs {
     pub config_out: Option<PathBuf>,
     /// Most effects added (default and limit: the core's capacity per
     /// estimator for jae, tension and force, 24 for a generic fit)
-    #[arg(long, value_parser = cli::usize_in(0, GENERIC_MAX_TERMS))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::usize_in(0, GENERIC_MAX_TERMS))]
     pub max_terms: Option<usize>,
     /// Smallest relative cut of the validation RMSE that keeps an effect.
-    #[arg(long, default_value_t = 0.01, value_parser = cli::f64_in(0.0, 1.0))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 0.01, value_parser = cli::f64_in(0.0, 1.0))]
     pub min_gain: f64,
     /// Candidates set aside in a row before the selection stops.
-    #[arg(long, default_value_t = 20, value_parser = cli::usize_in(0, 100_000))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 20, value_parser = cli::usize_in(0, 100_000))]
     pub patience: usize,
     /// Fit on every N-th row (default: enough to keep about 30 000 fitting rows).
-    #[arg(long, value_parser = cli::usize_in(1, 1_000_000))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::usize_in(1, 1_000_000))]
     pub decimate: Option<usize>,
     /// Use only the first SECONDS of every log.
-    #[arg(long = "t-max", value_parser = cli::f64_above(0.0, 1e6))]
+    #[arg(allow_negative_numbers = true, long = "t-max", value_parser = cli::f64_above(0.0, 1e6))]
     pub t_max_s: Option<f64>,
     /// Leave the first SECONDS of every log out of fitting and validation
     /// (the terms still run from the first sample).
-    #[arg(long = "settle", default_value_t = 0.0, value_parser = cli::f64_in(0.0, 1e6))]
+    #[arg(allow_negative_numbers = true, long = "settle", default_value_t = 0.0, value_parser = cli::f64_in(0.0, 1e6))]
     pub settle_s: f64,
     /// jae/tension: keep the terms already in the configuration's `added`
     /// (refitted with the baseline) and add new ones after them.

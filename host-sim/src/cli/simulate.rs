@@ -72,16 +72,16 @@ pub struct SimulateArgs {
     pub effect: Vec<String>,
     /// Total simulated duration, s (scales every segment; at most 1e6
     /// control ticks, all kept in memory).
-    #[arg(long, conflicts_with = "duration_scale", value_parser = cli::f64_above(0.0, f64::MAX))]
+    #[arg(allow_negative_numbers = true, long, conflicts_with = "duration_scale", value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration: Option<f64>,
     /// Scale of every segment's duration.
-    #[arg(long, value_parser = cli::f64_above(0.0, f64::MAX))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration_scale: Option<f64>,
     /// `loading`: run only this held angle, degrees.
     #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-180.0, 180.0))]
     pub angle_deg: Option<f64>,
     /// `loading`: run only this weight, grams.
-    #[arg(long, value_parser = cli::f64_in(0.0, 10_000.0))]
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_in(0.0, 10_000.0))]
     pub mass_g: Option<f64>,
     /// `loading`: run only this direction.
     #[arg(long, value_enum)]
@@ -113,7 +113,7 @@ pub struct SimulateArgs {
     /// records it (`link --decimation N`): the measured columns (`t_s` to
     /// `f_ext_n`), `tick`, and `i_applied_a`, the mean current reference
     /// since the record before (default: a row every tick, every column).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    #[arg(allow_negative_numbers = true, long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000))]
     pub record_every: Option<u32>,
 }
 
@@ -156,11 +156,11 @@ pub struct GripArgs {
     /// `grip`: the object's surface, degrees from 0 on the set point's side
     /// (the simulator's object; on a rig, where the object is, so that the
     /// jaw opens from there).
-    #[arg(long, default_value_t = GripOptions::default().object_deg,
+    #[arg(allow_negative_numbers = true, long, default_value_t = GripOptions::default().object_deg,
           value_parser = cli::f64_above(0.0, 80.0))]
     pub object_deg: f64,
     /// `grip`: the object's stiffness at the tip, N/m (the simulator's).
-    #[arg(long, default_value_t = GripOptions::default().object_n_m,
+    #[arg(allow_negative_numbers = true, long, default_value_t = GripOptions::default().object_n_m,
           value_parser = cli::f64_above(0.0, 1e6))]
     pub object_n_m: f64,
 }

@@ -39,11 +39,11 @@ pub struct RunArgs {
     #[arg(long)]
     pub plant: Option<PathBuf>,
     /// Seconds recorded after boot (at most 1e6 control ticks).
-    #[arg(long, default_value_t = TraceOptions::default().duration_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = TraceOptions::default().duration_s,
           value_parser = cli::f64_above(0.0, f64::MAX))]
     pub duration_s: f64,
     /// Seconds the mechanism relaxes with the drive off before boot.
-    #[arg(long, default_value_t = TraceOptions::default().relax_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = TraceOptions::default().relax_s,
           value_parser = cli::f64_in(0.0, f64::MAX))]
     pub relax_s: f64,
     /// Weight hung on the tip during the hold, N.
@@ -51,7 +51,7 @@ pub struct RunArgs {
           value_parser = cli::f64_in(-100.0, 100.0))]
     pub load_n: f64,
     /// When the weight is hung (ramped in over 50 ms), s after boot.
-    #[arg(long, default_value_t = TraceOptions::default().load_at_s,
+    #[arg(allow_negative_numbers = true, long, default_value_t = TraceOptions::default().load_at_s,
           value_parser = cli::f64_in(0.0, 1e6))]
     pub load_at_s: f64,
     /// When the drive's fault line is asserted, s after boot (negative:
@@ -72,7 +72,7 @@ pub struct RunArgs {
     #[arg(long, allow_negative_numbers = true, value_parser = cli::f64_in(-80.0, 80.0))]
     pub object_at_deg: Option<f64>,
     /// The object's stiffness at the tip, N/m (with `--object-at-deg`).
-    #[arg(long, requires = "object_at_deg", default_value_t = GripOptions::default().object_n_m,
+    #[arg(allow_negative_numbers = true, long, requires = "object_at_deg", default_value_t = GripOptions::default().object_n_m,
           value_parser = cli::f64_above(0.0, 1e6))]
     pub object_n_m: f64,
 }

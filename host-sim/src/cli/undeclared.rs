@@ -33,7 +33,7 @@ pub struct UndeclaredArgs {
     #[arg(long = "draw", num_args = 1.., default_values_t = [31u64, 32])]
     pub draws: Vec<u64>,
     /// Control rates, Hz.
-    #[arg(long = "rate", num_args = 1.., default_values_t = [2000.0f32, 1000.0],
+    #[arg(allow_negative_numbers = true, long = "rate", num_args = 1.., default_values_t = [2000.0f32, 1000.0],
           value_parser = cli::f32_above(99.0, 20_000.0))]
     pub rates_hz: Vec<f32>,
     /// Effect sizes.
@@ -49,7 +49,7 @@ pub struct UndeclaredArgs {
     /// ticks with `tick` and the mean current since the row before, as
     /// `simulate --record-every N` writes it (the firmware's default is
     /// 10); the loop replays each log tick by tick.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(allow_negative_numbers = true, long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub record_every: u32,
     /// No progress lines.
     #[arg(long)]

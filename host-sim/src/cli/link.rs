@@ -49,7 +49,7 @@ pub struct LinkArgs {
     #[arg(allow_negative_numbers = true, long, value_parser = clap::value_parser!(u32).range(1..))]
     pub decimation: Option<u32>,
     /// Run a scenario's commands (the names of `host-sim simulate`; e.g.
-    /// `id-closed`, `tracking`, `loading`): sensor check and homing, then
+    /// `jae-ident`, `track-motor`, `loading`): sensor check and homing, then
     /// each segment's command at its start. Weights and forces are the
     /// operator's to apply on the rig.
     #[arg(long)]

@@ -211,7 +211,7 @@ impl Outputs {
             .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
             .map(Path::to_owned)
             .collect();
-        fs::create_dir_all(dir).map_err(|e| OutputError::new(dir, e))?;
+        ensure_dir(dir)?;
         self.made_dirs.extend(missing.into_iter().rev());
         Ok(())
     }
@@ -405,6 +405,36 @@ impl Outputs {
         self.made_dirs.clear();
         Ok(written)
     }
+}
+
+/// Create the directory `dir` and its missing parents, for a command's
+/// output directory. A file (or anything not a directory) already at `dir`
+/// is refused with an error saying so, not the system's "File exists".
+///
+/// # Errors
+/// Something other than a directory at `dir`, or it cannot be created.
+pub fn ensure_dir(dir: &Path) -> Result<(), OutputError> {
+    check_dir_target(dir)?;
+    fs::create_dir_all(dir).map_err(|e| OutputError::new(dir, e))
+}
+
+/// Refuse an output directory that is already something else, before a
+/// long command does its work (the report, the undeclared-effect
+/// programme): the error comes in a second, not after minutes.
+///
+/// # Errors
+/// Something other than a directory at `dir`.
+pub fn check_dir_target(dir: &Path) -> Result<(), OutputError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(OutputError::new(
+            dir,
+            io::Error::new(
+                io::ErrorKind::AlreadyExists,
+                "exists and is not a directory: give a directory for the outputs",
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Write `bytes` to `path` atomically (see the module documentation).

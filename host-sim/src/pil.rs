@@ -143,8 +143,7 @@ impl Pil {
             "the PIL firmware {} does not exist: build it with `cargo fw-pil`",
             opts.elf.display()
         );
-        std::fs::create_dir_all(&opts.out_dir)
-            .with_context(|| format!("creating {}", opts.out_dir.display()))?;
+        crate::output::ensure_dir(&opts.out_dir)?;
         let bus =
             TcpListener::bind("127.0.0.1:0").context("opening a local port for the sensor bus")?;
         let bus_port = bus.local_addr()?.port();

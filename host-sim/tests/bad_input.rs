@@ -95,6 +95,27 @@ fn residual_writes_neither_output_when_one_cannot_be_written() {
     assert_eq!(dir_entries(d), ["c.toml", "run.csv"]);
 }
 
+/// An output directory that is a file is refused with that reason (not
+/// the system's "File exists"), before the command's work (the report's
+/// minutes), and the file is left as it was.
+#[test]
+fn an_output_directory_that_is_a_file_is_refused_with_that_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("out");
+    std::fs::write(&file, "keep\n").unwrap();
+    for cmd in [
+        &["report", "--quiet", "--out"][..],
+        &["undeclared", "--out"][..],
+    ] {
+        let err = run_err(host_sim().args(cmd).arg(&file));
+        assert!(
+            err.contains("exists and is not a directory"),
+            "{cmd:?}: {err}"
+        );
+    }
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep\n");
+}
+
 /// A validation log that is also fitted (here under another spelling of
 /// its path) is refused by `residual` and `identify`: a model scored on
 /// its own data says nothing about data it has not seen (`identify` per

@@ -142,6 +142,9 @@ impl PayloadArgs {
 
 /// `host-sim payload`.
 pub fn run(args: PayloadArgs) -> Result<()> {
+    for dir in [&args.csv, &args.plot].into_iter().flatten() {
+        crate::output::check_dir_target(dir)?;
+    }
     let (report, estimates) = analyse(&args.options())?;
     crate::stdout!("{}", format_report(&report));
     // Every output is written, or none is.

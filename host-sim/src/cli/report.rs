@@ -106,6 +106,7 @@ impl ReportArgs {
 
 /// Run the subcommand.
 pub fn run(args: ReportArgs) -> Result<()> {
+    crate::output::check_dir_target(&args.out)?;
     let mut r = generate(&args.options())?;
     let text = write(&mut r)?;
     crate::stdout!("{text}");

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use cable_joint::Config;
 
 use crate::cli;
@@ -100,6 +100,9 @@ pub struct ResidualArgs {
 
 /// Run the subcommand.
 pub fn run(args: ResidualArgs) -> Result<()> {
+    if let Some(dir) = &args.plots {
+        crate::output::check_dir_target(dir)?;
+    }
     let kind = match (&args.model, &args.target) {
         (Some(ModelArg::Jae), _) => ModelKind::Jae,
         (Some(ModelArg::Tension), _) => ModelKind::Tension,
@@ -167,7 +170,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         out.bytes(path, text.as_bytes())?;
     }
     if let Some(dir) = &args.plots {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        crate::output::ensure_dir(dir)?;
         report::stage_plots(&mut out, &a, dir)?;
     }
     let written: Vec<String> = out

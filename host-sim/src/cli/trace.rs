@@ -1,7 +1,6 @@
 //! `host-sim trace`: its arguments and its run (the recording is
 //! [`crate::trace`]).
 
-use std::fs;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -115,7 +114,7 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     // The trace and the CSV log are written together, or neither is.
     let mut out = Outputs::new();
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        crate::output::ensure_dir(dir)?;
     }
     out.bytes(&args.out, &rec.trace_bytes())?;
     if let Some(csv) = &args.csv {

@@ -61,6 +61,7 @@ pub struct UndeclaredArgs {
 /// # Errors
 /// A run or an analysis that fails, or an output that cannot be written.
 pub fn run(args: UndeclaredArgs) -> Result<()> {
+    crate::output::check_dir_target(&args.out)?;
     let opts = ProgrammeOptions {
         draws: args.draws,
         rates_hz: args.rates_hz,

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use cable_joint::payload::AXIS_NAMES;
 
 use super::RunEstimates;
@@ -12,7 +12,7 @@ use crate::output::Outputs;
 
 /// Stage `DIR/payload_<run>.csv` per run among the outputs (see `--csv`).
 pub fn write_csv(out: &mut Outputs, runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::output::ensure_dir(dir)?;
     let mut names = vec!["t_s".to_owned()];
     for pre in ["raw", "fe_base", "fe_sel"] {
         for (k, a) in AXIS_NAMES.iter().enumerate() {
@@ -41,7 +41,7 @@ pub fn write_csv(out: &mut Outputs, runs: &[RunEstimates], dir: &Path) -> Result
 /// axes of the raw sensor (minus its start) and of the estimated `F_e`.
 pub fn plot_runs(out: &mut Outputs, runs: &[RunEstimates], dir: &Path) -> Result<Vec<PathBuf>> {
     use crate::plot::{stage_figure, Figure, Panel, Series};
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::output::ensure_dir(dir)?;
     let mut paths = Vec::new();
     for r in runs {
         let t = r.run.wrench.t_s.clone();

@@ -58,7 +58,7 @@ pub mod wrist;
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{ensure, Context, Result};
+use anyhow::{ensure, Result};
 use cable_joint::Config;
 
 use crate::io::config::stage_config;
@@ -304,7 +304,7 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         draws: args.draws,
     };
     let dir = &args.out;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::output::ensure_dir(dir)?;
     if !args.no_effects {
         // Check the effect names before an hour of work... or a minute.
         effects_plant(&args.effect)?;

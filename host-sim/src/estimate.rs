@@ -121,11 +121,11 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
     let share = |bit: u8| {
         fl[..live].iter().filter(|f| (**f as u8) & bit != 0).count() as f64 / live.max(1) as f64
     };
-    let mut width = Acc::default();
+    let (mut width, mut excludes_zero) = (Acc::default(), 0usize);
     for k in 0..live {
         width.push(hi[k] - lo[k]);
+        excludes_zero += usize::from(lo[k] > 0.0 || hi[k] < 0.0);
     }
-    let excludes_zero = (0..live).filter(|&k| lo[k] > 0.0 || hi[k] < 0.0).count();
     let against_reference = match log.col("f_ext_n") {
         Some(reference) => {
             let (dob, stretch) = (col("f_ext_hat_n")?, col("f_ext_stretch_n")?);

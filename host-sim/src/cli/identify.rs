@@ -171,9 +171,6 @@ fn read_replay(path: &std::path::Path, ticks_per_row: Option<u32>) -> Result<Log
     )
 }
 
-/// The weights procedure's logs, each `FILE` with its own `f_ext_n` or
-/// `FILE@T0=F0,T1=F1,...` with the reference force as steps by the log's
-/// time (a rig's recording, which has none).
 /// A weights argument's file and its reference steps, if it has them
 /// (`FILE@T0=F0,T1=F1,...`).
 fn file_and_steps(arg: &Path) -> (PathBuf, Option<String>) {
@@ -184,6 +181,9 @@ fn file_and_steps(arg: &Path) -> (PathBuf, Option<String>) {
     }
 }
 
+/// The weights procedure's logs, each `FILE` with its own `f_ext_n` or
+/// `FILE@T0=F0,T1=F1,...` with the reference force as steps by the log's
+/// time (a rig's recording, which has none).
 fn read_weight_logs(
     files: &[(Procedure, PathBuf)],
     ticks_per_row: Option<u32>,
@@ -227,10 +227,15 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
     // Per model: a log fitted for one may validate another. A weights
     // log's reference steps (`FILE@T0=F0,...`) do not make it another
     // recording.
-    for (q, _) in &vals {
+    for q in [
+        Procedure::Bm,
+        Procedure::Jae,
+        Procedure::Tension,
+        Procedure::Weights,
+    ] {
         let files = |v: &[(Procedure, PathBuf)]| -> Vec<PathBuf> {
             v.iter()
-                .filter(|(p, _)| p == q)
+                .filter(|(p, _)| *p == q)
                 .map(|(_, f)| file_and_steps(f).0)
                 .collect()
         };

@@ -160,8 +160,7 @@ pub fn set_reference_steps(log: &mut Log, steps: &[(f64, f64)], label: &str) -> 
         );
     }
     let t = log.time_s()?.to_vec();
-    let (first, last) = (t.first().copied(), t.last().copied());
-    if let (Some(first), Some(last)) = (first, last) {
+    if let (Some(&first), Some(&last)) = (t.first(), t.last()) {
         if let Some((from, f)) = steps.iter().find(|(from, _)| *from > last) {
             bail!(
                 "the reference step `{from}={f}` lies after `{label}`'s last row: the log runs \

@@ -324,6 +324,13 @@ pub struct FusionConfig {
     /// `(5.027 N - c3 K_w2 r) r` = 19.7 mN·m, which makes the bound wide
     /// (about ±1.5 N at the tip) but true.
     pub pin_coulomb_nm: f32,
+    /// Whether `pin_coulomb_nm` is the pin's kinetic level as `identify`
+    /// fitted it, rather than an upper bound (the default's, or
+    /// `identify`'s when the runs cannot pin it down). Only a fitted level
+    /// may stand as the pin's friction in a grip's point estimate
+    /// ([`crate::grip`]): an upper bound there would read the force low by
+    /// its excess, and the law would squeeze that much harder.
+    pub pin_identified: bool,
     /// Largest ratio of static (breakaway) to kinetic friction the bound
     /// allows for a stuck element (1.5: the upper end of lubricated
     /// steel-on-steel and miniature linear guides).
@@ -364,6 +371,7 @@ impl Default for FusionConfig {
         let f_cp2 = TensionConfig::default().f_cp2_n;
         Self {
             pin_coulomb_nm: (f_cp2 - c3 * k_w2 * m.pulley_radius_m) * m.pulley_radius_m,
+            pin_identified: false,
             static_over_kinetic: 1.5,
             kinetic_tolerance: 0.25,
             jae_error_rad: 0.275 * crate::math::PI / 180.0,

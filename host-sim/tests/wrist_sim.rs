@@ -149,3 +149,47 @@ fn a_single_jaw_grips_on_its_own_estimate() {
         "jaw B holds open"
     );
 }
+
+/// A pair gripping on the motor's angle with the pin's friction level
+/// fitted (here the plant's true `f_efc`, `fusion.pin_identified`): each
+/// jaw's point estimate takes the pin's kinetic level against the object's
+/// side, so the true contact force comes to the 2 N set point within 5 %
+/// on the soft and the firm object (measured -0.1 % and +1.3 %), where
+/// with the level only an upper bound (the default's) the pin's friction
+/// is read as force and the true force stays short (measured -10.8 % and
+/// -5.3 %). Fails if the pressing side is dropped or taken with the wrong
+/// sign (the force would then be short by twice the pin's friction at the
+/// tip, 0.4 N).
+#[test]
+fn a_pair_with_a_fitted_pin_level_holds_the_true_force_at_its_set_point() {
+    let fitted = {
+        let p = PlantParams::default();
+        let mut c = scenario::oracle_config(&p, &scenario::tuned_gains(&Config::default()));
+        c.probe.enabled = false;
+        c.fusion.pin_coulomb_nm = p.joint.coulomb_nm as f32;
+        c.fusion.pin_identified = true;
+        WristParams::uniform(p, c)
+    };
+    for k in [1000.0, 10_000.0] {
+        let o = SoftObject {
+            stiffness_n_m: k,
+            ..soft()
+        };
+        let with = grip_stats(&run_grip(&fitted, o, &grip(true), 21).unwrap(), 2.0, true);
+        let without = grip_stats(
+            &run_grip(&params(false), o, &grip(true), 21).unwrap(),
+            2.0,
+            true,
+        );
+        eprintln!("k {k}: fitted {with:?}\n  upper bound {without:?}");
+        assert_eq!(with.fault, None);
+        assert!((with.steady_est_n - 2.0).abs() < 0.06, "k {k}: {with:?}");
+        assert!(with.steady_error_pct.abs() < 5.0, "k {k}: {with:?}");
+        assert!(with.overshoot_pct < 20.0, "k {k}: {with:?}");
+        assert!(
+            without.steady_error_pct < 0.0
+                && with.steady_error_pct.abs() + 3.0 < without.steady_error_pct.abs(),
+            "k {k}: {with:?}\n{without:?}"
+        );
+    }
+}

@@ -837,6 +837,22 @@ impl Controller {
                 drive_torque_nm: m.torque_constant_nm_a * drive_current
                     - cfg.dob.viscous_nm_s_rad * phi.vel,
                 drive_torque_q_nm: st.dob.drive_nm,
+                // A pair's grip on the motor's angle presses toward its
+                // object's side; a jaw alone is thrown back at contact, and
+                // a pair on the JAE's angle rings ([`crate::grip`]).
+                pressing_sign: match self.command.trajectory {
+                    Trajectory::Grip { force_n, .. }
+                        if st.grip_partner.is_some()
+                            && self.command.mode == Mode::MotorPosition =>
+                    {
+                        if force_n < 0.0 {
+                            -1.0
+                        } else {
+                            1.0
+                        }
+                    }
+                    _ => 0.0,
+                },
             },
         );
         // Cable 1 is slack when both chains that see its tension put it

@@ -30,8 +30,11 @@
 //! interval (the set of forces both agree on). Its point estimate is the
 //! stretch estimate projected onto the intersection: the pin's friction at
 //! its kinetic level while both sliders slip one way (at any speeds: the
-//! point's best guess of the sign) and zero otherwise, unless the bound
-//! rules that value out. The report measures it against the
+//! point's best guess of the sign); otherwise, when the command presses
+//! toward a known side (a grip closing onto its object,
+//! [`FusionIn::pressing_sign`]), its kinetic level against that side, and
+//! zero when nothing says which side; the value is moved into the bound
+//! when the bound rules it out. The report measures it against the
 //! intersection's midpoint (the minimax point) on every plant variant. When the two intervals do not overlap the models disagree
 //! (an unmodelled effect, a wrong parameter): the bound becomes the hull of
 //! both, the point the middle of the gap, and [`flags::INCONSISTENT`] is set,
@@ -91,6 +94,9 @@ pub struct Fusion {
     f_cp2_n: f32,
     /// Joint-pin Coulomb friction, N·m.
     pin_nm: f32,
+    /// Whether `pin_nm` is a fitted level, not an upper bound: only then
+    /// does [`FusionIn::pressing_sign`] count.
+    pin_identified: bool,
     /// Torque error per rad of JAE error: `r² (K_w1 + K_w2)`, N·m/rad.
     torque_per_theta: f32,
     /// JAE band from slider 2's friction: `|c3|`, rad.
@@ -181,6 +187,11 @@ pub struct FusionState {
     pin_nm: (f32, f32),
     /// `Q` of the pin friction the point estimate assumes, N·m.
     pin_point_nm: f32,
+    /// Largest pressing torque (`pressing_sign` times the stretch torque)
+    /// since the chain last slipped one way or the command last pressed
+    /// toward no side, N·m; valid while `press_primed`.
+    press_peak_nm: f32,
+    press_primed: bool,
     /// `Q` of the stretch torque's error bound from the JAE, N·m.
     tau_err_nm: f32,
     /// `Q` of the drive torque's part above `Q`'s band, N·m.
@@ -229,6 +240,15 @@ pub struct FusionIn {
     pub drive_torque_nm: f32,
     /// The same through `Q` (the DOB's state), N·m.
     pub drive_torque_q_nm: f32,
+    /// The side the joint presses toward when the command knows it (±1: a
+    /// grip, whose object is on the side of its set point), else 0. Counted
+    /// only when the pin's level is a fitted one
+    /// ([`crate::config::FusionConfig::pin_identified`]). While
+    /// the chain does not slip one way, the point estimate takes the pin's
+    /// friction at its kinetic level against that side instead of zero,
+    /// less what the pressing torque has given back since its peak; the
+    /// bound does not use it.
+    pub pressing_sign: f32,
 }
 
 /// The fused estimate.
@@ -270,6 +290,7 @@ impl Fusion {
             f_sc1_n: math::abs(c.tension.f_sc1_n),
             f_cp2_n: math::abs(c.tension.f_cp2_n),
             pin_nm: f.pin_coulomb_nm,
+            pin_identified: f.pin_identified,
             torque_per_theta: r * r * (c.stretch.cable1_n_m + c.stretch.cable2_n_m),
             c3_rad: math::abs(c.jae.c_sign_rad),
             theta_floor_rad: f.jae_error_rad + c.jae.c_pos_rad_m * c.scales.grating_m_per_count,
@@ -333,7 +354,34 @@ impl Fusion {
                 (1.0 + rho) * self.c3_rad
             };
         let tau_err = self.torque_per_theta * theta_band;
-        let (pp_lo, pp_hi) = band(one_way, s2, self.pin_nm, rho, kappa);
+        // The point's pin friction: a one-way slip's kinetic level with its
+        // sign; else, while the command presses toward a known side (a grip
+        // closing onto its object: the pin last slid that way, and the
+        // drive's torque has pressed that way since), the kinetic level
+        // against that side, less whatever the pressing torque has given
+        // back since its peak (a stuck joint on an elastic object holds its
+        // force, so the pin takes the change), down to zero; else zero.
+        let pressing = if self.pin_identified {
+            i.pressing_sign
+        } else {
+            0.0
+        };
+        let (pp_lo, pp_hi) = if one_way {
+            s.press_primed = false;
+            band(true, s2, self.pin_nm, rho, kappa)
+        } else if pressing != 0.0 {
+            let press_nm = pressing * i.joint_torque_nm;
+            if !s.press_primed || press_nm > s.press_peak_nm {
+                s.press_peak_nm = press_nm;
+                s.press_primed = true;
+            }
+            let given_back_nm = s.press_peak_nm - press_nm;
+            let f = pressing * math::clamp(self.pin_nm - given_back_nm, 0.0, self.pin_nm);
+            (f, f)
+        } else {
+            s.press_primed = false;
+            (0.0, 0.0)
+        };
         let first = !s.primed;
         if first {
             s.dob_friction_n = (a_lo + b_lo, a_hi + b_hi);
@@ -732,5 +780,84 @@ mod tests {
         }
         assert_eq!(out.flags & flags::SLIDER1_STUCK, 0);
         assert_eq!(s.slider1.sign, -1.0);
+    }
+
+    /// A grip presses toward its object: with the chain stuck, the point
+    /// estimate takes the pin's friction at its kinetic level against that
+    /// side (`(tau - s f_pin) / l_e`), where it took zero, less the torque
+    /// given back since the pressing peak (the estimate holds the peak's
+    /// reading until the pin's kinetic level is given back, then follows
+    /// the torque again); the bound stays the stuck band's; a one-way
+    /// slip's measured sign still wins.
+    #[test]
+    fn the_pressing_side_sets_the_pins_friction_in_the_point_not_in_the_bound() {
+        let (_, mut c) = fusion();
+        c.fusion.pin_identified = true;
+        let f = Fusion::new(&c, c.period_s());
+        let l_e = c.machine.gripper_length_m;
+        let pin_n = c.fusion.pin_coulomb_nm / l_e;
+        assert!(pin_n > 0.05, "{pin_n}");
+        // Tip-equivalent stretch forces held 1 s each; the last tick's output.
+        let held = |pressing_sign: f32, vel_m_s: f32, forces_n: &[f32]| {
+            let mut s = FusionState::default();
+            let mut out = FusionOut::default();
+            for &force_n in forces_n {
+                for _ in 0..(c.control_rate_hz as usize) {
+                    out = f.update(
+                        &mut s,
+                        &FusionIn {
+                            x1_vel_m_s: vel_m_s,
+                            x2_vel_m_s: vel_m_s,
+                            tension1_dob_n: c.tension.f_0_n,
+                            tension1_model_n: c.tension.f_0_n,
+                            joint_torque_nm: force_n * l_e,
+                            pressing_sign,
+                            ..FusionIn::default()
+                        },
+                    );
+                }
+            }
+            out
+        };
+        let near = |a: f32, b: f32| math::abs(a - b) < 1e-3;
+        let none = held(0.0, 0.0, &[1.0]);
+        let plus = held(1.0, 0.0, &[1.0]);
+        let minus = held(-1.0, 0.0, &[-1.0]);
+        assert_ne!(plus.flags & flags::JOINT_STUCK, 0);
+        assert!(near(none.f_ext_n, 1.0), "{none:?}");
+        assert!(near(plus.f_ext_n, 1.0 - pin_n), "{plus:?}");
+        assert!(near(minus.f_ext_n, -1.0 + pin_n), "{minus:?}");
+        assert_eq!((plus.lo_n, plus.hi_n), (none.lo_n, none.hi_n));
+        // Pressing on to 1.2 N and giving back half the pin's level: the
+        // reading stays the peak's; giving back twice its level: the torque
+        // with the pin at zero, as without a side.
+        let half = held(1.0, 0.0, &[1.0, 1.2, 1.2 - 0.5 * pin_n]);
+        assert!(near(half.f_ext_n, 1.2 - pin_n), "{half:?}");
+        let back = held(1.0, 0.0, &[1.0, 1.2, 1.2 - 2.0 * pin_n]);
+        assert!(near(back.f_ext_n, 1.2 - 2.0 * pin_n), "{back:?}");
+        // A pin level that is only an upper bound (the default's): no side.
+        let mut bound_only = c;
+        bound_only.fusion.pin_identified = false;
+        let fb = Fusion::new(&bound_only, c.period_s());
+        let mut s = FusionState::default();
+        let mut out = FusionOut::default();
+        for _ in 0..(c.control_rate_hz as usize) {
+            out = fb.update(
+                &mut s,
+                &FusionIn {
+                    tension1_dob_n: c.tension.f_0_n,
+                    tension1_model_n: c.tension.f_0_n,
+                    joint_torque_nm: l_e,
+                    pressing_sign: 1.0,
+                    ..FusionIn::default()
+                },
+            );
+        }
+        assert!(near(out.f_ext_n, none.f_ext_n), "{out:?}");
+        // Both sliders slipping backwards: the slip's sign, not the side.
+        let v = -10.0 * c.tension.sign_switch_x1_m_s.max(c.jae.sign_switch_m_s);
+        let slipping = held(1.0, v, &[1.0]);
+        assert_eq!(slipping.flags & flags::JOINT_STUCK, 0);
+        assert!(near(slipping.f_ext_n, 1.0 + pin_n), "{slipping:?}");
     }
 }

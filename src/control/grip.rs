@@ -51,9 +51,21 @@
 //!
 //! # What the law cannot promise
 //!
-//! It regulates the *estimate*. The true force differs from it by the
-//! estimate's error, which the fused estimate's bound `[lo, hi]` brackets:
-//! at rest under stiction that bound can be wide ([`crate::fusion`]), and no
+//! It regulates the *estimate*. While a pair holds its object on the
+//! motor's angle, each jaw's pin sticks with its friction against the
+//! object's side: the jaw slid onto the object, and its drive's torque has
+//! pressed that way since. The fused point estimate then takes that side's
+//! kinetic level for the pin ([`crate::fusion::FusionIn::pressing_sign`];
+//! at a hold with no such knowledge it takes zero, and reads the pin's
+//! friction as force). Where that premise fails it is not used: a jaw
+//! alone, pressing its object against the other jaw, which holds its
+//! position stiffly, is thrown back at contact (invisibly to the gratings
+//! while slider 2 sticks), and a pair on the JAE's angle rings, sliding
+//! both ways; their pins' friction then sits anywhere in the band
+//! (measured: docs/force.md, "The pin's friction in a grip"). The true
+//! force still differs from the estimate by what remains of its error,
+//! which the fused estimate's bound `[lo, hi]` brackets: at rest under
+//! stiction that bound can be wide ([`crate::fusion`]), and no
 //! force loop can hold the true force tighter than that. The host report
 //! gives, per plant variant and object, the true force's error beside the
 //! bound's width at the set point.

@@ -185,10 +185,12 @@ impl JointFit {
         let (f, pf) = self.pin_coulomb_nm;
         let pin = if f.is_finite() && pf < JOINT_MAX_PCT_SIGMA {
             config.fusion.pin_coulomb_nm = f.max(0.0) as f32;
+            config.fusion.pin_identified = true;
             format!("fusion.pin_coulomb_nm = {:.5} (%sigma {pf:.1})", f.max(0.0))
         } else {
             config.fusion.pin_coulomb_nm =
                 cable_joint::config::FusionConfig::pin_upper_bound_nm(config);
+            config.fusion.pin_identified = false;
             "pin friction not identifiable from these runs: the force bound takes model C's upper bound"
                 .into()
         };

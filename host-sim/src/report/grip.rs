@@ -239,8 +239,12 @@ pub fn markdown(sec: &GripSection, figure: Option<&str>) -> String {
          angle. Judged on the true contact force: steady-state error over the last second, \
          overshoot above the set point, time to enter ±5 % for good. The bound is the \
          regulated estimate's over the last second: the law makes the estimate read the set \
-         point, so the bound is all it can promise about the true force. Probing is off (a \
-         grip never probes). Reproduce: `cargo run --release -p host-sim` (this section).\n",
+         point, so the bound is all it can promise about the true force. On the motor's \
+         angle a pair's estimate takes each jaw's pin friction at its identified kinetic \
+         level against the object's side (`fusion.pin_identified`); jaw A alone and the pair \
+         on the JAE's angle read it as zero (docs/force.md, \"The pin's friction in a \
+         grip\"). Probing is off (a grip never probes). Reproduce: `cargo run --release -p \
+         host-sim` (this section).\n",
         sec.approach_rad_s, GRIP_S
     );
     let _ = writeln!(

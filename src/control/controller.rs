@@ -16,7 +16,7 @@ use crate::dob::{self, Dob, DobOut, DobState, TensionState};
 use crate::fault::{Fault, Sensor};
 use crate::filter::{Kinematics, LowPass1, TrackingObserver};
 use crate::fusion::{self, Fusion, FusionIn, FusionState};
-use crate::grip::{Grip, GripIn, GripPartner, GripState};
+use crate::grip::{self, Grip, GripIn, GripPartner, GripState};
 use crate::jae::{self, JaeState};
 use crate::math;
 use crate::model::{sig, AddedState, Signals};
@@ -845,11 +845,7 @@ impl Controller {
                         if st.grip_partner.is_some()
                             && self.command.mode == Mode::MotorPosition =>
                     {
-                        if force_n < 0.0 {
-                            -1.0
-                        } else {
-                            1.0
-                        }
+                        grip::side(force_n)
                     }
                     _ => 0.0,
                 },

@@ -151,6 +151,16 @@ pub struct GripIn {
     pub max_angle_rad: f32,
 }
 
+/// The side a grip closes toward and presses on: its set point's sign
+/// (+1 for a set point of zero).
+pub fn side(set_n: f32) -> f32 {
+    if set_n < 0.0 {
+        -1.0
+    } else {
+        1.0
+    }
+}
+
 impl Grip {
     /// The law for an estimate low-passed at `q_cutoff_rad_s`, ticking every
     /// `period_s`.
@@ -173,7 +183,7 @@ impl Grip {
             };
         }
         let theta_f = self.q.update(&mut st.theta_f_rad, inp.angle_fb_rad);
-        let sign = if inp.set_n < 0.0 { -1.0 } else { 1.0 };
+        let sign = side(inp.set_n);
         let set_abs = math::abs(inp.set_n).max(f32::MIN_POSITIVE);
         // A pair regulates the mean of both jaws' estimates: Eq. 5's clamp
         // force, signed so that a reading against the grip counts against.

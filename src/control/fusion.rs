@@ -189,9 +189,8 @@ pub struct FusionState {
     pin_point_nm: f32,
     /// Largest pressing torque (`pressing_sign` times the stretch torque)
     /// since the chain last slipped one way or the command last pressed
-    /// toward no side, N·m; valid while `press_primed`.
-    press_peak_nm: f32,
-    press_primed: bool,
+    /// toward no side, N·m (`None` since then).
+    press_peak_nm: Option<f32>,
     /// `Q` of the stretch torque's error bound from the JAE, N·m.
     tau_err_nm: f32,
     /// `Q` of the drive torque's part above `Q`'s band, N·m.
@@ -367,19 +366,20 @@ impl Fusion {
             0.0
         };
         let (pp_lo, pp_hi) = if one_way {
-            s.press_primed = false;
+            s.press_peak_nm = None;
             band(true, s2, self.pin_nm, rho, kappa)
         } else if pressing != 0.0 {
             let press_nm = pressing * i.joint_torque_nm;
-            if !s.press_primed || press_nm > s.press_peak_nm {
-                s.press_peak_nm = press_nm;
-                s.press_primed = true;
-            }
-            let given_back_nm = s.press_peak_nm - press_nm;
+            let peak_nm = match s.press_peak_nm {
+                Some(peak_nm) if peak_nm >= press_nm => peak_nm,
+                _ => press_nm,
+            };
+            s.press_peak_nm = Some(peak_nm);
+            let given_back_nm = peak_nm - press_nm;
             let f = pressing * math::clamp(self.pin_nm - given_back_nm, 0.0, self.pin_nm);
             (f, f)
         } else {
-            s.press_primed = false;
+            s.press_peak_nm = None;
             (0.0, 0.0)
         };
         let first = !s.primed;

@@ -396,8 +396,18 @@ fn format_weights(w: &WeightsFit) -> String {
     let _ = writeln!(
         s,
         "  -> machine.spring_n_m {:.1} -> {:.1} N/m, the stretch cables' stiffnesses with it; \
-         fusion.stiffness_tolerance {:.3} -> {:.3}",
-        w.spring_n_m.0, w.spring_n_m.1, w.stiffness_tolerance.0, w.stiffness_tolerance.1,
+         fusion.stiffness_tolerance {:.3} -> {:.3}; {}",
+        w.spring_n_m.0,
+        w.spring_n_m.1,
+        w.stiffness_tolerance.0,
+        w.stiffness_tolerance.1,
+        w.pin_coulomb_nm.map_or_else(
+            || "fusion.pin_coulomb_nm kept (model C's upper bound, not a fitted level)".to_owned(),
+            |(before, after)| format!(
+                "fusion.pin_coulomb_nm {before:.5} -> {after:.5} N·m (fitted through the same \
+                 spring rate, so on the same scale)"
+            )
+        ),
     );
     let validation = if w.validation_error_n.0.is_nan() {
         "no validation log with a change of load".to_owned()
@@ -431,6 +441,9 @@ fn format_weights(w: &WeightsFit) -> String {
             h.fused_before_n,
             h.fused_after_n
         );
+    }
+    for u in &w.unmatched {
+        let _ = writeln!(s, "  {u}");
     }
     s
 }

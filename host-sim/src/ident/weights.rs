@@ -36,15 +36,26 @@
 //! times its standard deviation), or the difference of the scales fitted on
 //! the logs loaded one way and the other if larger, relative to `s`, plus
 //! the reference's own tolerance ([`WeightsOptions::reference_tolerance`]).
-//! The pin's friction, which the joint's torque balance measured on its
-//! own, is left as it is. The calibration is written only when its
+//! A pin friction the joint's torque balance fitted
+//! ([`cable_joint::config::FusionConfig::pin_identified`]) is divided by
+//! `s` too: that balance reads cable 2's torque through the same spring
+//! rate (`r K_w2 (r theta - x2)`, `K_w2` from the spring and `c4`), so every
+//! torque it fits carries the same scale (on drawn plant 82, 5.73 mN·m
+//! before, above the plant's static 5.31, and 4.22 after, between its
+//! kinetic 3.70 and its static level). Model C's upper bound, which the
+//! tension model sets through the motor's torque constant, is left as it
+//! is. The calibration is written only when its
 //! tolerance is narrower than the configuration's (the weights know the
 //! scale better than what the configuration had); otherwise it is an error
 //! and nothing is written.
 //!
 //! Every log fitted and every validation log is replayed again with the
 //! calibrated configuration, and the report gives each hold's stretch and
-//! fused estimate before and after.
+//! fused estimate before and after. A hold that only one of the two
+//! replays settled (a fault latched before it in the other: the slack
+//! check reads cable 1's tension through the stiffnesses the calibration
+//! changed) is left out of that comparison and named; the scale is fitted
+//! on the replay with the configuration given either way.
 
 use anyhow::{bail, Context, Result};
 use cable_joint::Config;
@@ -116,6 +127,14 @@ pub struct WeightsFit {
     pub spring_n_m: (f64, f64),
     /// `fusion.stiffness_tolerance` before and after.
     pub stiffness_tolerance: (f64, f64),
+    /// `fusion.pin_coulomb_nm` before and after, N·m, when it is a fitted
+    /// level; `None` when it is model C's upper bound, left as it is.
+    pub pin_coulomb_nm: Option<(f64, f64)>,
+    /// Holds only one of the two replays (with the configuration given and
+    /// with the calibrated one) settled, because a fault latched before
+    /// them in the other: left out of the comparison (the scale is fitted
+    /// on the replay with the configuration given).
+    pub unmatched: Vec<String>,
     /// RMS over the fitted holds of the stretch estimate's change less the
     /// reference's (each log about its own zero), before and after, N.
     pub fit_error_n: (f64, f64),
@@ -333,6 +352,37 @@ fn change_error_n(points: &[Point], min_step_n: f64) -> f64 {
     crate::stats::rms(&d.iter().map(|(r, e)| e - r).collect::<Vec<_>>())
 }
 
+/// Keep the holds both replays settled (the same log, settled from the
+/// same time), in order; returns a line for each left out. A fault latched
+/// in one replay and not the other (the slack check reads cable 1's
+/// tension through the stiffnesses the calibration changed) ends that
+/// replay's holds early.
+fn keep_common_holds(
+    before: &mut Vec<Point>,
+    after: &mut Vec<Point>,
+    labels: &[&str],
+) -> Vec<String> {
+    let same = |a: &Point, b: &Point| a.log == b.log && a.t_s.0 == b.t_s.0;
+    let mut left_out = Vec::new();
+    for (one, other, replay) in [
+        (&*before, &*after, "the calibrated configuration"),
+        (&*after, &*before, "the configuration given"),
+    ] {
+        for p in one.iter().filter(|p| !other.iter().any(|o| same(p, o))) {
+            left_out.push(format!(
+                "`{}`, the hold settled from {:.2} s: not settled in the replay with {replay} \
+                 (a fault latched before it), so not compared",
+                labels.get(p.log).copied().unwrap_or("?"),
+                p.t_s.0
+            ));
+        }
+    }
+    let (b0, a0) = (before.clone(), after.clone());
+    before.retain(|b| a0.iter().any(|a| same(a, b)));
+    after.retain(|a| b0.iter().any(|b| same(a, b)));
+    left_out
+}
+
 /// The scale fitted on the settled holds' points: `s`, its `%sigma`, the
 /// tolerance it gives, and the logs that entered; an error when the holds
 /// cannot pin it down better than `prior` (the configuration's tolerance).
@@ -433,11 +483,15 @@ pub fn calibrate_weights(
     calibrated.stretch.cable1_n_m = (f64::from(config.stretch.cable1_n_m) / s) as f32;
     calibrated.stretch.cable2_n_m = (f64::from(config.stretch.cable2_n_m) / s) as f32;
     calibrated.fusion.stiffness_tolerance = tolerance.min(1.0) as f32;
+    if config.fusion.pin_identified {
+        calibrated.fusion.pin_coulomb_nm = (f64::from(config.fusion.pin_coulomb_nm) / s) as f32;
+    }
     calibrated
         .validate()
         .map_err(|e| anyhow::anyhow!("the calibrated configuration is invalid: {e}"))?;
 
     let mut holds_out = Vec::new();
+    let mut unmatched = Vec::new();
     let mut errors = [(f64::NAN, f64::NAN); 2];
     for (set, runs) in [fit, validate].into_iter().enumerate() {
         // The fitted logs' holds with the configuration given are `fitted`.
@@ -454,14 +508,8 @@ pub fn calibrate_weights(
             }
             after.extend(holds(label, i, log, &calibrated, opts)?);
         }
-        if before.len() != after.len() {
-            bail!(
-                "the replays with and without the calibration found different holds ({} and {}): \
-                 a fault latched in one of them",
-                before.len(),
-                after.len()
-            );
-        }
+        let labels: Vec<&str> = runs.iter().map(|(l, _)| *l).collect();
+        unmatched.extend(keep_common_holds(&mut before, &mut after, &labels));
         for (b, a) in before.iter().zip(&after) {
             holds_out.push(WeightsHold {
                 log: runs[b.log].0.to_owned(),
@@ -492,6 +540,13 @@ pub fn calibrate_weights(
                 f64::from(config.fusion.stiffness_tolerance),
                 f64::from(calibrated.fusion.stiffness_tolerance),
             ),
+            pin_coulomb_nm: config.fusion.pin_identified.then(|| {
+                (
+                    f64::from(config.fusion.pin_coulomb_nm),
+                    f64::from(calibrated.fusion.pin_coulomb_nm),
+                )
+            }),
+            unmatched,
             fit_error_n: errors[0],
             validation_error_n: errors[1],
         },
@@ -629,5 +684,39 @@ mod tests {
         assert_eq!(student_t_975(30), 2.042);
         assert_eq!(student_t_975(200), 1.96);
         assert_eq!(student_t_975(0), 1.96);
+    }
+
+    /// A fault that ends one replay's holds early (here the calibrated
+    /// one's, in the second log after its first hold) leaves those holds
+    /// out of both sides and names them, instead of refusing the whole
+    /// calibration; holds both replays settled stay paired in order.
+    #[test]
+    fn holds_only_one_replay_settled_are_left_out_and_named() {
+        let at = |log, t0: f64, e| Point {
+            t_s: (t0, t0 + 2.0),
+            ..point(log, 1.0, e)
+        };
+        let mut before = vec![
+            at(0, 1.0, 0.0),
+            at(0, 5.5, 1.1),
+            at(1, 1.0, 0.0),
+            at(1, 5.5, 2.2),
+        ];
+        let mut after = vec![at(0, 1.0, 0.0), at(0, 5.5, 1.0), at(1, 1.0, 0.0)];
+        let left_out = keep_common_holds(&mut before, &mut after, &["w100", "w250"]);
+        assert_eq!(before.len(), 3);
+        assert_eq!(after.len(), 3);
+        for (b, a) in before.iter().zip(&after) {
+            assert_eq!((b.log, b.t_s), (a.log, a.t_s));
+        }
+        assert_eq!(left_out.len(), 1, "{left_out:?}");
+        assert!(
+            left_out[0].contains("`w250`") && left_out[0].contains("5.50 s"),
+            "{left_out:?}"
+        );
+        assert!(
+            left_out[0].contains("the calibrated configuration"),
+            "{left_out:?}"
+        );
     }
 }

@@ -8,42 +8,57 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use cable_joint::Mode;
+use cable_joint::{Config, Mode};
 use serde::Serialize;
 
 use super::programme::run_seed;
 use super::variants::VariantResult;
 use super::wrist::{force_panel, object, section_tail, STIFFNESS_N_M, TARGETS_N};
+use crate::ident::{calibrate_weights, WeightsOptions};
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Series};
+use crate::scenario::{self, Direction, ScenarioOptions, GRIP_APPROACH_RAD_S, GRIP_S};
+use crate::sim::LogRecorder;
 use crate::wrist::{grip_stats, gripped_force, run_grip, GripRun, GripStats, WristParams};
 
-use crate::scenario::{GRIP_APPROACH_RAD_S, GRIP_S};
-
-/// How a grip ran: the cascade's mode and whether both jaws grip as a pair.
+/// How a grip ran: the cascade's mode, whether both jaws grip as a pair,
+/// and whether the configuration's force scale was calibrated with known
+/// weights first.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct How {
     /// The cascade on the motor's angle (`true`) or on the JAE's.
     pub motor: bool,
     /// Both jaws as a pair (the clamp force), or jaw A alone.
     pub pair: bool,
+    /// The variant's configuration after `identify --procedure weights` on
+    /// four holds of known weights ([`Weighing`]), or as identified.
+    pub weighed: bool,
 }
 
 impl How {
-    /// The three ways the report runs: the pair and jaw A alone on the
-    /// motor's angle (the default), and the pair on the JAE's angle.
-    pub const ALL: [How; 3] = [
+    /// The four ways the report runs: the pair and jaw A alone on the
+    /// motor's angle (the default), the pair on the JAE's angle, and the
+    /// default way again after the weights.
+    pub const ALL: [How; 4] = [
         How {
             motor: true,
             pair: true,
+            weighed: false,
         },
         How {
             motor: true,
             pair: false,
+            weighed: false,
         },
         How {
             motor: false,
             pair: true,
+            weighed: false,
+        },
+        How {
+            motor: true,
+            pair: true,
+            weighed: true,
         },
     ];
 
@@ -56,11 +71,15 @@ impl How {
     }
 
     fn label(self) -> &'static str {
-        match (self.motor, self.pair) {
-            (true, true) => "pair, motor angle",
-            (true, false) => "jaw A alone, motor angle",
-            (false, true) => "pair, JAE angle",
-            (false, false) => "jaw A alone, JAE angle",
+        match (self.motor, self.pair, self.weighed) {
+            (true, true, false) => "pair, motor angle",
+            (true, true, true) => "pair, motor angle, weighed",
+            (true, false, false) => "jaw A alone, motor angle",
+            (true, false, true) => "jaw A alone, motor angle, weighed",
+            (false, true, false) => "pair, JAE angle",
+            (false, true, true) => "pair, JAE angle, weighed",
+            (false, false, false) => "jaw A alone, JAE angle",
+            (false, false, true) => "jaw A alone, JAE angle, weighed",
         }
     }
 }
@@ -87,8 +106,102 @@ pub struct GripSection {
     pub approach_rad_s: f64,
     /// Every grip.
     pub rows: Vec<GripRow>,
+    /// The weights' calibration of every variant that ran.
+    pub weighings: Vec<Weighing>,
     /// Variants that could not run, and why.
     pub skipped: Vec<String>,
+}
+
+/// The force scale from known weights on one variant, the user's step
+/// after identification (`identify --procedure weights`, README, "The force
+/// scale from known weights"): holds at 0° with [`WEIGHT_HOLDS_G`] each
+/// way, recorded with the configuration as identified, a row every tick.
+#[derive(Clone, Debug, Serialize)]
+pub struct Weighing {
+    /// Plant variant.
+    pub variant: String,
+    /// The stretch estimate's change per unit of the weights' and its
+    /// `%sigma`; `None` when the calibration was refused.
+    pub scale: Option<(f64, f64)>,
+    /// `machine.spring_n_m` before and after, N/m (unchanged when refused).
+    pub spring_n_m: (f64, f64),
+    /// The plant's spring, N/m: the simulator's truth, which a calibrated
+    /// scale should bring the rate toward (the two cables' stiffnesses
+    /// drawn apart move it off that).
+    pub plant_spring_n_m: f64,
+    /// `fusion.stiffness_tolerance` before and after.
+    pub stiffness_tolerance: (f64, f64),
+    /// `fusion.pin_coulomb_nm` before and after, N·m, when it is a fitted
+    /// level (the weights rescale it with the stiffnesses; unchanged when
+    /// refused); `None` when it is model C's upper bound.
+    pub pin_coulomb_nm: Option<(f64, f64)>,
+    /// The plant's pin friction, kinetic and static, N·m (the simulator's
+    /// truth).
+    pub plant_pin_nm: (f64, f64),
+    /// Why the calibration was refused (empty when it was written).
+    pub refused: String,
+}
+
+/// The weights hung for [`Weighing`], g: the seed's two heavier loads.
+pub const WEIGHT_HOLDS_G: [f64; 2] = [100.0, 250.0];
+
+/// Hold [`WEIGHT_HOLDS_G`] at 0° both ways on `v`'s plant with `config`,
+/// and calibrate the force scale on them; the configuration the user ends
+/// up with (unchanged when the calibration is refused).
+fn weigh(v: &VariantResult, config: &Config, base_seed: u64) -> Result<(Weighing, Config)> {
+    let mut logs = Vec::new();
+    for mass_g in WEIGHT_HOLDS_G {
+        for direction in [Direction::Pos, Direction::Neg] {
+            let label = format!("grip/weights/{}/{mass_g}/{direction:?}", v.name);
+            let opts = ScenarioOptions {
+                angle_deg: Some(0.0),
+                mass_g: Some(mass_g),
+                direction: Some(direction),
+                ..ScenarioOptions::default()
+            };
+            let mut rec = LogRecorder::new(false);
+            scenario::run(
+                "loading",
+                v.plant,
+                *config,
+                Some(run_seed(base_seed, &label)),
+                &opts,
+                &mut rec,
+            )
+            .with_context(|| label.clone())?;
+            let log = rec.to_log().with_context(|| label.clone())?;
+            logs.push((label, log));
+        }
+    }
+    let fit: Vec<(&str, &crate::log::Log)> = logs.iter().map(|(l, g)| (l.as_str(), g)).collect();
+    let spring = f64::from(config.machine.spring_n_m);
+    let tolerance = f64::from(config.fusion.stiffness_tolerance);
+    let mut w = Weighing {
+        variant: v.name.clone(),
+        scale: None,
+        spring_n_m: (spring, spring),
+        plant_spring_n_m: v.plant.spring.stiffness_n_m,
+        stiffness_tolerance: (tolerance, tolerance),
+        pin_coulomb_nm: config.fusion.pin_identified.then(|| {
+            let pin = f64::from(config.fusion.pin_coulomb_nm);
+            (pin, pin)
+        }),
+        plant_pin_nm: (v.plant.joint.coulomb_nm, v.plant.joint.static_nm),
+        refused: String::new(),
+    };
+    match calibrate_weights(&fit, &[], config, &WeightsOptions::default()) {
+        Ok((f, calibrated)) => {
+            w.scale = Some(f.scale);
+            w.spring_n_m = f.spring_n_m;
+            w.stiffness_tolerance = f.stiffness_tolerance;
+            w.pin_coulomb_nm = f.pin_coulomb_nm;
+            Ok((w, calibrated))
+        }
+        Err(e) => {
+            w.refused = format!("{e:#}");
+            Ok((w, *config))
+        }
+    }
 }
 
 /// Every variant with an identified configuration (probing off: a grip
@@ -98,6 +211,7 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<GripSection
     let mut sec = GripSection {
         approach_rad_s: GRIP_APPROACH_RAD_S,
         rows: Vec::new(),
+        weighings: Vec::new(),
         skipped: Vec::new(),
     };
     for v in variants {
@@ -110,8 +224,10 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<GripSection
             continue;
         };
         config.probe.enabled = false;
-        let params = WristParams::uniform(v.plant, config);
+        let (weighing, weighed) = weigh(v, &config, base_seed)?;
+        sec.weighings.push(weighing);
         for how in How::ALL {
+            let params = WristParams::uniform(v.plant, if how.weighed { weighed } else { config });
             for k in STIFFNESS_N_M {
                 for set_n in TARGETS_N {
                     let label = format!("grip/{}/{}/{k}/{set_n}", v.name, how.label());
@@ -218,6 +334,54 @@ pub fn goal_lines(sec: &GripSection) -> Vec<(String, bool)> {
         .collect()
 }
 
+/// The weights' calibration per variant: the scale it found against the
+/// simulator's truth (the plant's spring), and what it wrote.
+fn weighings_markdown(o: &mut String, weighings: &[Weighing]) {
+    if weighings.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        o,
+        "\nThe weights' calibration behind the \"weighed\" rows (scale: the stretch \
+         estimate's change per unit of the weights' change; the spring rate the configuration \
+         carries before → after, against the plant's, which the simulator knows and a rig \
+         does not; a calibrated rate off the plant's spring where the two cables were drawn \
+         apart is the stretch estimate's scale, not the spring's; the pin's fitted friction \
+         is rescaled with it, against the plant's kinetic and static level):\n"
+    );
+    let _ = writeln!(
+        o,
+        "| variant | scale (%σ) | spring rate [N/m] | plant's spring [N/m] | stiffness tolerance | pin [mN·m] | plant's pin [mN·m] | written |"
+    );
+    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|");
+    for w in weighings {
+        let scale = w
+            .scale
+            .map_or_else(|| "-".to_owned(), |(s, p)| format!("{s:.3} ({p:.1})"));
+        let written = if w.refused.is_empty() {
+            "yes".to_owned()
+        } else {
+            format!("refused: {}", w.refused.replace('|', "\\|"))
+        };
+        let pin = w.pin_coulomb_nm.map_or_else(
+            || "model C's upper bound, kept".to_owned(),
+            |(a, b)| format!("{:.2} → {:.2}", 1e3 * a, 1e3 * b),
+        );
+        let _ = writeln!(
+            o,
+            "| {} | {scale} | {:.0} → {:.0} | {:.0} | {:.3} → {:.3} | {pin} | {:.2}, {:.2} | {written} |",
+            w.variant,
+            w.spring_n_m.0,
+            w.spring_n_m.1,
+            w.plant_spring_n_m,
+            w.stiffness_tolerance.0,
+            w.stiffness_tolerance.1,
+            1e3 * w.plant_pin_nm.0,
+            1e3 * w.plant_pin_nm.1,
+        );
+    }
+}
+
 fn settling(s: Option<f64>) -> String {
     s.map_or_else(|| "never".to_owned(), |s| format!("{s:.2} s"))
 }
@@ -233,10 +397,13 @@ pub fn markdown(sec: &GripSection, figure: Option<&str>) -> String {
          fused force estimate reads the set point; its gain follows the contact stiffness \
          measured on the way in, its crossover an eighth of the estimate's low-pass). From \
          open jaws, the command `Trajectory::Grip` closes at {:.2} rad/s until contact, \
-         regulates for {:.0} s, then the jaws open under position control. Three ways: both \
+         regulates for {:.0} s, then the jaws open under position control. Four ways: both \
          jaws as a pair regulating the clamp force (Eq. 5) and kept level, on the motor's \
-         angle (the default), jaw A alone on the motor's angle, and the pair on the JAE's \
-         angle. Judged on the true contact force: steady-state error over the last second, \
+         angle (the default), jaw A alone on the motor's angle, the pair on the JAE's angle, \
+         and the default way again with the force scale calibrated on known weights \
+         (\"weighed\": the user's step after identification, `identify --procedure weights` \
+         on four holds at 0° of {} g each way, table below; where the calibration is \
+         refused the configuration stays as identified). Judged on the true contact force: steady-state error over the last second, \
          overshoot above the set point, time to enter ±5 % for good. The bound is the \
          regulated estimate's over the last second: the law makes the estimate read the set \
          point, so the bound is all it can promise about the true force. On the motor's \
@@ -245,7 +412,9 @@ pub fn markdown(sec: &GripSection, figure: Option<&str>) -> String {
          on the JAE's angle read it as zero (docs/force.md, \"The pin's friction in a \
          grip\"). Probing is off (a grip never probes). Reproduce: `cargo run --release -p \
          host-sim` (this section).\n",
-        sec.approach_rad_s, GRIP_S
+        sec.approach_rad_s,
+        GRIP_S,
+        WEIGHT_HOLDS_G.map(|g| format!("{g:.0}")).join(" and ")
     );
     let _ = writeln!(
         o,
@@ -267,6 +436,7 @@ pub fn markdown(sec: &GripSection, figure: Option<&str>) -> String {
             if s.met() { "met" } else { "**not met**" }
         );
     }
+    weighings_markdown(&mut o, &sec.weighings);
     let _ = writeln!(
         o,
         "\nEvery grip (k: object stiffness; error and overshoot of the true force against the \

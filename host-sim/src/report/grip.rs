@@ -8,17 +8,16 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use cable_joint::{Config, Mode};
+use cable_joint::Mode;
 use serde::Serialize;
 
 use super::programme::run_seed;
 use super::variants::VariantResult;
+use super::weigh::{Weighed, Weighing, WEIGHT_HOLDS_G};
 use super::wrist::{force_panel, object, section_tail, STIFFNESS_N_M, TARGETS_N};
-use crate::ident::{calibrate_weights, WeightsOptions};
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Series};
-use crate::scenario::{self, Direction, ScenarioOptions, GRIP_APPROACH_RAD_S, GRIP_S};
-use crate::sim::LogRecorder;
+use crate::scenario::{GRIP_APPROACH_RAD_S, GRIP_S};
 use crate::wrist::{grip_stats, gripped_force, run_grip, GripRun, GripStats, WristParams};
 
 /// How a grip ran: the cascade's mode, whether both jaws grip as a pair,
@@ -31,7 +30,7 @@ pub struct How {
     /// Both jaws as a pair (the clamp force), or jaw A alone.
     pub pair: bool,
     /// The variant's configuration after `identify --procedure weights` on
-    /// four holds of known weights ([`Weighing`]), or as identified.
+    /// four holds of known weights ([`super::weigh`]), or as identified.
     pub weighed: bool,
 }
 
@@ -112,110 +111,23 @@ pub struct GripSection {
     pub skipped: Vec<String>,
 }
 
-/// The force scale from known weights on one variant, the user's step
-/// after identification (`identify --procedure weights`, README, "The force
-/// scale from known weights"): holds at 0° with [`WEIGHT_HOLDS_G`] each
-/// way, recorded with the configuration as identified, a row every tick.
-#[derive(Clone, Debug, Serialize)]
-pub struct Weighing {
-    /// Plant variant.
-    pub variant: String,
-    /// The stretch estimate's change per unit of the weights' and its
-    /// `%sigma`; `None` when the calibration was refused.
-    pub scale: Option<(f64, f64)>,
-    /// `machine.spring_n_m` before and after, N/m (unchanged when refused).
-    pub spring_n_m: (f64, f64),
-    /// The plant's spring, N/m: the simulator's truth, which a calibrated
-    /// scale should bring the rate toward (the two cables' stiffnesses
-    /// drawn apart move it off that).
-    pub plant_spring_n_m: f64,
-    /// `fusion.stiffness_tolerance` before and after.
-    pub stiffness_tolerance: (f64, f64),
-    /// `fusion.pin_coulomb_nm` before and after, N·m, when it is a fitted
-    /// level (the weights rescale it with the stiffnesses; unchanged when
-    /// refused); `None` when it is model C's upper bound.
-    pub pin_coulomb_nm: Option<(f64, f64)>,
-    /// The plant's pin friction, kinetic and static, N·m (the simulator's
-    /// truth).
-    pub plant_pin_nm: (f64, f64),
-    /// Why the calibration was refused (empty when it was written).
-    pub refused: String,
-}
-
-/// The weights hung for [`Weighing`], g: the seed's two heavier loads.
-pub const WEIGHT_HOLDS_G: [f64; 2] = [100.0, 250.0];
-
-/// Hold [`WEIGHT_HOLDS_G`] at 0° both ways on `v`'s plant with `config`,
-/// and calibrate the force scale on them; the configuration the user ends
-/// up with (unchanged when the calibration is refused).
-fn weigh(v: &VariantResult, config: &Config, base_seed: u64) -> Result<(Weighing, Config)> {
-    let mut logs = Vec::new();
-    for mass_g in WEIGHT_HOLDS_G {
-        for direction in [Direction::Pos, Direction::Neg] {
-            let label = format!("grip/weights/{}/{mass_g}/{direction:?}", v.name);
-            let opts = ScenarioOptions {
-                angle_deg: Some(0.0),
-                mass_g: Some(mass_g),
-                direction: Some(direction),
-                ..ScenarioOptions::default()
-            };
-            let mut rec = LogRecorder::new(false);
-            scenario::run(
-                "loading",
-                v.plant,
-                *config,
-                Some(run_seed(base_seed, &label)),
-                &opts,
-                &mut rec,
-            )
-            .with_context(|| label.clone())?;
-            let log = rec.to_log().with_context(|| label.clone())?;
-            logs.push((label, log));
-        }
-    }
-    let fit: Vec<(&str, &crate::log::Log)> = logs.iter().map(|(l, g)| (l.as_str(), g)).collect();
-    let spring = f64::from(config.machine.spring_n_m);
-    let tolerance = f64::from(config.fusion.stiffness_tolerance);
-    let mut w = Weighing {
-        variant: v.name.clone(),
-        scale: None,
-        spring_n_m: (spring, spring),
-        plant_spring_n_m: v.plant.spring.stiffness_n_m,
-        stiffness_tolerance: (tolerance, tolerance),
-        pin_coulomb_nm: config.fusion.pin_identified.then(|| {
-            let pin = f64::from(config.fusion.pin_coulomb_nm);
-            (pin, pin)
-        }),
-        plant_pin_nm: (v.plant.joint.coulomb_nm, v.plant.joint.static_nm),
-        refused: String::new(),
-    };
-    match calibrate_weights(&fit, &[], config, &WeightsOptions::default()) {
-        Ok((f, calibrated)) => {
-            w.scale = Some(f.scale);
-            w.spring_n_m = f.spring_n_m;
-            w.stiffness_tolerance = f.stiffness_tolerance;
-            w.pin_coulomb_nm = f.pin_coulomb_nm;
-            Ok((w, calibrated))
-        }
-        Err(e) => {
-            w.refused = format!("{e:#}");
-            Ok((w, *config))
-        }
-    }
-}
-
 /// Every variant with an identified configuration (probing off: a grip
-/// never probes), every way, object and set point; `base_seed` seeds the
+/// never probes), every way, object and set point; `weighed` is
+/// [`super::weigh::run_all`]'s for the same variants; `base_seed` seeds the
 /// runs.
-pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<GripSection> {
+pub fn run_all(
+    variants: &[VariantResult],
+    weighed: &[Option<Weighed>],
+    base_seed: u64,
+) -> Result<GripSection> {
     let mut sec = GripSection {
         approach_rad_s: GRIP_APPROACH_RAD_S,
         rows: Vec::new(),
         weighings: Vec::new(),
         skipped: Vec::new(),
     };
-    for v in variants {
-        let Some(mut config) = v.config else {
+    for (v, w) in variants.iter().zip(weighed) {
+        let (Some(mut config), Some(w)) = (v.config, w) else {
             sec.skipped.push(format!(
                 "{}: no identified configuration ({})",
                 v.name,
@@ -224,10 +136,9 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<GripSection
             continue;
         };
         config.probe.enabled = false;
-        let (weighing, weighed) = weigh(v, &config, base_seed)?;
-        sec.weighings.push(weighing);
+        sec.weighings.push(w.weighing.clone());
         for how in How::ALL {
-            let params = WristParams::uniform(v.plant, if how.weighed { weighed } else { config });
+            let params = WristParams::uniform(v.plant, if how.weighed { w.config } else { config });
             for k in STIFFNESS_N_M {
                 for set_n in TARGETS_N {
                     let label = format!("grip/{}/{}/{k}/{set_n}", v.name, how.label());

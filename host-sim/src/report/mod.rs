@@ -54,6 +54,7 @@ pub mod regressors;
 pub mod render;
 pub mod seed;
 pub mod variants;
+pub mod weigh;
 pub mod wrist;
 
 use std::path::{Path, PathBuf};
@@ -337,11 +338,18 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
     let variant_results = variants::run_all(&s);
     progress.line("report", "designed excitations on plant variants");
     let excitation = excitation::run_all(&s).map_err(|e| format!("{e:#}"));
+    progress.line(
+        "report",
+        "the force scale from known weights on plant variants",
+    );
+    let weighed = weigh::run_all(&variant_results, s.seed);
     progress.line("report", "the wrist's clamp force on plant variants");
-    let wrist_section = wrist::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
+    let wrist_section =
+        wrist::run_all(&variant_results, &weighed, s.seed).map_err(|e| format!("{e:#}"));
     let wrist_figure = wrist::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
     progress.line("report", "grip-force control on plant variants");
-    let grip_section = grip::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
+    let grip_section =
+        grip::run_all(&variant_results, &weighed, s.seed).map_err(|e| format!("{e:#}"));
     let grip_figure = grip::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
     if let Some(fx) = &fx {
         progress.line("report", "step 7 figures");

@@ -2,7 +2,9 @@
 //! force (seed 000 Eq. 4-5) of the simulated four-joint wrist
 //! ([`crate::wrist`]) against the true contact force, grasping, holding and
 //! releasing soft objects, on every plant variant with the configuration
-//! the variant section identified for it, passive and with probing.
+//! the variant section identified for it, passive and with probing, and
+//! both again with the force scale from known weights
+//! ([`super::weigh`]).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -12,6 +14,7 @@ use serde::Serialize;
 
 use super::programme::run_seed;
 use super::variants::VariantResult;
+use super::weigh::Weighed;
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Panel, Series};
 use crate::wrist::{
@@ -38,6 +41,9 @@ pub struct WristRow {
     pub rate_hz: f32,
     /// Probing on.
     pub probing: bool,
+    /// The configuration after the weights' calibration
+    /// ([`super::weigh`]), or as identified.
+    pub weighed: bool,
     /// Object stiffness, N/m.
     pub stiffness_n_m: f64,
     /// Target squeeze, N.
@@ -64,15 +70,34 @@ pub fn object(k: f64) -> SoftObject {
     }
 }
 
+/// The modes a variant runs in: (probing, weighed).
+const MODES: [(bool, bool); 4] = [(false, false), (true, false), (false, true), (true, true)];
+
+/// A mode's name in the tables.
+fn mode_label(probing: bool, weighed: bool) -> &'static str {
+    match (probing, weighed) {
+        (false, false) => "passive",
+        (true, false) => "probing",
+        (false, true) => "passive, weighed",
+        (true, true) => "probing, weighed",
+    }
+}
+
 /// Every variant with an identified configuration, passive and probing,
-/// every object and target; `base_seed` seeds the runs.
-pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<WristSection> {
+/// each as identified and weighed (`weighed` is
+/// [`super::weigh::run_all`]'s for the same variants), every object and
+/// target; `base_seed` seeds the runs.
+pub fn run_all(
+    variants: &[VariantResult],
+    weighed: &[Option<Weighed>],
+    base_seed: u64,
+) -> Result<WristSection> {
     let mut sec = WristSection {
         rows: Vec::new(),
         skipped: Vec::new(),
     };
-    for v in variants {
-        let Some(config) = v.config else {
+    for (v, w) in variants.iter().zip(weighed) {
+        let (Some(config), Some(w)) = (v.config, w) else {
             sec.skipped.push(format!(
                 "{}: no identified configuration ({})",
                 v.name,
@@ -80,13 +105,18 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<WristSectio
             ));
             continue;
         };
-        for probing in [false, true] {
-            let mut c = config;
+        for (probing, weighed) in MODES {
+            let mut c = if weighed { w.config } else { config };
             c.probe.enabled = probing;
             let params = WristParams::uniform(v.plant, c);
             for k in STIFFNESS_N_M {
                 for target in TARGETS_N {
-                    let label = format!("wrist/{}/{probing}/{k}/{target}", v.name);
+                    // (The label of the modes without the weights as before.)
+                    let label = if weighed {
+                        format!("wrist/{}/{probing}/weighed/{k}/{target}", v.name)
+                    } else {
+                        format!("wrist/{}/{probing}/{k}/{target}", v.name)
+                    };
                     let grasp = Grasp {
                         target_n: target,
                         ..Grasp::default()
@@ -97,6 +127,7 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<WristSectio
                         variant: v.name.clone(),
                         rate_hz: v.rate_hz,
                         probing,
+                        weighed,
                         stiffness_n_m: k,
                         target_n: target,
                         stats: grasp_stats(&ticks),
@@ -113,6 +144,7 @@ struct Summary {
     name: String,
     rate_hz: f32,
     probing: bool,
+    weighed: bool,
     /// Worst hold accuracy over the grasps whose true squeeze is >= 1 N, %.
     worst_pct: f64,
     /// Least coverage over whole grasps (open, grasp, hold, release).
@@ -135,14 +167,14 @@ fn summary(sec: &WristSection) -> Vec<Summary> {
     for r in &sec.rows {
         if out
             .iter()
-            .any(|s| s.name == r.variant && s.probing == r.probing)
+            .any(|s| s.name == r.variant && s.probing == r.probing && s.weighed == r.weighed)
         {
             continue;
         }
         let rows: Vec<&WristRow> = sec
             .rows
             .iter()
-            .filter(|x| x.variant == r.variant && x.probing == r.probing)
+            .filter(|x| x.variant == r.variant && x.probing == r.probing && x.weighed == r.weighed)
             .collect();
         let worst = rows
             .iter()
@@ -163,6 +195,7 @@ fn summary(sec: &WristSection) -> Vec<Summary> {
             name: r.variant.clone(),
             rate_hz: r.rate_hz,
             probing: r.probing,
+            weighed: r.weighed,
             worst_pct: worst,
             coverage,
             hold_coverage,
@@ -178,7 +211,7 @@ pub fn goal_lines(sec: &WristSection) -> Vec<(String, bool)> {
     summary(sec)
         .into_iter()
         .map(|s| {
-            let mode = if s.probing { "probing" } else { "passive" };
+            let mode = mode_label(s.probing, s.weighed);
             (
                 format!(
                     "wrist, {}, {mode}: clamp force worst case while holding {:.1} % \
@@ -212,7 +245,9 @@ pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
          the mean true contact force over the hold's second half; coverage: the share of every \
          tick (open, grasp, hold, release) whose true contact force lies in the bound. Every \
          assumption (geometry, decoupled joints, no gravity) is in `host-sim/src/wrist.rs` and \
-         `src/control/wrist.rs`. Reproduce: `cargo run --release -p host-sim` (this section).\n"
+         `src/control/wrist.rs`. \"Weighed\": the same again with the force scale \
+         calibrated on known weights first (the grip section's table below gives each \
+         calibration). Reproduce: `cargo run --release -p host-sim` (this section).\n"
     );
     let _ = writeln!(
         o,
@@ -225,7 +260,7 @@ pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
             "| {} | {:.0} Hz | {} | {:.1} % | {:.1} % | {:.1} % | {:.3} N | {} | {} |",
             s.name,
             s.rate_hz,
-            if s.probing { "probing" } else { "passive" },
+            mode_label(s.probing, s.weighed),
             s.worst_pct,
             100.0 * s.coverage,
             100.0 * s.hold_coverage,
@@ -260,7 +295,7 @@ pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
             o,
             "| {} | {} | {:.0} | {:.0} | {:.3} | {:.3} | {:.1} % | {:.1} / {:.1} % | {:.3} N | {} |",
             r.variant,
-            if r.probing { "probing" } else { "passive" },
+            mode_label(r.probing, r.weighed),
             r.stiffness_n_m,
             r.target_n,
             s.hold_true_n,
@@ -305,7 +340,7 @@ pub fn stage_figure_for(
             &Grasp::default(),
             run_seed(base_seed, &label),
         )?;
-        let mode = if probing { "probing" } else { "passive" };
+        let mode = mode_label(probing, false);
         panels.push(force_panel(
             format!("{}: clamp force, {mode}", v.name),
             &ticks,

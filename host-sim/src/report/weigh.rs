@@ -72,6 +72,8 @@ fn weigh(v: &VariantResult, config: &Config, base_seed: u64) -> Result<(Weighing
     let mut logs = Vec::new();
     for mass_g in WEIGHT_HOLDS_G {
         for direction in [Direction::Pos, Direction::Neg] {
+            // The seed's label from when only the grip section weighed
+            // (kept, so the holds' noise and every weighed figure stay).
             let label = format!("grip/weights/{}/{mass_g}/{direction:?}", v.name);
             let opts = ScenarioOptions {
                 angle_deg: Some(0.0),

@@ -49,6 +49,7 @@ fn main() -> Result<()> {
         scale: 1.0,
         progress: Progress::new(true),
         draws: None,
+        draw_rate_hz: None,
     };
     let pairs = settings(&args[1])?;
     println!("| variant | f [Hz] | A [°] | fused worst ≥1 N [%] | worst 0.3 N [%] | static no-load [N] | coverage [%] | tip motion [°] | faults |");

@@ -42,6 +42,13 @@ pub struct ReportArgs {
     /// own draws are 11, 12 and 13; at most 100 plants.
     #[arg(long, value_name = "FIRST-LAST", value_parser = parse_draws)]
     pub draws: Option<(u64, u64)>,
+    /// With `--draws`: run every drawn plant at this control rate, Hz,
+    /// instead of 2 kHz for odd seeds and 1 kHz for even ones (another
+    /// board's rate; 250 to 10 000 Hz, every rate-dependent setting derived
+    /// from it as `simulate` does).
+    #[arg(long, value_name = "HZ", requires = "draws",
+          value_parser = crate::cli::f64_in(250.0, 10_000.0))]
+    pub draw_rate_hz: Option<f64>,
 }
 
 /// `FIRST-LAST` (or one seed `N`) of `--draws`.
@@ -78,6 +85,7 @@ impl From<ReportOptions> for ReportArgs {
             serial: o.serial,
             quiet: o.quiet,
             draws: o.draws,
+            draw_rate_hz: o.draw_rate_hz,
         }
     }
 }
@@ -100,6 +108,7 @@ impl ReportArgs {
             serial: self.serial,
             quiet: self.quiet,
             draws: self.draws,
+            draw_rate_hz: self.draw_rate_hz,
         }
     }
 }
@@ -135,5 +144,42 @@ mod tests {
         );
         assert!(parse_draws("1-101").unwrap_err().contains("at most 100"));
         assert_eq!(parse_draws("1-100"), Ok((1, 100)));
+    }
+
+    /// `--draw-rate-hz` reaches the drawn plants, only with `--draws`, and
+    /// a rate outside 250-10 000 Hz is refused with the range named.
+    #[test]
+    fn draw_rate_sets_every_drawn_plant_s_rate_and_needs_draws() {
+        use clap::Parser;
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            report: ReportArgs,
+        }
+        let parse = |args: &[&str]| {
+            Cli::try_parse_from(std::iter::once("report").chain(args.iter().copied()))
+                .map(|c| c.report)
+        };
+        let a = parse(&["--draws", "70-72", "--draw-rate-hz", "500"]).unwrap();
+        let rates: Vec<f32> = crate::report::variants::drawn_variants(
+            70,
+            72,
+            a.options().draw_rate_hz.map(|hz| hz as f32),
+        )
+        .iter()
+        .map(|v| v.rate_hz)
+        .collect();
+        assert_eq!(rates, [500.0; 3]);
+        let native: Vec<f32> = crate::report::variants::drawn_variants(70, 71, None)
+            .iter()
+            .map(|v| v.rate_hz)
+            .collect();
+        assert_eq!(native, [1000.0, 2000.0]);
+        assert!(parse(&["--draw-rate-hz", "500"]).is_err(), "needs --draws");
+        let low = parse(&["--draws", "70", "--draw-rate-hz", "100"])
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(low.contains("250"), "{low}");
     }
 }

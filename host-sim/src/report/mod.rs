@@ -95,6 +95,9 @@ pub struct ReportOptions {
     /// Run the force sections (plant variants, excitation, wrist, grip) on
     /// drawn plants `first..=last` instead of the ten variants.
     pub draws: Option<(u64, u64)>,
+    /// With `draws`: every drawn plant's control rate, Hz (default: 2 kHz
+    /// for odd seeds, 1 kHz for even ones).
+    pub draw_rate_hz: Option<f64>,
 }
 
 impl Default for ReportOptions {
@@ -108,7 +111,31 @@ impl Default for ReportOptions {
             serial: false,
             quiet: false,
             draws: None,
+            draw_rate_hz: None,
         }
+    }
+}
+
+impl ReportOptions {
+    /// The `host-sim` arguments that make this report again (the output
+    /// directory left out).
+    pub fn command(&self) -> String {
+        let mut c = format!(
+            "report --seed {} --duration-scale {}",
+            self.seed, self.duration_scale
+        );
+        if self.no_effects {
+            c.push_str(" --no-effects");
+        } else if !self.effect.is_empty() {
+            c.push_str(&format!(" --effect {}", self.effect.join(",")));
+        }
+        if let Some((first, last)) = self.draws {
+            c.push_str(&format!(" --draws {first}-{last}"));
+        }
+        if let Some(hz) = self.draw_rate_hz {
+            c.push_str(&format!(" --draw-rate-hz {hz}"));
+        }
+        c
     }
 }
 
@@ -303,6 +330,7 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         scale: args.duration_scale,
         progress,
         draws: args.draws,
+        draw_rate_hz: args.draw_rate_hz.map(|hz| hz as f32),
     };
     let dir = &args.out;
     crate::output::ensure_dir(dir)?;
@@ -504,4 +532,35 @@ pub fn write(r: &mut Report) -> Result<String> {
         r.runtime_s
     ));
     Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The report's header names the arguments that make it again: the
+    /// default run's as before, a held-out run's with its draws, rate and
+    /// `--no-effects`.
+    #[test]
+    fn the_command_in_the_header_reproduces_the_run() {
+        assert_eq!(
+            ReportOptions::default().command(),
+            "report --seed 1 --duration-scale 1"
+        );
+        let held_out = ReportOptions {
+            no_effects: true,
+            draws: Some((70, 79)),
+            draw_rate_hz: Some(500.0),
+            ..ReportOptions::default()
+        };
+        assert_eq!(
+            held_out.command(),
+            "report --seed 1 --duration-scale 1 --no-effects --draws 70-79 --draw-rate-hz 500"
+        );
+        let effects = ReportOptions {
+            effect: vec!["creep".into(), "drift".into()],
+            ..ReportOptions::default()
+        };
+        assert!(effects.command().ends_with("--effect creep,drift"));
+    }
 }

@@ -184,19 +184,22 @@ pub fn variants() -> Vec<Variant> {
     v
 }
 
-/// Drawn plants `first..=last` ([`drawn`]), odd seeds at 2 kHz and even
-/// ones at 1 kHz: plants no default was tuned on, for an out-of-sample
-/// check of the estimator and its bound (`host-sim report --draws`).
-pub fn drawn_variants(first: u64, last: u64) -> Vec<Variant> {
+/// Drawn plants `first..=last` ([`drawn`]): plants no default was tuned
+/// on, for an out-of-sample check of the estimator and its bound (`host-sim
+/// report --draws`). Each runs at `rate_hz` if given (`--draw-rate-hz`),
+/// else odd seeds at 2 kHz and even ones at 1 kHz.
+pub fn drawn_variants(first: u64, last: u64, rate_hz: Option<f32>) -> Vec<Variant> {
     (first..=last)
         .map(|seed| {
-            let rate_hz = if seed % 2 == 0 { 1000.0 } else { 2000.0 };
-            let what = if seed % 2 == 0 {
-                "every parameter ±30 %, 1 kHz control"
+            let rate_hz = rate_hz.unwrap_or(if seed % 2 == 0 { 1000.0 } else { 2000.0 });
+            let what = if rate_hz == 2000.0 {
+                "every parameter ±30 %".to_string()
+            } else if rate_hz % 1000.0 == 0.0 {
+                format!("every parameter ±30 %, {} kHz control", rate_hz / 1000.0)
             } else {
-                "every parameter ±30 %"
+                format!("every parameter ±30 %, {rate_hz} Hz control")
             };
-            variant(format!("draw {seed}"), what, drawn(seed), rate_hz)
+            variant(format!("draw {seed}"), &what, drawn(seed), rate_hz)
         })
         .collect()
 }
@@ -205,7 +208,7 @@ pub fn drawn_variants(first: u64, last: u64) -> Vec<Variant> {
 /// plants its settings ask for.
 pub fn for_settings(s: &Settings) -> Vec<Variant> {
     match s.draws {
-        Some((first, last)) => drawn_variants(first, last),
+        Some((first, last)) => drawn_variants(first, last, s.draw_rate_hz),
         None => variants(),
     }
 }

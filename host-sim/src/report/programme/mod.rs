@@ -54,6 +54,9 @@ pub struct Settings {
     /// ([`crate::report::variants::drawn_variants`]) instead of the report's
     /// ten variants.
     pub draws: Option<(u64, u64)>,
+    /// With `draws`: every drawn plant's control rate, Hz (`None`: 2 kHz
+    /// for odd seeds, 1 kHz for even ones).
+    pub draw_rate_hz: Option<f32>,
 }
 
 /// Logs of the identification runs (kept for the figures and the residual

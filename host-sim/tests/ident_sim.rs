@@ -782,3 +782,35 @@ fn identifying_again_from_the_written_configuration_keeps_the_stiffness_toleranc
         }
     }
 }
+
+/// Model C's friction terms are identified only where the DOB's tension is
+/// quieter than they are. At 500 Hz the configuration's drive current
+/// limit-cycles in closed loop on the JAE (the position loop's derivative
+/// through slider 2's mode), the written model's residual exceeds `f_sc1 +
+/// f_cp2`, and the result says so with the current's change per tick; on
+/// the chain's 2 kHz log it says nothing.
+#[test]
+fn a_tension_log_whose_residual_hides_the_friction_says_so() {
+    let c = chain();
+    let opts = IdentOptions::default();
+    let quiet = identify_tension_with(&[("tension", &c.tension_log)], &c.config, &opts).unwrap();
+    assert_eq!(
+        quiet.unidentified, None,
+        "2 kHz: residual {} N, chi_p {:?}",
+        quiet.core.sigma, quiet.chi_p
+    );
+    let (slow, _) = c.config.at_rate(500.0);
+    let log = simulate("tension-ident", &slow, None, 30.0);
+    let r = identify_tension_with(&[("tension", &log)], &slow, &opts).unwrap();
+    let friction_n = r.chi_p[0].abs() + r.chi_p[1].abs();
+    assert!(
+        r.core.sigma > friction_n,
+        "500 Hz: residual {} N, friction {friction_n} N",
+        r.core.sigma
+    );
+    let why = r.unidentified.expect("500 Hz: the note");
+    assert!(
+        why.contains("does not identify") && why.contains("A per tick"),
+        "{why}"
+    );
+}

@@ -574,6 +574,9 @@ pub fn format_report(r: &IdentifyReport) -> String {
             fmt_num(t.chi_p[2]),
             fmt_num(t.chi_p[3])
         );
+        if let Some(why) = &t.unidentified {
+            let _ = writeln!(s, "  warning: {why}\n");
+        }
     }
     if !r.validation.is_empty() {
         let _ = writeln!(

@@ -153,6 +153,9 @@ pub struct TensionResult {
     pub chi_p: [f64; 4],
     /// Kept regressors outside the core's structure (not written).
     pub not_written: Vec<Regressor>,
+    /// Why the log does not identify the friction terms, when the written
+    /// model's residual exceeds them (`None`: it does).
+    pub unidentified: Option<String>,
 }
 
 /// Everything `host-sim identify` found (the `--json` output).

@@ -87,6 +87,7 @@ pub fn identify_tension_with(
         )
     };
     let chi_p = SIMPLIFIED_C.map(|r| core.value(r));
+    let unidentified = friction_hidden(&core, chi_p, logs);
     Ok(TensionResult {
         theta_source: preps[0].theta_source.to_owned(),
         b_m_used_nm_s_rad: f64::from(preps[0].cfg.dob.viscous_nm_s_rad),
@@ -98,7 +99,51 @@ pub fn identify_tension_with(
         core,
         chi_p,
         not_written,
+        unidentified,
     })
+}
+
+/// Model C's Coulomb terms are what the force bound's DOB side takes for
+/// its friction bands. When the written model's residual (the DOB's
+/// tension the model does not explain) is larger than those terms
+/// together, the log cannot tell them from the rest, and the bound built
+/// on them is not a bound. Returns the sentence that says so, with the
+/// drive current's mean change per tick as the first thing to look at: a
+/// current limit cycle in closed loop on the JAE (measured at 500 Hz, and
+/// at 1 kHz on a plant with a four times lighter slider 2) puts 10 to 20 N
+/// RMS of rotor inertia into the DOB's tension (README, "the PD term's
+/// current chatter").
+fn friction_hidden(core: &FitReport, chi_p: [f64; 4], logs: &[(&str, &Log)]) -> Option<String> {
+    let friction_n = chi_p[0].abs() + chi_p[1].abs();
+    let residual_n = core.sigma;
+    if residual_n <= friction_n {
+        return None;
+    }
+    let (mut sum_a, mut n) = (0.0, 0usize);
+    for (_, log) in logs {
+        if let Some(i) = log.col("i_ref_a") {
+            sum_a += i.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>();
+            n += i.len().saturating_sub(1);
+        }
+    }
+    let chatter = if n > 0 {
+        format!(
+            "; the drive current changes by {:.3} A per tick on average (0.04 to 0.13 A \
+             on the simulated prototype's quiet loop at 1 and 2 kHz, 0.3 to 0.5 A in the \
+             limit cycle measured at 500 Hz, which the DOB reads as rotor inertia)",
+            sum_a / n as f64
+        )
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "the written tension model's residual ({residual_n:.2} N RMS) is larger than the \
+         friction terms it fits (f_sc1 + f_cp2 = {friction_n:.2} N): this log does not \
+         identify them, and the force bound's DOB side rests on them{chatter}. Record the \
+         run again with a quiet current (in the motor-encoder loop, or on the JAE with \
+         `cascade.kd_on_observer_rate = true` and a lower \
+         `differentiators.grating_bandwidth_hz`) before trusting the bound"
+    ))
 }
 
 /// Errors of every tension model on another no-load log (N): models A, B, C

@@ -235,7 +235,8 @@ fn tracking(
 }
 
 /// Steps 1, 2 and 5 alone: the configuration a user identifies on `plant`
-/// from `base`, and the faults latched in those runs.
+/// from `base`, and the faults latched in those runs (with a note when the
+/// tension run does not identify model C's friction terms).
 pub fn identify_config(
     plant: &PlantParams,
     base: &Config,
@@ -244,7 +245,12 @@ pub fn identify_config(
 ) -> Result<(Config, Vec<String>)> {
     let mut faults = Vec::new();
     let (_, _, _, config_jae, ..) = identify_bm_jae(plant, base, s, tag, &mut faults)?;
-    let (_, _, config, ..) = identify_tension(plant, &config_jae, s, tag, &mut faults)?;
+    let (tension, _, config, ..) = identify_tension(plant, &config_jae, s, tag, &mut faults)?;
+    faults.extend(
+        tension
+            .unidentified
+            .map(|why| format!("tension-ident: {why}")),
+    );
     Ok((config, faults))
 }
 

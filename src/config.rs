@@ -562,10 +562,34 @@ impl Default for Config {
 pub struct RateAdjustment {
     /// Dotted path of the setting.
     pub field: &'static str,
-    /// Value before, in the setting's unit.
+    /// Value before, in the setting's unit (an on/off setting: 0 or 1).
     pub from: f32,
     /// Value derived from the rate.
     pub to: f32,
+    /// The setting is on/off (`from` and `to` are 0 or 1).
+    pub flag: bool,
+}
+
+impl RateAdjustment {
+    /// The derived value as a configuration file writes it.
+    pub fn to_text(&self) -> heapless::String<24> {
+        let mut t = heapless::String::new();
+        if self.flag {
+            let _ = t.push_str(if self.to != 0.0 { "true" } else { "false" });
+        } else {
+            let _ = core::fmt::write(&mut t, format_args!("{}", self.to));
+        }
+        t
+    }
+
+    /// The value before, as a configuration file writes it.
+    pub fn from_text(&self) -> heapless::String<24> {
+        RateAdjustment {
+            to: self.from,
+            ..*self
+        }
+        .to_text()
+    }
 }
 
 /// Why a configuration was rejected: the field and what is wrong with it.
@@ -667,12 +691,16 @@ impl Config {
     ///    it);
     /// 3. the position loop's gain is kept at most a third of that crossover
     ///    (the cascade's separation);
-    /// 4. the discrete PD position loop is kept inside Jury's bound.
+    /// 4. the discrete PD position loop is kept inside Jury's bound;
+    /// 5. where the velocity loop's crossover is below three times the
+    ///    grating observer's bandwidth, the position loop's derivative is
+    ///    taken from that observer (`cascade.kd_on_observer_rate`), whose
+    ///    bandwidth becomes a third of the crossover.
     ///
     /// The settings that the rate can support are kept, so a user's choice
     /// survives. Returns the changes made, for the caller to say what it
     /// derived.
-    pub fn at_rate(&self, rate_hz: f32) -> (Config, heapless::Vec<RateAdjustment, 7>) {
+    pub fn at_rate(&self, rate_hz: f32) -> (Config, heapless::Vec<RateAdjustment, 9>) {
         let mut c = *self;
         let mut changes = heapless::Vec::new();
         c.control_rate_hz = rate_hz;
@@ -694,6 +722,7 @@ impl Config {
                     field,
                     from: *bw,
                     to: derived_hz,
+                    flag: false,
                 });
                 *bw = derived_hz;
             }
@@ -713,6 +742,7 @@ impl Config {
                     field,
                     from: *gain,
                     to,
+                    flag: false,
                 });
                 *gain = to;
             }
@@ -725,6 +755,7 @@ impl Config {
                 field: "cascade.ki_vel_a_rad",
                 from: cc.ki_vel_a_rad,
                 to: ki_max,
+                flag: false,
             });
             cc.ki_vel_a_rad = ki_max;
         }
@@ -734,8 +765,40 @@ impl Config {
                 field: "cascade.kp_pos_1_s",
                 from: cc.kp_pos_1_s,
                 to: position_max_1_s,
+                flag: false,
             });
             cc.kp_pos_1_s = position_max_1_s;
+        }
+        // The position loop's derivative on `theta_hat` sees slider 2's
+        // mode, which sits between the motor and the grating the JAE reads,
+        // and feeds it back into the velocity loop. Where the crossover is
+        // derived down with the rate it drove a current limit cycle at the
+        // crossover (500-800 Hz on the simulated prototype; README, "Below
+        // 1 kHz the chatter is a limit cycle"). There, once the crossover is
+        // below three times the grating observer's bandwidth, the
+        // derivative comes from that observer (`kd_on_observer_rate`),
+        // whose bandwidth becomes a third of the crossover: the cascade's
+        // separation, as for `kp_pos` above.
+        let crossover_hz = cc.kp_vel_a_s_rad * rotor_gain / (2.0 * math::PI);
+        let grating_hz = c.differentiators.grating_bandwidth_hz;
+        if crossover_hz < 3.0 * grating_hz && crossover_hz > 0.0 {
+            if !cc.kd_on_observer_rate {
+                let _ = changes.push(RateAdjustment {
+                    field: "cascade.kd_on_observer_rate",
+                    from: 0.0,
+                    to: 1.0,
+                    flag: true,
+                });
+                cc.kd_on_observer_rate = true;
+            }
+            let to = crossover_hz / 3.0;
+            let _ = changes.push(RateAdjustment {
+                field: "differentiators.grating_bandwidth_hz",
+                from: grating_hz,
+                to,
+                flag: false,
+            });
+            c.differentiators.grating_bandwidth_hz = to;
         }
         // The discrete PD position loop needs kp T < 2 (1 - kd) (see
         // `validate`); at a rate too slow for the gain, derive half of that.
@@ -749,6 +812,7 @@ impl Config {
                 field: "cascade.kp_pos_1_s",
                 from: cc.kp_pos_1_s,
                 to,
+                flag: false,
             });
             cc.kp_pos_1_s = to;
         }
@@ -1292,6 +1356,53 @@ mod tests {
         );
         let (same, none) = c.at_rate(2000.0);
         assert_eq!((same, none.len()), (c, 0));
+    }
+
+    /// Below the rate where the derived velocity crossover falls under
+    /// three times the grating observer's bandwidth (30 Hz: between 800 Hz
+    /// and 1 kHz with the defaults), the position loop's derivative comes
+    /// from the grating observer at a third of the crossover; at 1 kHz
+    /// and above nothing of it changes.
+    #[test]
+    fn below_1_khz_the_derivative_comes_from_the_observer_at_a_third_of_the_crossover() {
+        let c = Config::default();
+        let rotor = c.machine.torque_constant_nm_a / c.machine.rotor_inertia_kg_m2;
+        for rate_hz in [250.0, 500.0, 800.0] {
+            let (at, changes) = c.at_rate(rate_hz);
+            at.validate().unwrap();
+            let crossover_hz = at.cascade.kp_vel_a_s_rad * rotor / (2.0 * crate::math::PI);
+            assert!(at.cascade.kd_on_observer_rate, "{rate_hz} Hz");
+            let bw = at.differentiators.grating_bandwidth_hz;
+            assert!(
+                (bw - crossover_hz / 3.0).abs() < 1e-4 * bw,
+                "{rate_hz} Hz: {bw} Hz against a crossover of {crossover_hz} Hz"
+            );
+            let flag = changes
+                .iter()
+                .find(|a| a.field == "cascade.kd_on_observer_rate")
+                .expect("noted");
+            assert!(flag.flag && flag.to_text() == "true" && flag.from_text() == "false");
+        }
+        for rate_hz in [1000.0, 2000.0, 5000.0] {
+            let (at, _) = c.at_rate(rate_hz);
+            assert!(!at.cascade.kd_on_observer_rate, "{rate_hz} Hz");
+            assert_eq!(
+                at.differentiators.grating_bandwidth_hz,
+                c.differentiators.grating_bandwidth_hz
+            );
+        }
+        // A user's choice stands: already on, only the bandwidth is derived.
+        let on = Config {
+            cascade: CascadeConfig {
+                kd_on_observer_rate: true,
+                ..c.cascade
+            },
+            ..c
+        };
+        let (_, changes) = on.at_rate(500.0);
+        assert!(!changes
+            .iter()
+            .any(|a| a.field == "cascade.kd_on_observer_rate"));
     }
 
     /// Spectral radius of the bare rotor under the PI velocity loop, fed

@@ -262,7 +262,9 @@ fn config_at_clock(clock: &Clock, config: &Config) -> Result<(Config, Vec<String
         .map(|a| {
             format!(
                 "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
-                a.field, a.to, a.from
+                a.field,
+                a.to_text(),
+                a.from_text()
             )
         })
         .collect();

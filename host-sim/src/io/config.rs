@@ -45,10 +45,17 @@ pub fn load_config_noted(path: impl AsRef<Path>) -> Result<(Config, Vec<String>)
         .filter(|a| !has_key(&table, a.field))
         .collect();
     for a in missing {
-        set_key(&mut table, a.field, toml::Value::Float(f64::from(a.to)));
+        let value = if a.flag {
+            toml::Value::Boolean(a.to != 0.0)
+        } else {
+            toml::Value::Float(f64::from(a.to))
+        };
+        set_key(&mut table, a.field, value);
         notes.push(format!(
             "{} = {} (not in the file; the default {} does not fit control_rate_hz = {rate_hz}, so derived from it)",
-            a.field, a.to, a.from
+            a.field,
+            a.to_text(),
+            a.from_text()
         ));
     }
     let config: Config = if notes.is_empty() {
@@ -309,6 +316,32 @@ mod tests {
         let (c, notes) = load_text("control_rate_hz = 2000.0\n").unwrap();
         assert_eq!(c, Config::default());
         assert!(notes.is_empty(), "{notes:?}");
+    }
+
+    /// At 500 Hz the derivation also switches the position loop's
+    /// derivative to the grating observer: the on/off setting is written
+    /// as a TOML boolean and noted as `true`, and a file that says `false`
+    /// keeps it.
+    #[test]
+    fn at_500_hz_the_derivative_from_the_observer_is_derived_as_a_flag() {
+        let (c, notes) = load_text("control_rate_hz = 500.0\n").unwrap();
+        assert_eq!(c, Config::default().at_rate(500.0).0);
+        assert!(c.cascade.kd_on_observer_rate);
+        assert!(
+            notes.iter().any(|n| n.starts_with(
+                "cascade.kd_on_observer_rate = true (not in the file; the default false"
+            )),
+            "{notes:?}"
+        );
+        let (c, notes) =
+            load_text("control_rate_hz = 500.0\n[cascade]\nkd_on_observer_rate = false\n").unwrap();
+        assert!(!c.cascade.kd_on_observer_rate);
+        assert!(
+            !notes
+                .iter()
+                .any(|n| n.starts_with("cascade.kd_on_observer_rate")),
+            "{notes:?}"
+        );
     }
 
     /// A rate-dependent setting the file gives is the user's: kept as given,

@@ -111,8 +111,8 @@ pub fn identify_tension_with(
 /// drive current's mean change per tick as the first thing to look at: a
 /// current limit cycle in closed loop on the JAE (measured at 500 Hz, and
 /// at 1 kHz on a plant with a four times lighter slider 2) puts 10 to 20 N
-/// RMS of rotor inertia into the DOB's tension (README, "the PD term's
-/// current chatter").
+/// RMS of rotor inertia into the DOB's tension (README, "Below 1 kHz the
+/// chatter is a limit cycle").
 fn friction_hidden(core: &FitReport, chi_p: [f64; 4], logs: &[(&str, &Log)]) -> Option<String> {
     let friction_n = chi_p[0].abs() + chi_p[1].abs();
     let residual_n = core.sigma;

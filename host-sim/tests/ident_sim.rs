@@ -817,10 +817,63 @@ fn a_tension_log_whose_residual_hides_the_friction_says_so() {
         "500 Hz: residual {} N, friction {friction_n} N",
         r.core.sigma
     );
-    let why = r.unidentified.expect("500 Hz: the note");
+    let why = r.unidentified.as_deref().expect("500 Hz: the note");
     assert!(
         why.contains("does not identify") && why.contains("A per tick"),
         "{why}"
+    );
+    // A limit cycle behind it: the configuration written takes the
+    // derivative from the grating observer; the quiet log's does not.
+    assert!(
+        r.derivative_from_observer,
+        "{:?}",
+        r.current_change_per_tick_a
+    );
+    let mut written = slow;
+    r.apply(&mut written);
+    assert!(written.cascade.kd_on_observer_rate);
+    assert!(!quiet.derivative_from_observer);
+}
+
+/// A plant whose slider 2 is four times lighter than the prototype's
+/// (10 g: its mode near 175 Hz) limit-cycles at 1 kHz with the rate's
+/// defaults, where `Config::at_rate` keeps the differenced derivative. The
+/// report's identification (as a user following `identify`'s advice)
+/// records the tension run again with the derivative from the grating
+/// observer, and model C's `f_sc1` then lands within 10 % of the plant's
+/// slider-1 and motor friction, with no note that the friction went
+/// unidentified.
+#[test]
+fn a_light_slider_at_1_khz_is_identified_again_with_the_derivative_from_the_observer() {
+    use host_sim::report::programme::{identify_config, Settings};
+    use host_sim::report::progress::Progress;
+    let mut plant = PlantParams::default();
+    plant.slider2.mass_kg *= 0.25;
+    let s = Settings {
+        seed: 1,
+        scale: 1.0,
+        progress: Progress::new(true),
+        draws: None,
+        draw_rate_hz: None,
+    };
+    let (base, _) = Config::default().at_rate(1000.0);
+    assert!(!base.cascade.kd_on_observer_rate);
+    let (config, notes) = identify_config(&plant, &base, &s, "light slider").unwrap();
+    assert!(config.cascade.kd_on_observer_rate, "{notes:?}");
+    assert!(
+        notes.iter().any(|n| n.contains("recorded again")),
+        "{notes:?}"
+    );
+    assert!(
+        !notes.iter().any(|n| n.contains("does not identify")),
+        "{notes:?}"
+    );
+    let m = &plant.motor;
+    let truth = plant.slider1.coulomb_n + m.coulomb_nm * m.gear_ratio / m.rope_wheel_radius_m;
+    let f_sc1 = f64::from(config.tension.f_sc1_n);
+    assert!(
+        rel(f_sc1, truth) < 0.1,
+        "f_sc1 {f_sc1} N, plant {truth} N; {notes:?}"
     );
 }
 

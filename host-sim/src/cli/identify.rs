@@ -577,6 +577,15 @@ pub fn format_report(r: &IdentifyReport) -> String {
         if let Some(why) = &t.unidentified {
             let _ = writeln!(s, "  warning: {why}\n");
         }
+        if t.derivative_from_observer {
+            let _ = writeln!(
+                s,
+                "  -> cascade.kd_on_observer_rate = true: the current changed by {:.3} A per tick, \
+                 a limit cycle of the position loop's derivative; record tension-ident again with \
+                 the configuration written and identify the tension models from that run\n",
+                t.current_change_per_tick_a.unwrap_or(f64::NAN)
+            );
+        }
     }
     if !r.validation.is_empty() {
         let _ = writeln!(

@@ -103,7 +103,7 @@ pub use results::{
 };
 pub use sequence::{identify_in_order, Runs};
 pub use spring::{SpringFit, SPRING_MIN_TRAVEL_M};
-pub use tension::{identify_tension, identify_tension_with, validate_tension};
+pub use tension::{identify_tension, identify_tension_with, validate_tension, LIMIT_CYCLE_SHARE};
 use terms::term;
 pub use terms::{
     nonnegative_by_physics, physically_required, ModelTerm, Regressor, BM_TERMS, JAE_TERMS,

@@ -156,6 +156,15 @@ pub struct TensionResult {
     /// Why the log does not identify the friction terms, when the written
     /// model's residual exceeds them (`None`: it does).
     pub unidentified: Option<String>,
+    /// The friction went unidentified and the drive current changed by at
+    /// least [`super::LIMIT_CYCLE_SHARE`] of its limit per tick on
+    /// average (a limit cycle of the position loop's derivative through
+    /// slider 2's mode): [`TensionResult::apply`] takes the derivative from
+    /// the grating observer (`cascade.kd_on_observer_rate`), and the run
+    /// is to be recorded again with that configuration.
+    pub derivative_from_observer: bool,
+    /// The drive current's mean change per tick over the logs, A.
+    pub current_change_per_tick_a: Option<f64>,
 }
 
 /// Everything `host-sim identify` found (the `--json` output).

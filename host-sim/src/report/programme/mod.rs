@@ -196,10 +196,24 @@ fn identify_tension(
         "5/6 tension-ident: models A, B, C and the simplified model C (seed Fig. 16-18)",
     );
     let run = ("tension-ident", "tension-ident", 1.0);
-    let log = ident_run(plant, s, faults, run, config_jae)?;
-    let tension = ident::identify_tension_with(&[("tension-ident", &log)], config_jae, &opts)
+    let mut log = ident_run(plant, s, faults, run, config_jae)?;
+    let mut tension = ident::identify_tension_with(&[("tension-ident", &log)], config_jae, &opts)
         .context("identifying the tension models")?;
     let mut config = *config_jae;
+    if tension.derivative_from_observer {
+        // As a user does on the command's advice: the run again with the
+        // derivative from the grating observer, and the models from it.
+        faults.push(format!(
+            "tension-ident: the current changed by {:.3} A per tick (a limit cycle of the \
+             position loop's derivative; model C's friction went unidentified), so the run was \
+             recorded again with cascade.kd_on_observer_rate = true",
+            tension.current_change_per_tick_a.unwrap_or(f64::NAN)
+        ));
+        config.cascade.kd_on_observer_rate = true;
+        log = ident_run(plant, s, faults, run, &config)?;
+        tension = ident::identify_tension_with(&[("tension-ident", &log)], &config, &opts)
+            .context("identifying the tension models again")?;
+    }
     tension.apply(&mut config);
     let verify = ("tension-ident", "tension-ident/verify", 0.5);
     let val_log = ident_run(plant, s, faults, verify, &config)?;

@@ -15,7 +15,6 @@
 use anyhow::{bail, Context, Result};
 use cable_joint::Config;
 use host_sim::report::programme::{identify_config, Settings};
-use host_sim::report::progress::Progress;
 use host_sim::report::variants::{run_protocol, variants};
 
 fn settings(arg: &str) -> Result<Vec<(f32, f32)>> {
@@ -44,13 +43,7 @@ fn main() -> Result<()> {
         bail!("usage: probe_sweep \"<variant>,<variant>...\" \"<f_hz>,<amp_deg>;...\"");
     }
     let all = variants();
-    let s = Settings {
-        seed: 1,
-        scale: 1.0,
-        progress: Progress::new(true),
-        draws: None,
-        draw_rate_hz: None,
-    };
+    let s = Settings::quiet();
     let pairs = settings(&args[1])?;
     println!("| variant | f [Hz] | A [°] | fused worst ≥1 N [%] | worst 0.3 N [%] | static no-load [N] | coverage [%] | tip motion [°] | faults |");
     println!("|---|---|---|---|---|---|---|---|---|");

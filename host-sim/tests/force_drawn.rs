@@ -13,20 +13,13 @@
 //! was too loose to replace it.
 
 use host_sim::report::programme::Settings;
-use host_sim::report::progress::Progress;
 use host_sim::report::variants::{drawn_variants, run_variant, VariantResult};
 
 /// One drawn plant as `host-sim report --draws N-N` runs it (odd seeds at
 /// 2 kHz).
 fn run(seed: u64) -> VariantResult {
     let v = &drawn_variants(seed, seed, None)[0];
-    let s = Settings {
-        seed: 1,
-        scale: 1.0,
-        progress: Progress::new(true),
-        draws: None,
-        draw_rate_hz: None,
-    };
+    let s = Settings::quiet();
     let r = run_variant(v, &s);
     assert_eq!(r.error, None, "draw {seed}: identification failed");
     r

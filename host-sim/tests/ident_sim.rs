@@ -846,16 +846,9 @@ fn a_tension_log_whose_residual_hides_the_friction_says_so() {
 #[test]
 fn a_light_slider_at_1_khz_is_identified_again_with_the_derivative_from_the_observer() {
     use host_sim::report::programme::{identify_config, Settings};
-    use host_sim::report::progress::Progress;
     let mut plant = PlantParams::default();
     plant.slider2.mass_kg *= 0.25;
-    let s = Settings {
-        seed: 1,
-        scale: 1.0,
-        progress: Progress::new(true),
-        draws: None,
-        draw_rate_hz: None,
-    };
+    let s = Settings::quiet();
     let (base, _) = Config::default().at_rate(1000.0);
     assert!(!base.cascade.kd_on_observer_rate);
     let (config, notes) = identify_config(&plant, &base, &s, "light slider").unwrap();

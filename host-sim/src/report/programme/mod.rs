@@ -59,6 +59,20 @@ pub struct Settings {
     pub draw_rate_hz: Option<f32>,
 }
 
+impl Settings {
+    /// A full-length report's settings (seed 1, the ten variants) with no
+    /// progress lines: what tests and examples run one variant with.
+    pub fn quiet() -> Self {
+        Self {
+            seed: 1,
+            scale: 1.0,
+            progress: Progress::new(true),
+            draws: None,
+            draw_rate_hz: None,
+        }
+    }
+}
+
 /// Logs of the identification runs (kept for the figures and the residual
 /// loop).
 pub struct IdentLogs {

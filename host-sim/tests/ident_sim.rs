@@ -783,12 +783,6 @@ fn identifying_again_from_the_written_configuration_keeps_the_stiffness_toleranc
     }
 }
 
-/// Mean change of the drive current per tick, A.
-fn current_change_per_tick_a(log: &Log) -> f64 {
-    let i = log.col("i_ref_a").expect("i_ref_a");
-    i.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / (i.len() - 1) as f64
-}
-
 /// Model C's friction terms are identified only where the DOB's tension is
 /// quieter than they are. At 500 Hz with the position loop's derivative
 /// differenced over one tick (the derivation before stop 50, or a user's
@@ -886,9 +880,11 @@ fn at_500_hz_the_derived_derivative_keeps_the_current_quiet_and_the_friction_ide
     loud_cfg.cascade.kd_on_observer_rate = false;
     loud_cfg.differentiators.grating_bandwidth_hz = c.config.differentiators.grating_bandwidth_hz;
     let loud = simulate("tension-ident", &loud_cfg, None, 30.0);
+    let r = identify_tension_with(&[("tension", &log)], &slow, &opts).unwrap();
+    let spoiled = identify_tension_with(&[("tension", &loud)], &loud_cfg, &opts).unwrap();
     let (quiet_a, loud_a) = (
-        current_change_per_tick_a(&log),
-        current_change_per_tick_a(&loud),
+        r.current_change_per_tick_a.expect("i_ref_a"),
+        spoiled.current_change_per_tick_a.expect("i_ref_a"),
     );
     // 0.04 to 0.13 A is the quiet loop at 1 and 2 kHz (`tension::
     // friction_hidden`'s note).
@@ -896,7 +892,6 @@ fn at_500_hz_the_derived_derivative_keeps_the_current_quiet_and_the_friction_ide
         quiet_a < 0.13 && loud_a > 2.0 * quiet_a,
         "current change per tick {quiet_a} A derived, {loud_a} A differenced"
     );
-    let r = identify_tension_with(&[("tension", &log)], &slow, &opts).unwrap();
     assert_eq!(
         r.unidentified, None,
         "residual {} N, chi_p {:?}",
@@ -906,7 +901,6 @@ fn at_500_hz_the_derived_derivative_keeps_the_current_quiet_and_the_friction_ide
     // tension (model C's `f_sc1`).
     let m = &c.plant.motor;
     let truth = c.plant.slider1.coulomb_n + m.coulomb_nm * m.gear_ratio / m.rope_wheel_radius_m;
-    let spoiled = identify_tension_with(&[("tension", &loud)], &loud_cfg, &opts).unwrap();
     assert!(
         rel(r.chi_p[0], truth) < 0.2 && rel(r.chi_p[0], truth) < rel(spoiled.chi_p[0], truth),
         "f_sc1 {} N derived, {} N differenced, plant {truth} N",

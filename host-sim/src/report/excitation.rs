@@ -16,7 +16,7 @@ use super::experiments::logged_with;
 use super::programme::{run_seed, Settings};
 use super::variants::{for_settings, Variant};
 use crate::ident::excite::{self, Criterion, Design, PREDICTION_RATE_HZ};
-use crate::ident::{identify_jae_with, validate_jae, IdentOptions};
+use crate::ident::{identify_jae_with, validate_jae, IdentOptions, JaeResult};
 use crate::log::Log;
 use crate::scenario::{default_excitation, plan, ScenarioOptions};
 
@@ -79,17 +79,29 @@ fn logged(
     logged_with(name, &v.plant, config, seed, &opts)
 }
 
-fn row(
+/// One run identified: the JAE fitted on it and the fault its log latched.
+type Fitted = (JaeResult, Option<String>);
+
+fn fit(
     v: &Variant,
     config: &Config,
     s: &Settings,
     (run, scenario_name, excitation): (&str, &str, Option<Design>),
+) -> Result<Fitted> {
+    let (log, fault) = logged(scenario_name, v, config, s, run, excitation)?;
+    let r = identify_jae_with(&[(run, &log)], config, &IdentOptions::default())
+        .with_context(|| format!("identifying the JAE on {run}"))?;
+    Ok((r, fault))
+}
+
+fn row(
+    v: &Variant,
+    config: &Config,
+    run: &str,
+    (r, fault): Fitted,
     validation: &[(&str, &Log)],
 ) -> Result<ExcitationRow> {
     let opts = IdentOptions::default();
-    let (log, fault) = logged(scenario_name, v, config, s, run, excitation)?;
-    let r = identify_jae_with(&[(run, &log)], config, &opts)
-        .with_context(|| format!("identifying the JAE on {run}"))?;
     let mut rms = [f64::NAN; 2];
     for (slot, (name, val)) in rms.iter_mut().zip(validation) {
         let e = validate_jae(&r, val, config, &opts)
@@ -154,9 +166,19 @@ pub fn run_all(s: &Settings) -> Result<ExcitationSection> {
             "jae-ident vs designed series",
         );
         let (config, _) = Config::default().at_rate(v.rate_hz);
+        let fits: Vec<Result<Fitted>> = runs.iter().map(|&r| fit(&v, &config, s, r)).collect();
+        // `tension-ident` closes the loop on the JAE: on the one fitted on
+        // the hand-made run, as a user records it after `identify
+        // --procedure jae`. (On the datasheet's, the seed's, the loop
+        // cycled into the I²t fault on every variant; with its `c1` set
+        // to 0 it does not.)
+        let mut closed = config;
+        if let Ok((hand, _)) = &fits[0] {
+            hand.apply(&mut closed);
+        }
         let (track, track_fault) = logged("track-motor", &v, &config, s, "track-motor", None)?;
         let (tension, tension_fault) =
-            logged("tension-ident", &v, &config, s, "tension-ident", None)?;
+            logged("tension-ident", &v, &closed, s, "tension-ident", None)?;
         for (name, fault) in [
             ("track-motor", track_fault),
             ("tension-ident", tension_fault),
@@ -166,20 +188,22 @@ pub fn run_all(s: &Settings) -> Result<ExcitationSection> {
             }
         }
         let validation = [("track-motor", &track), ("tension-ident", &tension)];
-        for run in runs {
+        for (run, fitted) in runs.iter().zip(fits) {
             rows.push(
-                row(&v, &config, s, run, &validation).unwrap_or_else(|e| ExcitationRow {
-                    variant: v.name.clone(),
-                    rate_hz: v.rate_hz,
-                    run: run.0.to_owned(),
-                    fit_condition: f64::NAN,
-                    pct_sigma: Vec::new(),
-                    worst: (String::new(), f64::NAN),
-                    track_motor_rms_deg: f64::NAN,
-                    tension_ident_rms_deg: f64::NAN,
-                    fault: None,
-                    error: Some(format!("{e:#}")),
-                }),
+                fitted
+                    .and_then(|f| row(&v, &config, run.0, f, &validation))
+                    .unwrap_or_else(|e| ExcitationRow {
+                        variant: v.name.clone(),
+                        rate_hz: v.rate_hz,
+                        run: run.0.to_owned(),
+                        fit_condition: f64::NAN,
+                        pct_sigma: Vec::new(),
+                        worst: (String::new(), f64::NAN),
+                        track_motor_rms_deg: f64::NAN,
+                        tension_ident_rms_deg: f64::NAN,
+                        fault: None,
+                        error: Some(format!("{e:#}")),
+                    }),
             );
         }
     }
@@ -230,10 +254,10 @@ pub fn markdown(sec: &ExcitationSection) -> String {
          the `x2''`, `x2'` and `x2` parameters relative to `jae-ident`'s) and **condition** (seed \
          001's criterion: least condition number). Both are designed on the reference alone, never \
          on a plant. Validation: the JAE error on `track-motor` (the seed's Fig. 10 sine) and on \
-         `tension-ident` (JAE closed loop), neither fitted on. `tension-ident` runs with the \
-         datasheet configuration, whose JAE is the seed's: in closed loop it latches the I²t \
-         fault (listed under the table; 12.3 s into 54 s on the default plant, during the first \
-         0.5 Hz sine), and the column covers the ticks before it only. Reproduce: `cargo run --release -p host-sim` (this section) or `host-sim \
+         `tension-ident` (JAE closed loop), neither fitted on. `tension-ident` closes the loop on \
+         the JAE fitted on `jae-ident`, as a user records it after identifying the JAE (on the \
+         datasheet's, the seed's, the loop cycles and latched the I²t fault on every variant); a fault a validation run latched is listed under the table, \
+         and its column covers the ticks before it. Reproduce: `cargo run --release -p host-sim` (this section) or `host-sim \
          excite --objective sigma|condition --out e.toml`, `host-sim simulate --scenario excite \
          --excitation e.toml --out e.csv`, `host-sim identify --procedure jae --log e.csv \
          --validate track.csv`.\n"

@@ -14,7 +14,7 @@ use host_sim::cli::identify::{identify, IdentifyArgs, Procedure};
 use host_sim::ident::{
     decoupled, identify_bm_with, identify_jae_with, identify_tension_with, nonnegative_by_physics,
     physically_required, validate_bm, validate_jae, validate_tension, IdentOptions, Regressor,
-    SIMPLIFIED_C,
+    LIMIT_CYCLE_SHARE, SIMPLIFIED_C,
 };
 use host_sim::io::config::load_config;
 use host_sim::log::Log;
@@ -906,5 +906,42 @@ fn at_500_hz_the_derived_derivative_keeps_the_current_quiet_and_the_friction_ide
         "f_sc1 {} N derived, {} N differenced, plant {truth} N",
         r.chi_p[0],
         spoiled.chi_p[0]
+    );
+}
+
+/// At 1 kHz the velocity crossover (100 Hz) sits on slider 2's mode
+/// (101 Hz on the default plant). A JAE without the negative acceleration
+/// coefficient that identification finds (it takes up the reversal of
+/// slider 2's friction) drives the current into a limit cycle there that
+/// the tension identification's share of the limit calls one; the
+/// derivative from the grating observer, the remedy `identify` writes,
+/// quiets it (README, "What keeps 1 kHz quiet").
+#[test]
+fn at_1_khz_a_jae_without_c1_limit_cycles_and_the_observer_s_rate_quiets_it() {
+    let c = chain();
+    assert!(
+        c.config.jae.c_acc_rad_s2_m < 0.0,
+        "identified c1 {}",
+        c.config.jae.c_acc_rad_s2_m
+    );
+    let (mut no_c1, _) = c.config.at_rate(1000.0);
+    no_c1.jae.c_acc_rad_s2_m = 0.0;
+    assert!(!no_c1.cascade.kd_on_observer_rate);
+    let mut remedied = no_c1;
+    remedied.cascade.kd_on_observer_rate = true;
+    let opts = IdentOptions::default();
+    let change_a = |config: &Config| {
+        let log = simulate("tension-ident", config, None, 30.0);
+        identify_tension_with(&[("tension", &log)], config, &opts)
+            .unwrap()
+            .current_change_per_tick_a
+            .expect("i_ref_a")
+    };
+    let (loud_a, quiet_a) = (change_a(&no_c1), change_a(&remedied));
+    let limit_a = f64::from(c.config.cascade.current_limit_a);
+    assert!(
+        loud_a >= LIMIT_CYCLE_SHARE * limit_a && quiet_a < 0.5 * LIMIT_CYCLE_SHARE * limit_a,
+        "current change per tick at 1 kHz with c1 = 0: {loud_a} A differenced, {quiet_a} A from \
+         the observer"
     );
 }

@@ -783,6 +783,23 @@ fn identifying_again_from_the_written_configuration_keeps_the_stiffness_toleranc
     }
 }
 
+/// The chain's configuration at 500 Hz with the position loop's derivative
+/// differenced over one tick and the grating observer at its 2 kHz
+/// bandwidth (the derivation before stop 50, or a user's
+/// `kd_on_observer_rate = false`), and its `tension-ident` run (30 s),
+/// shared by the tests that need the limit cycle it drives.
+fn differenced_500_hz() -> &'static (Config, Log) {
+    static LOUD: OnceLock<(Config, Log)> = OnceLock::new();
+    LOUD.get_or_init(|| {
+        let c = chain();
+        let (mut slow, _) = c.config.at_rate(500.0);
+        slow.cascade.kd_on_observer_rate = false;
+        slow.differentiators.grating_bandwidth_hz = c.config.differentiators.grating_bandwidth_hz;
+        let log = simulate("tension-ident", &slow, None, 30.0);
+        (slow, log)
+    })
+}
+
 /// Model C's friction terms are identified only where the DOB's tension is
 /// quieter than they are. At 500 Hz with the position loop's derivative
 /// differenced over one tick (the derivation before stop 50, or a user's
@@ -800,11 +817,8 @@ fn a_tension_log_whose_residual_hides_the_friction_says_so() {
         "2 kHz: residual {} N, chi_p {:?}",
         quiet.core.sigma, quiet.chi_p
     );
-    let (mut slow, _) = c.config.at_rate(500.0);
-    slow.cascade.kd_on_observer_rate = false;
-    slow.differentiators.grating_bandwidth_hz = c.config.differentiators.grating_bandwidth_hz;
-    let log = simulate("tension-ident", &slow, None, 30.0);
-    let r = identify_tension_with(&[("tension", &log)], &slow, &opts).unwrap();
+    let (slow, log) = differenced_500_hz();
+    let r = identify_tension_with(&[("tension", log)], slow, &opts).unwrap();
     let friction_n = r.chi_p[0].abs() + r.chi_p[1].abs();
     assert!(
         r.core.sigma > friction_n,
@@ -823,7 +837,7 @@ fn a_tension_log_whose_residual_hides_the_friction_says_so() {
         "{:?}",
         r.current_change_per_tick_a
     );
-    let mut written = slow;
+    let mut written = *slow;
     r.apply(&mut written);
     assert!(written.cascade.kd_on_observer_rate);
     assert!(!quiet.derivative_from_observer);
@@ -876,12 +890,9 @@ fn at_500_hz_the_derived_derivative_keeps_the_current_quiet_and_the_friction_ide
     let (slow, _) = c.config.at_rate(500.0);
     assert!(slow.cascade.kd_on_observer_rate);
     let log = simulate("tension-ident", &slow, None, 30.0);
-    let mut loud_cfg = slow;
-    loud_cfg.cascade.kd_on_observer_rate = false;
-    loud_cfg.differentiators.grating_bandwidth_hz = c.config.differentiators.grating_bandwidth_hz;
-    let loud = simulate("tension-ident", &loud_cfg, None, 30.0);
+    let (loud_cfg, loud) = differenced_500_hz();
     let r = identify_tension_with(&[("tension", &log)], &slow, &opts).unwrap();
-    let spoiled = identify_tension_with(&[("tension", &loud)], &loud_cfg, &opts).unwrap();
+    let spoiled = identify_tension_with(&[("tension", loud)], loud_cfg, &opts).unwrap();
     let (quiet_a, loud_a) = (
         r.current_change_per_tick_a.expect("i_ref_a"),
         spoiled.current_change_per_tick_a.expect("i_ref_a"),

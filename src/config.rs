@@ -759,7 +759,9 @@ impl Config {
             });
             cc.ki_vel_a_rad = ki_max;
         }
-        let position_max_1_s = cc.kp_vel_a_s_rad * rotor_gain / 3.0;
+        // The velocity crossover as the rules above left it.
+        let crossover_rad_s = cc.kp_vel_a_s_rad * rotor_gain;
+        let position_max_1_s = crossover_rad_s / 3.0;
         if cc.kp_pos_1_s > position_max_1_s && position_max_1_s > 0.0 {
             let _ = changes.push(RateAdjustment {
                 field: "cascade.kp_pos_1_s",
@@ -779,7 +781,7 @@ impl Config {
         // derivative comes from that observer (`kd_on_observer_rate`),
         // whose bandwidth becomes a third of the crossover: the cascade's
         // separation, as for `kp_pos` above.
-        let crossover_hz = cc.kp_vel_a_s_rad * rotor_gain / (2.0 * math::PI);
+        let crossover_hz = crossover_rad_s / (2.0 * math::PI);
         let grating_hz = c.differentiators.grating_bandwidth_hz;
         if crossover_hz < 3.0 * grating_hz && crossover_hz > 0.0 {
             if !cc.kd_on_observer_rate {

@@ -1,0 +1,141 @@
+#!/usr/bin/env python3
+"""Cable 0's stiffness read off a `tension-ident` log (a study; nothing in
+the core uses it). README, "A fourth set" under the force-at-standstill
+goals.
+
+For each log, the slope of the motor's tension reading (`tension1_hat_n`)
+against cable 0's measured elongation `e = phi r_m / z_i - x1`:
+
+* over every row (the motor's friction rides on the reading, and the
+  slope comes out 1.5 to 2 times the rope's), and
+* over the stretches where slider 1 stands still (|x1'| below 20 um/s)
+  and the motor turns one way (|phi'| above 0.3 rad/s), each stretch with
+  an offset of its own (a fixed-effects fit: the motor's friction is one
+  constant per stretch).
+
+With the simulator's columns (`f1_true_n`, the rope's true tension) it
+prints the same slopes on the truth, and with the plant file the rope's
+stiffness, for comparison.
+
+    host-sim simulate --scenario tension-ident --config V/config.toml \\
+        --plant V/plant.toml --out t.csv
+    python3 scripts/cable0-stiffness.py t.csv --plant V/plant.toml
+
+Standard library only. The rope wheel radius and gear ratio come from the
+plant file when given, else the datasheet's (6 mm, 35).
+"""
+
+import argparse
+import csv
+import re
+import sys
+
+MIN_STRETCH_ROWS = 20
+STILL_X1_M_S = 2e-5
+TURNING_RAD_S = 0.3
+SKIP_ROWS = 400
+
+
+def plant_value(text, table, key):
+    m = re.search(r"\[" + table + r"\][^\[]*?\n" + key + r" = ([0-9.eE+-]+)", text)
+    return float(m.group(1)) if m else None
+
+
+def slope(pairs):
+    """Least-squares slope of y on x with an intercept; pairs (x, y)."""
+    n = len(pairs)
+    if n < 2:
+        return float("nan")
+    mx = sum(x for x, _ in pairs) / n
+    my = sum(y for _, y in pairs) / n
+    sxx = sum((x - mx) ** 2 for x, _ in pairs)
+    sxy = sum((x - mx) * (y - my) for x, y in pairs)
+    return sxy / sxx if sxx > 0 else float("nan")
+
+
+def fixed_effects_slope(stretches, col):
+    """Slope shared by all stretches, each with its own offset."""
+    num = den = 0.0
+    for rows in stretches:
+        me = sum(r[0] for r in rows) / len(rows)
+        my = sum(r[col] for r in rows) / len(rows)
+        for r in rows:
+            num += (r[0] - me) * (r[col] - my)
+            den += (r[0] - me) ** 2
+    return num / den if den > 0 else float("nan")
+
+
+def study(path, m_per_rad):
+    with open(path, newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        need = ["phi_rad", "x1_m", "tension1_hat_n", "x1_vel_m_s", "phi_vel_rad_s"]
+        missing = [c for c in need if c not in header]
+        if missing:
+            sys.exit(f"{path}: no column {', '.join(missing)}")
+        ix = {c: header.index(c) for c in header}
+        truth = "f1_true_n" in ix
+        every, stretches, current, last_sign, last_row = [], [], None, 0, -2
+        for n, row in enumerate(reader):
+            if n < SKIP_ROWS:
+                continue
+            try:
+                e = float(row[ix["phi_rad"]]) * m_per_rad - float(row[ix["x1_m"]])
+                reading = float(row[ix["tension1_hat_n"]])
+                true_n = float(row[ix["f1_true_n"]]) if truth else float("nan")
+                x1_vel = float(row[ix["x1_vel_m_s"]])
+                phi_vel = float(row[ix["phi_vel_rad_s"]])
+            except (ValueError, IndexError):
+                sys.exit(f"{path}: line {n + 2}: not a number where one is needed")
+            every.append((e, reading, true_n))
+            sign = 1 if phi_vel > 0 else -1
+            if abs(x1_vel) < STILL_X1_M_S and abs(phi_vel) > TURNING_RAD_S:
+                if current is not None and sign == last_sign and n == last_row + 1:
+                    current.append((e, reading, true_n))
+                else:
+                    current = [(e, reading, true_n)]
+                    stretches.append(current)
+                last_sign, last_row = sign, n
+            else:
+                current = None
+    stretches = [s for s in stretches if len(s) >= MIN_STRETCH_ROWS]
+    rows = sum(len(s) for s in stretches)
+    out = {
+        "all_rows_reading": slope([(e, r) for e, r, _ in every]),
+        "stretches": len(stretches),
+        "stretch_rows": rows,
+        "stretches_reading": fixed_effects_slope(stretches, 1) if rows else float("nan"),
+    }
+    if truth:
+        out["all_rows_truth"] = slope([(e, t) for e, _, t in every])
+        out["stretches_truth"] = fixed_effects_slope(stretches, 2) if rows else float("nan")
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("logs", nargs="+", help="tension-ident CSV logs")
+    ap.add_argument("--plant", help="plant.toml (the rope's stiffness, its wheel and gear)")
+    a = ap.parse_args()
+    k0 = None
+    radius_m, gear = 0.006, 35.0
+    if a.plant:
+        text = open(a.plant).read()
+        k0 = plant_value(text, "cable0", "stiffness_n_m")
+        radius_m = plant_value(text, "motor", "rope_wheel_radius_m") or radius_m
+        gear = plant_value(text, "motor", "gear_ratio") or gear
+    for path in a.logs:
+        s = study(path, radius_m / gear)
+        line = (
+            f"{path}: all rows {s['all_rows_reading']:.0f} N/m; "
+            f"{s['stretches']} stretches ({s['stretch_rows']} rows) {s['stretches_reading']:.0f} N/m"
+        )
+        if "stretches_truth" in s:
+            line += f"; on the true tension {s['all_rows_truth']:.0f} / {s['stretches_truth']:.0f} N/m"
+        if k0:
+            line += f"; rope {k0:.0f} N/m, stretches / rope {s['stretches_reading'] / k0:.2f}"
+        print(line)
+
+
+if __name__ == "__main__":
+    main()

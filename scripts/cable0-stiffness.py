@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
-"""Cable 0's stiffness read off a `tension-ident` log (a study; nothing in
-the core uses it). README, "A fourth set" under the force-at-standstill
-goals.
+"""Cable 0's stiffness read off a `tension-ident` log: the study behind
+`identify`'s `stretch.cable0_n_m` (`host-sim/src/ident/cable0.rs`, which
+reads it from the replayed log the same way) and the cable-0 slack
+check's reach. README, "Cable 0's stiffness for the slack check".
 
 For each log, the slope of the motor's tension reading (`tension1_hat_n`)
 against cable 0's measured elongation `e = phi r_m / z_i - x1`:
 
 * over every row (the motor's friction rides on the reading, and the
-  slope comes out 1.5 to 2 times the rope's), and
+  slope comes out 1.4 to 1.9 times the rope's), and
 * over the stretches where slider 1 stands still (|x1'| below 20 um/s)
   and the motor turns one way (|phi'| above 0.3 rad/s), each stretch with
   an offset of its own (a fixed-effects fit: the motor's friction is one
@@ -21,12 +22,27 @@ stiffness, for comparison.
         --plant V/plant.toml --out t.csv
     python3 scripts/cable0-stiffness.py t.csv --plant V/plant.toml
 
+With `--config C.toml` (the configuration the log ran with) it prints
+check 2's margin on the log: how far the rope's true tension stayed below
+`T_1 + 2 f_sc1`, and the largest share of `T_1 + 2 f_sc1 + limit` it
+reached. With `--loading L.csv` as well it then replays the cable-0 check 2
+of `src/control/controller.rs` offline on a loading log (the floor
+`max(e - (T_1 + 2 f_sc1 + limit) / K)` with `T_1` the log's
+`tension1_stretch_n`), once with cable 1's stiffness as the firmware has
+it and once with the stiffness read from the stretches (and with
+`--scale`, that times a factor), and prints when each would have latched
+against when the rope first went slack (`f1_true_n` at zero).
+
+    python3 scripts/cable0-stiffness.py t.csv --plant V/plant.toml \\
+        --loading l.csv --config V/config.toml
+
 Standard library only. The rope wheel radius and gear ratio come from the
 plant file when given, else the datasheet's (6 mm, 35).
 """
 
 import argparse
 import csv
+import math
 import re
 import sys
 
@@ -112,11 +128,76 @@ def study(path, m_per_rad):
     return out
 
 
+def config_value(text, key):
+    m = re.search(r"\n" + key + r" = ([0-9.eE+-]+)", text)
+    if not m:
+        sys.exit(f"configuration: no {key}")
+    return float(m.group(1))
+
+
+def replay_check_2(path, config_text, stiffness_n_m, m_per_rad):
+    """(first slack time, (latch time, true tension) or None) on a loading log."""
+    f_sc1 = abs(config_value(config_text, "f_sc1_n"))
+    limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
+    with open(path, newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        need = ["t_s", "phi_rad", "x1_m", "tension1_stretch_n", "f1_true_n", "fault_code"]
+        missing = [c for c in need if c not in header]
+        if missing:
+            sys.exit(f"{path}: no column {', '.join(missing)}")
+        ix = {c: header.index(c) for c in header}
+        floor, slack, latch = -math.inf, None, None
+        for n, row in enumerate(reader):
+            try:
+                t = float(row[ix["t_s"]])
+                e = float(row[ix["phi_rad"]]) * m_per_rad - float(row[ix["x1_m"]])
+                t1 = max(0.0, float(row[ix["tension1_stretch_n"]]))
+                true_n = float(row[ix["f1_true_n"]])
+            except (ValueError, IndexError):
+                sys.exit(f"{path}: line {n + 2}: not a number where one is needed")
+            floor = max(floor, e - (t1 + 2.0 * f_sc1 + limit) / stiffness_n_m)
+            if slack is None and true_n <= 0.0:
+                slack = t
+            if latch is None and e < floor:
+                latch = (t, true_n)
+            if row[ix["fault_code"]] not in ("", "0"):
+                break
+    return slack, latch
+
+
+def check_2_margin(path, config_text):
+    """(least `T_1 + 2 f_sc1 - T_0`, largest `T_0 / (T_1 + 2 f_sc1 + limit)`)
+    over a simulated log (`f1_true_n`), or None without that column."""
+    f_sc1 = abs(config_value(config_text, "f_sc1_n"))
+    limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
+    with open(path, newline="") as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        if "f1_true_n" not in header or "tension1_stretch_n" not in header:
+            return None
+        it, i1 = header.index("f1_true_n"), header.index("tension1_stretch_n")
+        least, largest = math.inf, 0.0
+        for n, row in enumerate(reader):
+            if n < SKIP_ROWS:
+                continue
+            t0 = float(row[it])
+            bound = max(0.0, float(row[i1])) + 2.0 * f_sc1
+            least = min(least, bound - t0)
+            largest = max(largest, t0 / (bound + limit))
+    return least, largest
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("logs", nargs="+", help="tension-ident CSV logs")
     ap.add_argument("--plant", help="plant.toml (the rope's stiffness, its wheel and gear)")
+    ap.add_argument("--loading", help="a loading log to replay check 2 on")
+    ap.add_argument("--config", help="the configuration the loading log ran with")
+    ap.add_argument("--scale", type=float, default=1.0, help="factor on the stretches' stiffness")
     a = ap.parse_args()
+    if a.loading and not a.config:
+        sys.exit("--loading needs --config")
     k0 = None
     radius_m, gear = 0.006, 35.0
     if a.plant:
@@ -135,6 +216,25 @@ def main():
         if k0:
             line += f"; rope {k0:.0f} N/m, stretches / rope {s['stretches_reading'] / k0:.2f}"
         print(line)
+        if a.config:
+            config_text = open(a.config).read()
+            margin = check_2_margin(path, config_text)
+            if margin:
+                print(
+                    f"  check 2's margin on this log: the rope's true tension at least {margin[0]:.2f} N "
+                    f"below T_1 + 2 f_sc1, at most {margin[1]:.3f} of T_1 + 2 f_sc1 + limit "
+                    f"(a stiffness up to {1.0 / margin[1]:.2f} times the rope's keeps the floor under e_0)"
+                )
+        if a.loading:
+            k1 = config_value(config_text, "cable1_n_m")
+            k0 = s["stretches_reading"] * a.scale
+            for name, k in (("cable 1's", k1), (f"the stretches' x {a.scale:g}", k0)):
+                if not k > 0:
+                    print(f"  check 2 with {name} stiffness: none read")
+                    continue
+                slack, latch = replay_check_2(a.loading, config_text, k, radius_m / gear)
+                when = f"latches at {latch[0]:.3f} s" if latch else "does not latch"
+                print(f"  check 2 with {name} stiffness ({k:.0f} N/m): {when}; rope first slack at {slack} s")
 
 
 if __name__ == "__main__":

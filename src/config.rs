@@ -284,6 +284,14 @@ pub struct StretchConfig {
     pub cable1_n_m: f32,
     /// Cable 2 stiffness `K_w2`, N/m.
     pub cable2_n_m: f32,
+    /// Cable 0 stiffness `K_w0` (rope wheel to slider 1), N/m, as
+    /// `identify --procedure tension` reads it where slider 1 stands still
+    /// and the motor turns one way (a slope through the measured
+    /// elongation, so it reads low rather than high). Only the cable-0
+    /// slack check that bounds the rope's tension by cable 1's and slider
+    /// 1's friction uses it. 0 = not identified: cable 1's stiffness
+    /// stands in, a lower bound (cable 0 is the rope's shortest stretch).
+    pub cable0_n_m: f32,
 }
 
 impl Default for StretchConfig {
@@ -293,6 +301,7 @@ impl Default for StretchConfig {
         Self {
             cable1_n_m: 11_400.0,
             cable2_n_m: 11_400.0,
+            cable0_n_m: 0.0,
         }
     }
 }
@@ -307,6 +316,7 @@ impl StretchConfig {
         (d > 0.0 && k.is_finite() && k > 0.0).then_some(Self {
             cable1_n_m: k,
             cable2_n_m: k,
+            cable0_n_m: 0.0,
         })
     }
 }
@@ -1186,6 +1196,14 @@ impl Config {
             1.0..=1e8,
             STIFF,
         )?;
+        if self.stretch.cable0_n_m != 0.0 {
+            within(
+                "stretch.cable0_n_m",
+                self.stretch.cable0_n_m,
+                1.0..=1e9,
+                "0 (not identified) or between 1 and 1e9 N/m",
+            )?;
+        }
 
         let f = &self.fusion;
         within(

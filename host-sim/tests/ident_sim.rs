@@ -13,8 +13,8 @@ use cable_joint::Config;
 use host_sim::cli::identify::{identify, IdentifyArgs, Procedure};
 use host_sim::ident::{
     decoupled, identify_bm_with, identify_jae_with, identify_tension_with, nonnegative_by_physics,
-    physically_required, validate_bm, validate_jae, validate_tension, IdentOptions, Regressor,
-    LIMIT_CYCLE_SHARE, SIMPLIFIED_C,
+    physically_required, read_cable0_stiffness, validate_bm, validate_jae, validate_tension,
+    IdentOptions, Prepared, Regressor, LIMIT_CYCLE_SHARE, SIMPLIFIED_C,
 };
 use host_sim::io::config::load_config;
 use host_sim::log::Log;
@@ -955,4 +955,32 @@ fn at_1_khz_a_jae_without_c1_limit_cycles_and_the_observer_s_rate_quiets_it() {
         "current change per tick at 1 kHz with c1 = 0: {loud_a} A differenced, {quiet_a} A from \
          the observer"
     );
+}
+
+/// Cable 0's stiffness, read where slider 1 stands still and the motor
+/// turns one way: at most the plant's rope and at least half of it (a
+/// slope through a quantized elongation reads low, the side the slack
+/// check can take), and written into the configuration. The unhooked rope
+/// wheel's run, whose reading carries no rope, gives none, and the
+/// configuration keeps what it had.
+#[test]
+fn cable_0_s_stiffness_is_read_where_slider_1_stands_still_and_never_above_the_rope_s() {
+    let c = chain();
+    let opts = IdentOptions::default();
+    let r = identify_tension_with(&[("tension", &c.tension_log)], &c.config, &opts).unwrap();
+    let k = r.cable0.as_ref().expect("cable 0's stiffness read");
+    let rope_n_m = c.plant.cable0.stiffness_n_m;
+    assert!(
+        k.n_m <= 1.05 * rope_n_m && k.n_m >= 0.5 * rope_n_m,
+        "read {} N/m for a rope of {rope_n_m} N/m",
+        k.n_m
+    );
+    assert!(k.stretches >= host_sim::ident::CABLE0_MIN_STRETCHES);
+    let mut written = c.config;
+    r.apply(&mut written);
+    assert_eq!(written.stretch.cable0_n_m, k.n_m as f32);
+
+    let unhooked = Prepared::new("bm", &c.bm_log, &decoupled(&c.config), &opts).unwrap();
+    let none = read_cable0_stiffness(&[unhooked]);
+    assert!(none.is_err(), "read {none:?} off an unhooked rope wheel");
 }

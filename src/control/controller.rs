@@ -244,6 +244,9 @@ struct Derived {
     rope_m_per_motor_rad: f32,
     /// Check 1's payout limit, `limit / K_w1`, m.
     cable0_payout_m: f32,
+    /// Cable 0's compliance for check 2's reach, `1 / max(K_w0, K_w1)`,
+    /// m/N: the identified `K_w0` where there is one, else cable 1's bound.
+    cable0_m_per_n: f32,
 }
 
 impl Derived {
@@ -271,6 +274,7 @@ impl Derived {
             cable1_m_per_n: 0.0,
             rope_m_per_motor_rad: 1.0 / m.motor_rad_per_cable_m(),
             cable0_payout_m: 0.0,
+            cable0_m_per_n: 0.0,
         };
         derived.set_steps(c);
         derived
@@ -299,6 +303,7 @@ impl Derived {
         self.current_error_weight = (period_s / l.current_error_time_s).min(1.0);
         self.cable1_m_per_n = 1.0 / c.stretch.cable1_n_m;
         self.cable0_payout_m = c.slack_limit_n() * self.cable1_m_per_n;
+        self.cable0_m_per_n = 1.0 / c.stretch.cable0_n_m.max(c.stretch.cable1_n_m);
     }
 }
 
@@ -890,8 +895,12 @@ impl Controller {
         //    rope hangs slack): quasi-statically `T_0 <= T_1 + 2 f_sc1`
         //    (slider 1's friction, static up to twice its kinetic band), so
         //    on every tick `e - reach <= e_0` with
-        //    `reach = (T_1 + 2 f_sc1 + limit) / K_w1`. The highest such
-        //    value seen is a floor under `e_0`; `e` below it is slack.
+        //    `reach = (T_1 + 2 f_sc1 + limit) / K_w0`, `K_w0` as `identify`
+        //    read it (`stretch.cable0_n_m`, low rather than high) or else
+        //    `K_w1`. The highest such value seen is a floor under `e_0`;
+        //    `e` below it is slack. Check 1 keeps `K_w1`: its bound rests
+        //    on the motor's reading at the last taut tick, which the
+        //    drive's friction puts off by several newtons.
         //
         // While probing, check 1 also runs on the means over the last whole
         // dither period of the motor's reading and of `e`: the dither's
@@ -908,7 +917,7 @@ impl Controller {
         let limit_n = cfg.slack_limit_n();
         let reach_m =
             (tension1_stretch_n.max(0.0) + 2.0 * math::abs(cfg.tension.f_sc1_n) + limit_n)
-                * d.cable1_m_per_n;
+                * d.cable0_m_per_n;
         if !st.primed || cfg.limits.min_tension_fraction <= 0.0 {
             st.cable0_taut_m = cable0_m;
             st.cable0_floor_m = cable0_m - reach_m;
@@ -1270,30 +1279,48 @@ mod tests {
     /// preload (a drive whose friction or currents the DOB does not model):
     /// with slider 1 stuck, a payout beyond what cable 1's tension plus
     /// twice slider 1's friction band (and the limit) could stretch the
-    /// rope is slack; less is not.
+    /// rope is slack; less is not. The stretch is cable 0's: with its
+    /// stiffness identified (`stretch.cable0_n_m`, 15 times cable 1's
+    /// here) the reach is that much shorter; a value below cable 1's, or
+    /// none, leaves cable 1's bound.
     #[test]
     fn a_payout_beyond_any_stretch_the_tensions_allow_is_cable_0_slack_whatever_the_motor_reads() {
-        let cfg = cable0_config();
-        // Cable 1 holds the preload (slider 1 and the joint at zero).
-        let reach_m = (cfg.tension.f_0_n + 2.0 * cfg.tension.f_sc1_n + cfg.slack_limit_n())
-            / cfg.stretch.cable1_n_m;
-        let run = |payout_m: f32| {
-            pay_out_rope(
-                cfg,
-                |_| preload_current(&cfg),
-                payout_m,
-                0.0,
-                |out| {
-                    assert!(out.est.tension1_stretch_n > 0.9 * cfg.tension.f_0_n);
-                },
-            )
-        };
-        assert_eq!(run(0.9 * reach_m), None, "within the reach");
-        let at_m = run(2.0 * reach_m).expect("twice the reach paid out");
-        assert!(
-            (at_m - reach_m).abs() < 0.02 * reach_m,
-            "latched at {at_m} m of payout, reach {reach_m} m"
-        );
+        let base = cable0_config();
+        for (cable0_n_m, stiffness_n_m) in [
+            (0.0, base.stretch.cable1_n_m),
+            (0.5 * base.stretch.cable1_n_m, base.stretch.cable1_n_m),
+            (
+                15.0 * base.stretch.cable1_n_m,
+                15.0 * base.stretch.cable1_n_m,
+            ),
+        ] {
+            let mut cfg = base;
+            cfg.stretch.cable0_n_m = cable0_n_m;
+            // Cable 1 holds the preload (slider 1 and the joint at zero).
+            let reach_m = (cfg.tension.f_0_n + 2.0 * cfg.tension.f_sc1_n + cfg.slack_limit_n())
+                / stiffness_n_m;
+            let run = |payout_m: f32| {
+                pay_out_rope(
+                    cfg,
+                    |_| preload_current(&cfg),
+                    payout_m,
+                    0.0,
+                    |out| {
+                        assert!(out.est.tension1_stretch_n > 0.9 * cfg.tension.f_0_n);
+                    },
+                )
+            };
+            assert_eq!(
+                run(0.9 * reach_m),
+                None,
+                "within the reach, K_w0 {cable0_n_m}"
+            );
+            let at_m = run(2.0 * reach_m).expect("twice the reach paid out");
+            assert!(
+                (at_m - reach_m).abs() < 0.02 * reach_m,
+                "K_w0 {cable0_n_m}: latched at {at_m} m of payout, reach {reach_m} m"
+            );
+        }
     }
 
     /// Cable 0 slack while probing: the rope taut at the preload through

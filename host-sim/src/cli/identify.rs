@@ -574,6 +574,24 @@ pub fn format_report(r: &IdentifyReport) -> String {
             fmt_num(t.chi_p[2]),
             fmt_num(t.chi_p[3])
         );
+        match &t.cable0 {
+            Ok(k) => {
+                let _ = writeln!(
+                    s,
+                    "  -> stretch.cable0_n_m = {:.0}: cable 0's stiffness over {} stretches ({} rows) \
+                     where slider 1 stood still and the motor turned one way (the cable-0 slack \
+                     check's reach)\n",
+                    k.n_m, k.stretches, k.rows
+                );
+            }
+            Err(why) => {
+                let _ = writeln!(
+                    s,
+                    "  note: cable 0's stiffness not read ({why}); the cable-0 slack check keeps \
+                     cable 1's as its bound\n"
+                );
+            }
+        }
         if let Some(why) = &t.unidentified {
             let _ = writeln!(s, "  warning: {why}\n");
         }

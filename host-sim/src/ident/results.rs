@@ -165,6 +165,9 @@ pub struct TensionResult {
     pub derivative_from_observer: bool,
     /// The drive current's mean change per tick over the logs, A.
     pub current_change_per_tick_a: Option<f64>,
+    /// Cable 0's stiffness for the slack check's reach
+    /// (`stretch.cable0_n_m`), or why the logs do not give it.
+    pub cable0: std::result::Result<super::Cable0Stiffness, String>,
 }
 
 /// Everything `host-sim identify` found (the `--json` output).

@@ -87,6 +87,7 @@ pub fn identify_tension_with(
         )
     };
     let chi_p = SIMPLIFIED_C.map(|r| core.value(r));
+    let cable0 = super::read_cable0_stiffness(&preps);
     let change_a = current_change_per_tick_a(logs);
     let unidentified = friction_hidden(&core, chi_p, change_a);
     // A limit cycle, not a quiet loop, behind it: the configuration written
@@ -110,6 +111,7 @@ pub fn identify_tension_with(
         unidentified,
         derivative_from_observer,
         current_change_per_tick_a: change_a,
+        cable0,
     })
 }
 
@@ -199,12 +201,17 @@ pub fn validate_tension(
 }
 
 impl TensionResult {
-    /// Write `chi_p` into the configuration, and the position loop's
-    /// derivative from the grating observer when the log limit-cycled
+    /// Write `chi_p` into the configuration, cable 0's stiffness where the
+    /// logs give it ([`TensionResult::cable0`]; else the configuration's
+    /// stands), and the position loop's derivative from the grating
+    /// observer when the log limit-cycled
     /// ([`TensionResult::derivative_from_observer`]).
     pub fn apply(&self, config: &mut Config) {
         if self.derivative_from_observer {
             config.cascade.kd_on_observer_rate = true;
+        }
+        if let Ok(k) = &self.cable0 {
+            config.stretch.cable0_n_m = k.n_m as f32;
         }
         let t = &mut config.tension;
         t.f_sc1_n = self.chi_p[0] as f32;

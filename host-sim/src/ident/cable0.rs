@@ -55,11 +55,11 @@ impl Sums {
     /// Take `stretch` (time, elongation, reading) if it lasts long enough,
     /// about its own means, and empty it.
     fn close(&mut self, stretch: &mut Vec<(f64, f64, f64)>) {
-        let lasts = match (stretch.first(), stretch.last()) {
-            (Some(a), Some(b)) => b.0 - a.0 >= MIN_STRETCH_S,
-            _ => false,
-        };
-        if lasts && stretch.len() >= 2 {
+        let lasts = matches!(
+            (stretch.first(), stretch.last()),
+            (Some(a), Some(b)) if b.0 - a.0 >= MIN_STRETCH_S
+        );
+        if lasts {
             let n = stretch.len() as f64;
             let me = stretch.iter().map(|s| s.1).sum::<f64>() / n;
             let mr = stretch.iter().map(|s| s.2).sum::<f64>() / n;
@@ -82,8 +82,8 @@ pub fn read_cable0_stiffness(preps: &[Prepared]) -> Result<Cable0Stiffness, Stri
         let (phi, x1, x1_vel) = (col("phi_rad")?, col("x1_m")?, col("x1_vel_m_s")?);
         let (phi_vel, reading) = (col("phi_vel_rad_s")?, col("tension1_hat_n")?);
         let t = p.t_s().map_err(|e| format!("{e:#}"))?;
-        let c = p.config();
-        let m_per_rad = f64::from(c.machine.rope_wheel_radius_m / c.machine.gear_ratio);
+        // Rope per motor radian, as the core's cable-0 check has it.
+        let m_per_rad = 1.0 / f64::from(p.config().machine.motor_rad_per_cable_m());
         let mut stretch = Vec::new();
         // The log row and the motor's direction of the last row taken.
         let mut last: Option<(usize, f64)> = None;

@@ -136,6 +136,12 @@ pub struct Tensions {
     pub cable2_n: f64,
     /// Return spring (`F_s`).
     pub spring_n: f64,
+    /// Rope hanging loose in the transmission, m: the longer of cable 0's
+    /// and cable 1's slack (how far each is shorter than its zero-tension
+    /// length by its stiffness term; 0 while both are taut). A rope at
+    /// zero tension with a few micrometres to spare is another thing than
+    /// one that has paid out millimetres.
+    pub slack_m: f64,
 }
 
 impl Tensions {
@@ -360,6 +366,15 @@ impl Plant {
         let s = &self.s;
         let r = p.joint.pulley_radius_m;
         let f0 = p.spring.preload_n;
+        // Each cable's elongation beyond its zero-tension length, m.
+        let stretch0_m =
+            self.d.rw * s.phi_rad - s.x1_m - s.creep_m[0] + f0 / p.cable0.stiffness_n_m;
+        let stretch1_m = s.x1_m - r * s.theta_rad - s.creep_m[1] + f0 / p.cable1.stiffness_n_m;
+        let slack_m = if p.motor_decoupled {
+            (-stretch1_m).max(0.0)
+        } else {
+            (-stretch0_m).max(-stretch1_m).max(0.0)
+        };
         let rope_n = if p.motor_decoupled {
             0.0
         } else {
@@ -384,6 +399,7 @@ impl Plant {
             cable1_n,
             cable2_n,
             spring_n,
+            slack_m,
         }
     }
 

@@ -321,6 +321,8 @@ struct CaseRec {
     slack_since_s: Option<f64>,
     /// The longest such stretch, s.
     slack_undetected_s: f64,
+    /// The most rope that hung loose meanwhile, m.
+    slack_undetected_m: f64,
     /// The range check's limit, rad.
     range_rad: f64,
 }
@@ -385,6 +387,7 @@ impl Recorder for CaseRec {
         if self.fault.is_none() && r.output.drive_enable && t.transmission_n() <= 0.0 {
             let since = *self.slack_since_s.get_or_insert(r.t_s);
             self.slack_undetected_s = self.slack_undetected_s.max(r.t_s - since);
+            self.slack_undetected_m = self.slack_undetected_m.max(t.slack_m);
         } else {
             self.slack_since_s = None;
         }
@@ -507,6 +510,11 @@ pub struct Protocol {
     pub slack_undetected_s: f64,
     /// The case of that longest stretch (empty when none).
     pub slack_undetected_case: String,
+    /// The most rope that hung loose (cable 0 or 1 shorter than its
+    /// zero-tension length, [`crate::plant::Tensions::slack_m`]) with the
+    /// drive on and no fault latched, m, over every case: how far a slack
+    /// cable was let go before the checks or the payout stop caught it.
+    pub slack_undetected_m: f64,
 }
 
 /// Run the seed's loading protocol (every angle, weight and direction) on
@@ -547,6 +555,7 @@ pub fn run_protocol(plant: &PlantParams, config: &Config, s: &Settings, label: &
                     continue;
                 }
                 rec.close_noload();
+                out.slack_undetected_m = out.slack_undetected_m.max(rec.slack_undetected_m);
                 if rec.slack_undetected_s > out.slack_undetected_s {
                     out.slack_undetected_s = rec.slack_undetected_s;
                     out.slack_undetected_case = format!("{a}° {m} g {d:?}");

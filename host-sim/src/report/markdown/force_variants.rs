@@ -136,8 +136,11 @@ fn slack_line(p: &Protocol) -> String {
         "slack undetected: never (no cable without tension while the drive was on)".to_owned()
     } else {
         format!(
-            "slack undetected: at most {:.3} s with a cable carrying no tension and the drive on ({})",
-            p.slack_undetected_s, p.slack_undetected_case
+            "slack undetected: at most {:.3} s with a cable carrying no tension and the drive on ({}), \
+             at most {:.1} µm of rope hanging loose meanwhile (any case)",
+            p.slack_undetected_s,
+            p.slack_undetected_case,
+            p.slack_undetected_m * 1e6
         )
     }
 }

@@ -186,6 +186,19 @@ pub struct CascadeConfig {
     /// chatter", with what this option changes). Off by default: on the
     /// simulator's plants it moves the force figures both ways.
     pub kd_on_observer_rate: bool,
+    /// The payout stop: while the motor's torque balance reads cable 0 below
+    /// the slack limit and the motor has unwound more than half the rope's
+    /// shortening from that limit to zero tension since
+    /// (`limit / (2 max(K_w0, K_w1))`), the motor-velocity reference is held
+    /// at or above zero, so the motor unwinds no further rope that a stuck
+    /// slider 1 does not take up (the hold's error just outside its dead
+    /// band asks for exactly that; the cable-0 checks then latch and drop
+    /// the load). Off by default: on the simulator's plants it turns a
+    /// fifth to a third of the heavy-load cable-0 faults into holds that
+    /// run on, with the rope at zero tension for seconds and up to 0.2 mm
+    /// loose (README, "The payout stop"). Needs the slack checks on
+    /// (`limits.min_tension_fraction > 0`).
+    pub payout_stop: bool,
 }
 
 impl Default for CascadeConfig {
@@ -206,6 +219,7 @@ impl Default for CascadeConfig {
             hold_deadband_rad: 5e-4,
             current_limit_a: 2.0,
             kd_on_observer_rate: false,
+            payout_stop: false,
         }
     }
 }

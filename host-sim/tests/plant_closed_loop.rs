@@ -9,7 +9,7 @@
 use cable_joint::{Command, Config, Controller, Mode};
 use host_sim::plant::PlantParams;
 use host_sim::scenario::{self, Direction, ScenarioOptions, SCENARIOS};
-use host_sim::sim::{LogRecorder, RawTrace, Sim, TickRecord};
+use host_sim::sim::{LogRecorder, NullRecorder, RawTrace, Sim, TickRecord};
 
 fn config(p: &PlantParams) -> Config {
     scenario::oracle_config(p, &scenario::tuned_gains(&Config::default()))
@@ -289,5 +289,80 @@ fn the_grip_scenario_regulates_the_true_contact_force_on_soft_and_firm_objects()
             0.0,
             "{what}: still in contact"
         );
+    }
+}
+
+/// The payout stop (`cascade.payout_stop`). On the default plant with the
+/// configuration `identify` writes for it, held at −40° on `theta_hat`
+/// while 250 g pull the tip negative, slider 1 sticks and the hold, just
+/// outside its dead band, asks the motor to unwind rope the stuck slider
+/// does not take up. Without the stop the cable-0 check latches on every
+/// seed here, and the drive drops the load. With it the motor halts within
+/// half the rope's shortening from the slack limit to zero tension; the
+/// case runs to its end with no fault, the stop's flag shows it engaged,
+/// and the rope never hangs looser than twice that threshold. With cable
+/// 1's bound in place of `K_w0` (not identified) the threshold is
+/// `K_w0 / K_w1` (15×) larger, and the same holds.
+#[test]
+fn the_payout_stop_keeps_a_stuck_slider_1_from_costing_the_hold() {
+    let p = PlantParams::default();
+    let fixture = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/identified/default.toml"
+    );
+    let identified = host_sim::io::config::load_config(fixture).unwrap();
+    assert!(!identified.cascade.payout_stop, "off as identify writes it");
+    let opts = ScenarioOptions {
+        angle_deg: Some(-40.0),
+        mass_g: Some(250.0),
+        direction: Some(Direction::Neg),
+        ..ScenarioOptions::default()
+    };
+    let stopped = cable_joint::fusion::flags::PAYOUT_STOPPED;
+    for seed in 1..=3 {
+        let sum = scenario::run(
+            "loading",
+            p,
+            identified,
+            Some(seed),
+            &opts,
+            &mut NullRecorder,
+        )
+        .unwrap();
+        assert_eq!(
+            sum.fault,
+            Some(cable_joint::Fault::Cable0Slack),
+            "seed {seed} without the stop"
+        );
+    }
+    for cable0_n_m in [identified.stretch.cable0_n_m, 0.0] {
+        let mut cfg = identified;
+        cfg.cascade.payout_stop = true;
+        cfg.stretch.cable0_n_m = cable0_n_m;
+        let stiffness_n_m = cable0_n_m.max(cfg.stretch.cable1_n_m);
+        let threshold_m = 0.5 * f64::from(cfg.slack_limit_n() / stiffness_n_m);
+        for seed in 1..=3 {
+            let mut ticks = Vec::<TickRecord>::new();
+            let sum = scenario::run("loading", p, cfg, Some(seed), &opts, &mut ticks).unwrap();
+            let what = format!("K_w0 {cable0_n_m} N/m, seed {seed}");
+            assert_eq!(sum.fault, None, "{what}");
+            assert!(
+                ticks
+                    .iter()
+                    .any(|t| t.output.est.fusion_flags & stopped != 0),
+                "{what}: the stop never engaged"
+            );
+            let loose_m = ticks
+                .iter()
+                .filter(|t| t.output.drive_enable)
+                .map(|t| t.tensions.slack_m)
+                .fold(0.0, f64::max);
+            assert!(
+                loose_m <= 2.0 * threshold_m,
+                "{what}: {:.1} µm loose, threshold {:.1} µm",
+                loose_m * 1e6,
+                threshold_m * 1e6
+            );
+        }
     }
 }

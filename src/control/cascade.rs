@@ -63,6 +63,11 @@ pub struct CascadeIn {
     pub motor_per_joint: f32,
     /// The reference is at rest: apply the hold dead band.
     pub hold: bool,
+    /// The payout stop: hold the motor-velocity reference at or above zero
+    /// (a negative motor speed unwinds cable 0). The controller sets it
+    /// while the motor's reading says cable 0 is nearly slack and the motor
+    /// has kept unwinding (`cascade.payout_stop`, [`crate::controller`]).
+    pub no_payout: bool,
 }
 
 /// One step of the cascade with period `period_s`.
@@ -91,11 +96,14 @@ pub fn step(
     s.last_error_rad = e;
     s.primed = true;
     let w_joint = cfg.vel_feedforward * inp.vel_ref_rad_s + cfg.kp_pos_1_s * e + cfg.kd_pos * de;
-    let w_ref = clamp(
+    let mut w_ref = clamp(
         w_joint * inp.motor_per_joint,
         -cfg.vel_limit_rad_s,
         cfg.vel_limit_rad_s,
     );
+    if inp.no_payout {
+        w_ref = w_ref.max(0.0);
+    }
     let ev = w_ref - inp.motor_vel_rad_s;
     let lim = cfg.current_limit_a;
     let unsat = inp.current_ff_a + cfg.kp_vel_a_s_rad * ev + s.integral_a;
@@ -255,6 +263,28 @@ mod tests {
             "{} against {proportional}",
             largest_jump(true)
         );
+    }
+
+    /// The payout stop: a position error that asks the motor to unwind
+    /// gets a motor-velocity reference of zero, one that asks it to wind in
+    /// is left as it is, and without the stop both pass.
+    #[test]
+    fn the_payout_stop_keeps_the_motor_from_unwinding_and_only_that() {
+        let cfg = CascadeConfig::default();
+        let run = |error_rad: f32, no_payout: bool| {
+            let mut s = CascadeState::default();
+            let inp = CascadeIn {
+                angle_ref_rad: error_rad,
+                motor_per_joint: 23.33,
+                no_payout,
+                ..Default::default()
+            };
+            step(&cfg, &mut s, &inp, 5e-4).motor_vel_ref_rad_s
+        };
+        assert!(run(-0.01, false) < 0.0);
+        assert_eq!(run(-0.01, true), 0.0);
+        assert!(run(0.01, true) > 0.0);
+        assert_eq!(run(0.01, true), run(0.01, false));
     }
 
     #[test]

@@ -244,6 +244,9 @@ struct Derived {
     rope_m_per_motor_rad: f32,
     /// Check 1's payout limit, `limit / K_w1`, m.
     cable0_payout_m: f32,
+    /// The payout stop's threshold, half the rope's shortening from the
+    /// limit to zero tension, `limit / (2 max(K_w0, K_w1))`, m.
+    cable0_stop_m: f32,
     /// Cable 0's compliance for check 2's reach, `1 / max(K_w0, K_w1)`,
     /// m/N: the identified `K_w0` where there is one, else cable 1's bound.
     cable0_m_per_n: f32,
@@ -274,6 +277,7 @@ impl Derived {
             cable1_m_per_n: 0.0,
             rope_m_per_motor_rad: 1.0 / m.motor_rad_per_cable_m(),
             cable0_payout_m: 0.0,
+            cable0_stop_m: 0.0,
             cable0_m_per_n: 0.0,
         };
         derived.set_steps(c);
@@ -304,6 +308,7 @@ impl Derived {
         self.cable1_m_per_n = 1.0 / c.stretch.cable1_n_m;
         self.cable0_payout_m = c.slack_limit_n() * self.cable1_m_per_n;
         self.cable0_m_per_n = 1.0 / c.stretch.cable0_n_m.max(c.stretch.cable1_n_m);
+        self.cable0_stop_m = 0.5 * c.slack_limit_n() * self.cable0_m_per_n;
     }
 }
 
@@ -915,6 +920,7 @@ impl Controller {
         // means nothing taut to compare with: check 2 stands.)
         let cable0_m = phi_rad * d.rope_m_per_motor_rad - x1_m;
         let limit_n = cfg.slack_limit_n();
+        let mut payout_m = 0.0;
         let reach_m =
             (tension1_stretch_n.max(0.0) + 2.0 * math::abs(cfg.tension.f_sc1_n) + limit_n)
                 * d.cable0_m_per_n;
@@ -926,7 +932,7 @@ impl Controller {
             if dob_out.tension1_n >= limit_n {
                 st.cable0_taut_m = cable0_m;
             }
-            let mut payout_m = st.cable0_taut_m - cable0_m;
+            payout_m = st.cable0_taut_m - cable0_m;
             // (Only a configuration with probing on can publish a mean.)
             if d.probe.enabled() {
                 match st.probe.mean() {
@@ -1039,6 +1045,22 @@ impl Controller {
             st.probe.restart();
         }
         st.probing = probing;
+        // The payout stop (`cascade.payout_stop`, off by default): while
+        // the motor's reading has cable 0 below the slack limit and the
+        // motor has unwound more than half the rope's shortening from that
+        // limit to zero tension since (`limit / (2 K_w0)`, or `K_w1`'s
+        // bound), it unwinds no further. More would only slacken a rope
+        // that a stuck slider 1 does not take up (the hold's error just
+        // outside its dead band asks for exactly that). It holds the motor
+        // rather than winding back: at rest the motor's reading is its
+        // velocity integrator's current against its own stiction, and a
+        // wind-back that trusted it ratcheted the rope out a threshold at a
+        // time until check 2 latched. The cable-0 checks above still latch
+        // on a rope slack beyond their bounds.
+        let no_payout = cfg.cascade.payout_stop && payout_m > d.cable0_stop_m;
+        if no_payout {
+            fused.flags |= fusion::flags::PAYOUT_STOPPED;
+        }
         let current_ff_a = if cfg.cascade.tension_feedforward {
             (model_n * m.rope_wheel_radius_m / m.gear_ratio + cfg.dob.viscous_nm_s_rad * phi.vel)
                 / m.torque_constant_nm_a
@@ -1057,6 +1079,7 @@ impl Controller {
                 current_ff_a,
                 motor_per_joint: d.motor_per_joint,
                 hold: reference.vel_rad_s == 0.0,
+                no_payout,
             },
             d.period_s,
         );

@@ -69,6 +69,10 @@ pub mod flags {
     /// The estimate and bound are the means over the last whole period of
     /// the probing dither ([`crate::probe`]), not this tick's values.
     pub const PROBED: u8 = 16;
+    /// Set by the controller, not the fusion: the payout stop
+    /// (`cascade.payout_stop`) held the motor from unwinding this tick (its
+    /// reading put cable 0 near slack while the motor kept paying out).
+    pub const PAYOUT_STOPPED: u8 = 32;
 }
 
 /// Largest ratio of the two sliders' speeds at which the chain still counts

@@ -49,6 +49,13 @@ pub struct ReportArgs {
     #[arg(long, value_name = "HZ", requires = "draws",
           value_parser = crate::cli::f64_in(250.0, 10_000.0))]
     pub draw_rate_hz: Option<f64>,
+    /// Turn the payout stop on (`cascade.payout_stop`, off by default) in
+    /// every plant variant's identified configuration (the force sections:
+    /// loading protocol passive and with probing, wrist, grip): the motor
+    /// unwinds no further once its reading has cable 0 nearly slack
+    /// (README, "The payout stop").
+    #[arg(long)]
+    pub payout_stop: bool,
 }
 
 /// `FIRST-LAST` (or one seed `N`) of `--draws`.
@@ -86,6 +93,7 @@ impl From<ReportOptions> for ReportArgs {
             quiet: o.quiet,
             draws: o.draws,
             draw_rate_hz: o.draw_rate_hz,
+            payout_stop: o.payout_stop,
         }
     }
 }
@@ -109,6 +117,7 @@ impl ReportArgs {
             quiet: self.quiet,
             draws: self.draws,
             draw_rate_hz: self.draw_rate_hz,
+            payout_stop: self.payout_stop,
         }
     }
 }

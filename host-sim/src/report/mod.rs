@@ -98,6 +98,9 @@ pub struct ReportOptions {
     /// With `draws`: every drawn plant's control rate, Hz (default: 2 kHz
     /// for odd seeds, 1 kHz for even ones).
     pub draw_rate_hz: Option<f64>,
+    /// Turn the payout stop on (`cascade.payout_stop`) in every plant
+    /// variant's identified configuration (the force sections).
+    pub payout_stop: bool,
 }
 
 impl Default for ReportOptions {
@@ -112,6 +115,7 @@ impl Default for ReportOptions {
             quiet: false,
             draws: None,
             draw_rate_hz: None,
+            payout_stop: false,
         }
     }
 }
@@ -134,6 +138,9 @@ impl ReportOptions {
         }
         if let Some(hz) = self.draw_rate_hz {
             c.push_str(&format!(" --draw-rate-hz {hz}"));
+        }
+        if self.payout_stop {
+            c.push_str(" --payout-stop");
         }
         c
     }
@@ -331,6 +338,7 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         progress,
         draws: args.draws,
         draw_rate_hz: args.draw_rate_hz.map(|hz| hz as f32),
+        payout_stop: args.payout_stop,
     };
     let dir = &args.out;
     crate::output::ensure_dir(dir)?;
@@ -539,8 +547,8 @@ mod tests {
     use super::*;
 
     /// The report's header names the arguments that make it again: the
-    /// default run's as before, a held-out run's with its draws, rate and
-    /// `--no-effects`.
+    /// default run's as before, a held-out run's with its draws, rate,
+    /// `--no-effects` and the payout stop.
     #[test]
     fn the_command_in_the_header_reproduces_the_run() {
         assert_eq!(
@@ -551,11 +559,13 @@ mod tests {
             no_effects: true,
             draws: Some((70, 79)),
             draw_rate_hz: Some(500.0),
+            payout_stop: true,
             ..ReportOptions::default()
         };
         assert_eq!(
             held_out.command(),
-            "report --seed 1 --duration-scale 1 --no-effects --draws 70-79 --draw-rate-hz 500"
+            "report --seed 1 --duration-scale 1 --no-effects --draws 70-79 --draw-rate-hz 500 \
+             --payout-stop"
         );
         let effects = ReportOptions {
             effect: vec!["creep".into(), "drift".into()],

@@ -655,7 +655,8 @@ pub fn run_variant(v: &Variant, s: &Settings) -> VariantResult {
     };
     let (base, _) = Config::default().at_rate(v.rate_hz);
     let config = match identify_config(&v.plant, &base, s, &tag) {
-        Ok((c, notes)) => {
+        Ok((mut c, notes)) => {
+            c.cascade.payout_stop = s.payout_stop;
             out.notes = notes;
             out.notes.push(identified_vs_plant(&c, &v.plant));
             out.pin_at_tip_n = f64::from(c.fusion.pin_coulomb_nm / c.machine.gripper_length_m);

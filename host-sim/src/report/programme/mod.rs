@@ -57,6 +57,9 @@ pub struct Settings {
     /// With `draws`: every drawn plant's control rate, Hz (`None`: 2 kHz
     /// for odd seeds, 1 kHz for even ones).
     pub draw_rate_hz: Option<f32>,
+    /// The payout stop (`cascade.payout_stop`) on in every plant variant's
+    /// identified configuration.
+    pub payout_stop: bool,
 }
 
 impl Settings {
@@ -69,6 +72,7 @@ impl Settings {
             progress: Progress::new(true),
             draws: None,
             draw_rate_hz: None,
+            payout_stop: false,
         }
     }
 }

@@ -279,6 +279,16 @@ fn slack_cable_has_no_tension() {
     plant.state_mut().phi_rad = -2.0 * p.spring.preload_n / p.cable0.stiffness_n_m / rw;
     assert_eq!(plant.tensions().rope_n, 0.0);
     assert!(plant.tensions().cable1_n > 0.0);
+    // Twice the preload's stretch wound out from rest: one stretch's worth
+    // of rope hangs loose.
+    let loose_m = p.spring.preload_n / p.cable0.stiffness_n_m;
+    let slack_m = plant.tensions().slack_m;
+    assert!(
+        (slack_m - loose_m).abs() < 1e-3 * loose_m,
+        "{slack_m} m loose, expected {loose_m}"
+    );
+    plant.state_mut().phi_rad = 0.0;
+    assert_eq!(plant.tensions().slack_m, 0.0, "taut at rest");
 }
 
 /// The step-size guard: the default 40 kHz resolves the stiffest mode with

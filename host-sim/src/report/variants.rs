@@ -784,7 +784,8 @@ mod tests {
 
     /// A cable carrying no tension with the drive on counts as undetected
     /// until the tick its fault latches (drive off); a taut tick in
-    /// between (even one below the checks' limit) ends a stretch.
+    /// between (even one below the checks' limit) ends a stretch. The most
+    /// rope loose is taken over the same ticks.
     #[test]
     fn slack_counts_as_undetected_from_the_first_slack_tick_to_the_fault() {
         let mut rec = case_rec();
@@ -793,6 +794,8 @@ mod tests {
             r.t_s = t_s;
             r.output.drive_enable = fault.is_none();
             r.output.fault = fault;
+            // The rope's slack grows with time while it carries nothing.
+            r.tensions.slack_m = if rope_n > 0.0 { 0.0 } else { 1e-6 * t_s };
             r
         };
         rec.record(&at(1.0, 0.0, None));
@@ -810,5 +813,11 @@ mod tests {
             rec.slack_undetected_s
         );
         assert!(rec.fault_confirmed);
+        // The most rope loose before the fault (2.30 s), not at or after it.
+        assert!(
+            (rec.slack_undetected_m - 2.30e-6).abs() < 1e-12,
+            "{}",
+            rec.slack_undetected_m
+        );
     }
 }

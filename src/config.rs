@@ -193,10 +193,10 @@ pub struct CascadeConfig {
     /// at or above zero, so the motor unwinds no further rope that a stuck
     /// slider 1 does not take up (the hold's error just outside its dead
     /// band asks for exactly that; the cable-0 checks then latch and drop
-    /// the load). Off by default: on the simulator's plants it turns a
-    /// fifth to a third of the heavy-load cable-0 faults into holds that
-    /// run on, with the rope at zero tension for seconds and up to 0.2 mm
-    /// loose (README, "The payout stop"). Needs the slack checks on
+    /// the load). Off by default: on the simulator's plants it turns about
+    /// a quarter of the heavy-load cable-0 faults into holds that run on,
+    /// the rope at zero tension for up to 3.2 s with the drive on and no
+    /// fault (README, "The payout stop"). Needs the slack checks on
     /// (`limits.min_tension_fraction > 0`).
     pub payout_stop: bool,
 }

@@ -961,8 +961,9 @@ fn at_1_khz_a_jae_without_c1_limit_cycles_and_the_observer_s_rate_quiets_it() {
 /// turns one way: at most the plant's rope and at least half of it (a
 /// slope through a quantized elongation reads low, the side the slack
 /// check can take), and written into the configuration. The unhooked rope
-/// wheel's run, whose reading carries no rope, gives none, and the
-/// configuration keeps what it had.
+/// wheel's run, whose reading carries no rope, gives none, and a run that
+/// gives none writes 0 (cable 1's bound) over whatever the configuration
+/// carried.
 #[test]
 fn cable_0_s_stiffness_is_read_where_slider_1_stands_still_and_never_above_the_rope_s() {
     let c = chain();
@@ -983,4 +984,12 @@ fn cable_0_s_stiffness_is_read_where_slider_1_stands_still_and_never_above_the_r
     let unhooked = Prepared::new("bm", &c.bm_log, &decoupled(&c.config), &opts).unwrap();
     let none = read_cable0_stiffness(&[unhooked]);
     assert!(none.is_err(), "read {none:?} off an unhooked rope wheel");
+    // A run that does not read it writes 0 (cable 1's bound), not the
+    // value the configuration carried from another run.
+    let mut unread = r.clone();
+    unread.cable0 = none;
+    let mut stale = c.config;
+    stale.stretch.cable0_n_m = 5.0e5;
+    unread.apply(&mut stale);
+    assert_eq!(stale.stretch.cable0_n_m, 0.0);
 }

@@ -587,8 +587,9 @@ pub fn format_report(r: &IdentifyReport) -> String {
             Err(why) => {
                 let _ = writeln!(
                     s,
-                    "  note: cable 0's stiffness not read ({why}); the cable-0 slack check keeps \
-                     cable 1's as its bound\n"
+                    "  note: cable 0's stiffness not read ({why}); stretch.cable0_n_m = 0, so the \
+                     cable-0 slack check takes cable 1's stiffness as its bound (a value the \
+                     configuration held from another run is not kept)\n"
                 );
             }
         }

@@ -202,17 +202,19 @@ pub fn validate_tension(
 
 impl TensionResult {
     /// Write `chi_p` into the configuration, cable 0's stiffness where the
-    /// logs give it ([`TensionResult::cable0`]; else the configuration's
-    /// stands), and the position loop's derivative from the grating
-    /// observer when the log limit-cycled
-    /// ([`TensionResult::derivative_from_observer`]).
+    /// logs give it ([`TensionResult::cable0`]; else 0, cable 1's bound,
+    /// whatever the configuration held: a stiffness read on another run,
+    /// perhaps of another rope, must not shorten this one's slack check),
+    /// and the position loop's derivative from the grating observer when
+    /// the log limit-cycled ([`TensionResult::derivative_from_observer`]).
     pub fn apply(&self, config: &mut Config) {
         if self.derivative_from_observer {
             config.cascade.kd_on_observer_rate = true;
         }
-        if let Ok(k) = &self.cable0 {
-            config.stretch.cable0_n_m = k.n_m as f32;
-        }
+        config.stretch.cable0_n_m = match &self.cable0 {
+            Ok(k) => k.n_m as f32,
+            Err(_) => 0.0,
+        };
         let t = &mut config.tension;
         t.f_sc1_n = self.chi_p[0] as f32;
         t.f_cp2_n = self.chi_p[1] as f32;

@@ -17,6 +17,9 @@
 //!   stops the hold from hunting against stiction.
 //! * Feed-forward current `i_ff` (the modelled tension's holding current) is
 //!   added before the limit, so the integrator only trims.
+//! * Optionally (`cascade.payout_stop`), the payout stop: the controller
+//!   asks the cascade to hold the motor-velocity reference at or above
+//!   zero while cable 0 is nearly slack ([`CascadeIn::no_payout`]).
 
 use crate::config::CascadeConfig;
 use crate::math::clamp;

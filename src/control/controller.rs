@@ -920,7 +920,7 @@ impl Controller {
         // means nothing taut to compare with: check 2 stands.)
         let cable0_m = phi_rad * d.rope_m_per_motor_rad - x1_m;
         let limit_n = cfg.slack_limit_n();
-        let mut payout_m = 0.0;
+        let mut no_payout = false;
         let reach_m =
             (tension1_stretch_n.max(0.0) + 2.0 * math::abs(cfg.tension.f_sc1_n) + limit_n)
                 * d.cable0_m_per_n;
@@ -932,7 +932,7 @@ impl Controller {
             if dob_out.tension1_n >= limit_n {
                 st.cable0_taut_m = cable0_m;
             }
-            payout_m = st.cable0_taut_m - cable0_m;
+            let mut payout_m = st.cable0_taut_m - cable0_m;
             // (Only a configuration with probing on can publish a mean.)
             if d.probe.enabled() {
                 match st.probe.mean() {
@@ -950,6 +950,23 @@ impl Controller {
             st.cable0_floor_m = st.cable0_floor_m.max(cable0_m - reach_m);
             if payout_m > d.cable0_payout_m || cable0_m < st.cable0_floor_m {
                 fault = fault.or(Some(Fault::Cable0Slack));
+            }
+            // The payout stop (`cascade.payout_stop`, off by default): while
+            // the motor's reading has cable 0 below the slack limit and the
+            // motor has unwound more than half the rope's shortening from
+            // that limit to zero tension since (`limit / (2 K_w0)`, or
+            // `K_w1`'s bound), the cascade unwinds no further. More would
+            // only slacken a rope that a stuck slider 1 does not take up
+            // (the hold's error just outside its dead band asks for exactly
+            // that). It holds the motor rather than winding back: at rest
+            // the motor's reading is its velocity integrator's current
+            // against its own stiction, and a wind-back that trusted it
+            // ratcheted the rope out a threshold at a time until the checks
+            // above latched. They still latch on a rope slack beyond their
+            // bounds.
+            if cfg.cascade.payout_stop && payout_m > d.cable0_stop_m {
+                no_payout = true;
+                fused.flags |= fusion::flags::PAYOUT_STOPPED;
             }
         }
         timer.mark(Stage::Dob);
@@ -1045,22 +1062,6 @@ impl Controller {
             st.probe.restart();
         }
         st.probing = probing;
-        // The payout stop (`cascade.payout_stop`, off by default): while
-        // the motor's reading has cable 0 below the slack limit and the
-        // motor has unwound more than half the rope's shortening from that
-        // limit to zero tension since (`limit / (2 K_w0)`, or `K_w1`'s
-        // bound), it unwinds no further. More would only slacken a rope
-        // that a stuck slider 1 does not take up (the hold's error just
-        // outside its dead band asks for exactly that). It holds the motor
-        // rather than winding back: at rest the motor's reading is its
-        // velocity integrator's current against its own stiction, and a
-        // wind-back that trusted it ratcheted the rope out a threshold at a
-        // time until check 2 latched. The cable-0 checks above still latch
-        // on a rope slack beyond their bounds.
-        let no_payout = cfg.cascade.payout_stop && payout_m > d.cable0_stop_m;
-        if no_payout {
-            fused.flags |= fusion::flags::PAYOUT_STOPPED;
-        }
         let current_ff_a = if cfg.cascade.tension_feedforward {
             (model_n * m.rope_wheel_radius_m / m.gear_ratio + cfg.dob.viscous_nm_s_rad * phi.vel)
                 / m.torque_constant_nm_a

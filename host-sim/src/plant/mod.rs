@@ -366,24 +366,27 @@ impl Plant {
         let s = &self.s;
         let r = p.joint.pulley_radius_m;
         let f0 = p.spring.preload_n;
-        // Each cable's elongation beyond its zero-tension length, m.
-        let stretch0_m =
-            self.d.rw * s.phi_rad - s.x1_m - s.creep_m[0] + f0 / p.cable0.stiffness_n_m;
-        let stretch1_m = s.x1_m - r * s.theta_rad - s.creep_m[1] + f0 / p.cable1.stiffness_n_m;
+        // Cables 0 and 1 stretched from their preloaded rest lengths, m
+        // (their tensions' stiffness terms, and their slack).
+        let e0_m = self.d.rw * s.phi_rad - s.x1_m - s.creep_m[0];
+        let e1_m = s.x1_m - r * s.theta_rad - s.creep_m[1];
+        // How far each is shorter than its zero-tension length, m.
+        let short0_m = -(e0_m + f0 / p.cable0.stiffness_n_m);
+        let short1_m = -(e1_m + f0 / p.cable1.stiffness_n_m);
         let slack_m = if p.motor_decoupled {
-            (-stretch1_m).max(0.0)
+            short1_m.max(0.0)
         } else {
-            (-stretch0_m).max(-stretch1_m).max(0.0)
+            short0_m.max(short1_m).max(0.0)
         };
         let rope_n = if p.motor_decoupled {
             0.0
         } else {
-            (p.cable0.stiffness_n_m * (self.d.rw * s.phi_rad - s.x1_m - s.creep_m[0])
+            (p.cable0.stiffness_n_m * e0_m
                 + p.cable0.damping_n_s_m * (self.d.rw * s.phi_vel_rad_s - s.x1_vel_m_s)
                 + f0)
                 .max(0.0)
         };
-        let cable1_n = (p.cable1.stiffness_n_m * (s.x1_m - r * s.theta_rad - s.creep_m[1])
+        let cable1_n = (p.cable1.stiffness_n_m * e1_m
             + p.cable1.damping_n_s_m * (s.x1_vel_m_s - r * s.theta_vel_rad_s)
             + f0)
             .max(0.0);

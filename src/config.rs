@@ -581,6 +581,18 @@ impl Default for Config {
     }
 }
 
+/// Every setting [`Config::at_rate`] can derive from the control rate (a
+/// [`RateAdjustment::field`] is one of them): a value a file gives for any
+/// other setting has nothing to do with the rate.
+pub const RATE_DERIVED_FIELDS: [&str; 6] = [
+    "differentiators.grating_bandwidth_hz",
+    "differentiators.motor_bandwidth_hz",
+    "cascade.kp_vel_a_s_rad",
+    "cascade.ki_vel_a_rad",
+    "cascade.kp_pos_1_s",
+    "cascade.kd_on_observer_rate",
+];
+
 /// A setting [`Config::at_rate`] derived from the control rate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RateAdjustment {
@@ -1390,6 +1402,34 @@ mod tests {
         );
         let (same, none) = c.at_rate(2000.0);
         assert_eq!((same, none.len()), (c, 0));
+    }
+
+    /// Every setting `at_rate` derives, from the defaults and from gains
+    /// and bandwidths scaled up and down, at rates from the slowest to the
+    /// fastest `validate` takes, is one `RATE_DERIVED_FIELDS` lists (the
+    /// host's error for a rejected file names the rate only for those), and
+    /// each listed one is derived somewhere in that sweep.
+    #[test]
+    fn rate_derived_fields_lists_every_setting_at_rate_derives() {
+        let mut seen = [false; RATE_DERIVED_FIELDS.len()];
+        for scale in [0.1_f32, 1.0, 10.0] {
+            let mut c = Config::default();
+            c.differentiators.grating_bandwidth_hz *= scale;
+            c.differentiators.motor_bandwidth_hz *= scale;
+            c.cascade.kp_vel_a_s_rad *= scale;
+            c.cascade.ki_vel_a_rad *= scale * scale * scale;
+            c.cascade.kp_pos_1_s *= scale;
+            for rate_hz in [100.0, 250.0, 500.0, 1000.0, 2000.0, 5000.0, 20_000.0] {
+                for a in c.at_rate(rate_hz).1.iter() {
+                    let i = RATE_DERIVED_FIELDS.iter().position(|f| *f == a.field);
+                    let i = i.unwrap_or_else(|| panic!("{} is not listed", a.field));
+                    seen[i] = true;
+                }
+            }
+        }
+        for (field, seen) in RATE_DERIVED_FIELDS.iter().zip(seen) {
+            assert!(seen, "{field} is listed but never derived");
+        }
     }
 
     /// Below the rate where the derived velocity crossover falls under

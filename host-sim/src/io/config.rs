@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
+use cable_joint::config::RATE_DERIVED_FIELDS;
 use cable_joint::Config;
 
 use crate::log::toml_error;
@@ -39,6 +40,11 @@ pub fn load_config_noted(path: impl AsRef<Path>) -> Result<(Config, Vec<String>)
     let config: Config = toml::from_str(&text).map_err(parse_err)?;
     let rate_hz = config.control_rate_hz;
     let (_, changes) = config.at_rate(rate_hz);
+    // The rate-dependent settings the file itself gives (kept as given).
+    let given_rate_fields: Vec<&str> = RATE_DERIVED_FIELDS
+        .into_iter()
+        .filter(|f| has_key(&table, f))
+        .collect();
     let mut notes = Vec::new();
     let missing: Vec<_> = changes
         .iter()
@@ -66,10 +72,16 @@ pub fn load_config_noted(path: impl AsRef<Path>) -> Result<(Config, Vec<String>)
             .map_err(|e: toml::de::Error| anyhow!("{}: {e}", path.display()))?
     };
     config.validate().map_err(|e| {
-        anyhow!(
-            "{}: {e} (at control_rate_hz = {rate_hz}: the value in the file is kept; leave it out to derive it from the rate)",
-            path.display()
-        )
+        // Only a rate-dependent setting the file gives was kept against the
+        // rate; any other rejected value has nothing to do with it.
+        if given_rate_fields.contains(&e.field) {
+            anyhow!(
+                "{}: {e} (at control_rate_hz = {rate_hz}: the value in the file is kept; leave it out to derive it from the rate)",
+                path.display()
+            )
+        } else {
+            anyhow!("{}: {e}", path.display())
+        }
     })?;
     Ok((config, notes))
 }
@@ -364,6 +376,25 @@ mod tests {
             e.contains("motor_bandwidth_hz") && e.contains("leave it out"),
             "{e}"
         );
+    }
+
+    /// A refused value the rate has nothing to do with (the rate itself, a
+    /// current limit) is named without the advice to leave it out for the
+    /// rate to derive it: no rate derives it.
+    #[test]
+    fn a_refused_setting_the_rate_does_not_derive_gets_no_rate_advice() {
+        for text in [
+            "control_rate_hz = -5.0\n",
+            "control_rate_hz = 1000.0\n[limits]\nmax_current_a = -1.0\n",
+        ] {
+            let e = load_text(text).unwrap_err().to_string();
+            let field = if text.contains("limits") {
+                "limits.max_current_a"
+            } else {
+                "control_rate_hz"
+            };
+            assert!(e.contains(field) && !e.contains("leave it out"), "{e}");
+        }
     }
 
     #[test]

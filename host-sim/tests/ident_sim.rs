@@ -957,6 +957,23 @@ fn at_1_khz_a_jae_without_c1_limit_cycles_and_the_observer_s_rate_quiets_it() {
     );
 }
 
+/// Cable 0's stiffness off a tension run at 500 Hz (the gains derived for
+/// that rate): read, within the same bounds of the rope's as at 2 kHz.
+#[test]
+fn cable_0_s_stiffness_is_read_off_a_500_hz_run_within_the_rope_s_bounds() {
+    let c = chain();
+    let config = c.config.at_rate(500.0).0;
+    let log = simulate("tension-ident", &config, None, 10.0);
+    let r = identify_tension_with(&[("tension", &log)], &config, &IdentOptions::default()).unwrap();
+    let k = r.cable0.expect("read at 500 Hz");
+    let rope_n_m = c.plant.cable0.stiffness_n_m;
+    assert!(
+        k.n_m <= 1.05 * rope_n_m && k.n_m >= 0.5 * rope_n_m,
+        "read {k:?} for a rope of {rope_n_m} N/m"
+    );
+    assert!(k.seconds >= host_sim::ident::CABLE0_MIN_TOTAL_S, "{k:?}");
+}
+
 /// Cable 0's stiffness, read where slider 1 stands still and the motor
 /// turns one way: at most the plant's rope and at least half of it (a
 /// slope through a quantized elongation reads low, the side the slack

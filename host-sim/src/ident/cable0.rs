@@ -24,12 +24,14 @@ pub const STILL_X1_M_S: f64 = 2e-5;
 pub const TURNING_RAD_S: f64 = 0.3;
 /// A stretch lasts at least this long, s.
 pub const MIN_STRETCH_S: f64 = 0.01;
-/// Stretches and rows the slope needs before it is written: on the
-/// report's presliding plant a single stretch of 20 rows read 3.85 times
-/// the rope's stiffness.
+/// Stretches and time the slope needs before it is written: on the
+/// report's presliding plant a single stretch of 20 rows (10 ms at 2 kHz)
+/// read 3.85 times the rope's stiffness.
 pub const MIN_STRETCHES: usize = 5;
-/// See [`MIN_STRETCHES`].
-pub const MIN_ROWS: usize = 200;
+/// See [`MIN_STRETCHES`]: the stretches' total duration, s (200 rows at
+/// 2 kHz, the floor's first form, which counted rows and so asked a 1 kHz
+/// log for twice the time and a 4 kHz log for half).
+pub const MIN_TOTAL_S: f64 = 0.1;
 
 /// Cable 0's stiffness as the stretches give it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -40,6 +42,9 @@ pub struct Cable0Stiffness {
     pub stretches: usize,
     /// Rows in them.
     pub rows: usize,
+    /// Their total duration, s (each row counts for the mean row interval
+    /// of its stretch).
+    pub seconds: f64,
 }
 
 /// Sums of the fixed-effects slope over the stretches closed so far.
@@ -49,6 +54,7 @@ struct Sums {
     den: f64,
     stretches: usize,
     rows: usize,
+    seconds: f64,
 }
 
 impl Sums {
@@ -69,8 +75,45 @@ impl Sums {
             }
             self.stretches += 1;
             self.rows += stretch.len();
+            // `lasts` means two rows at least, `MIN_STRETCH_S` apart.
+            self.seconds += (stretch[stretch.len() - 1].0 - stretch[0].0) * n / (n - 1.0);
         }
         stretch.clear();
+    }
+
+    /// The slope over the stretches closed, or why it is not cable 0's
+    /// stiffness: too few stretches or too little time in them, or a slope
+    /// below `cable1_n_m` (cable 0 is the rope's shortest stretch, so a
+    /// slope below cable 1's stiffness is a slack rope or a reading without
+    /// the rope's tension in it).
+    fn stiffness(self, cable1_n_m: f64) -> Result<Cable0Stiffness, String> {
+        let Sums {
+            num,
+            den,
+            stretches,
+            rows,
+            seconds,
+        } = self;
+        if stretches < MIN_STRETCHES || seconds < MIN_TOTAL_S {
+            return Err(format!(
+                "{stretches} stretches ({rows} rows, {seconds:.3} s) where slider 1 stands still \
+                 and the motor turns one way; {MIN_STRETCHES} stretches and {MIN_TOTAL_S} s are \
+                 needed"
+            ));
+        }
+        let n_m = num / den;
+        if !(n_m.is_finite() && n_m >= cable1_n_m) {
+            return Err(format!(
+                "the slope over {stretches} stretches is {n_m:.0} N/m, below cable 1's \
+                 {cable1_n_m:.0} N/m"
+            ));
+        }
+        Ok(Cable0Stiffness {
+            n_m,
+            stretches,
+            rows,
+            seconds,
+        })
     }
 }
 
@@ -104,33 +147,52 @@ pub fn read_cable0_stiffness(preps: &[Prepared]) -> Result<Cable0Stiffness, Stri
         }
         sums.close(&mut stretch);
     }
-    let Sums {
-        num,
-        den,
-        stretches,
-        rows,
-    } = sums;
-    if stretches < MIN_STRETCHES || rows < MIN_ROWS {
-        return Err(format!(
-            "{stretches} stretches ({rows} rows) where slider 1 stands still and the motor turns \
-             one way; {MIN_STRETCHES} and {MIN_ROWS} are needed"
-        ));
-    }
-    let n_m = num / den;
-    // Cable 0 is the rope's shortest stretch: a slope below cable 1's
-    // stiffness is not its stiffness (a slack rope, a reading without the
-    // rope's tension in it).
     let cable1_n_m = preps
         .first()
         .map_or(0.0, |p| f64::from(p.config().stretch.cable1_n_m));
-    if !(n_m.is_finite() && n_m >= cable1_n_m) {
-        return Err(format!(
-            "the slope over {stretches} stretches is {n_m:.0} N/m, below cable 1's {cable1_n_m:.0} N/m"
-        ));
+    sums.stiffness(cable1_n_m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `count` stretches of `rows` rows `1 / rate_hz` apart, the reading
+    /// `k e` plus an offset of each stretch's own (its friction).
+    fn sums(k_n_m: f64, rate_hz: f64, count: usize, rows: usize) -> Sums {
+        let mut sums = Sums::default();
+        let mut t = 0.0;
+        for i in 0..count {
+            let offset_n = 3.0 * i as f64 - 5.0;
+            let mut stretch: Vec<(f64, f64, f64)> = (0..rows)
+                .map(|j| {
+                    let e = 1e-5 * (i + j) as f64;
+                    (t + j as f64 / rate_hz, e, k_n_m * e + offset_n)
+                })
+                .collect();
+            t += 1.0;
+            sums.close(&mut stretch);
+        }
+        sums
     }
-    Ok(Cable0Stiffness {
-        n_m,
-        stretches,
-        rows,
-    })
+
+    /// The floor is a total time: 150 rows at 1 kHz (0.15 s) are read,
+    /// the same 150 rows at 2 kHz (0.075 s) are not, whatever the rows;
+    /// each stretch's own offset (its friction) leaves the slope alone.
+    #[test]
+    fn the_floor_is_the_stretches_total_time_not_their_rows() {
+        let k = sums(1.6e5, 1000.0, 6, 25).stiffness(1.1e4).unwrap();
+        assert!((k.n_m / 1.6e5 - 1.0).abs() < 1e-9, "{k:?}");
+        assert_eq!((k.stretches, k.rows), (6, 150));
+        assert!((k.seconds - 0.15).abs() < 1e-9, "{k:?}");
+        let short = sums(1.6e5, 2000.0, 6, 25).stiffness(1.1e4).unwrap_err();
+        assert!(
+            short.contains("0.075 s") && short.contains("0.1 s"),
+            "{short}"
+        );
+        let few = sums(1.6e5, 1000.0, MIN_STRETCHES - 1, 50).stiffness(1.1e4);
+        assert!(few.unwrap_err().contains("stretches"));
+        let soft = sums(5e3, 1000.0, 6, 25).stiffness(1.1e4).unwrap_err();
+        assert!(soft.contains("below cable 1's"), "{soft}");
+    }
 }

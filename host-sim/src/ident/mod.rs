@@ -95,7 +95,10 @@ mod terms;
 mod weights;
 
 pub use bm::{decoupled, identify_bm, identify_bm_with, validate_bm};
-pub use cable0::{read_cable0_stiffness, Cable0Stiffness, MIN_STRETCHES as CABLE0_MIN_STRETCHES};
+pub use cable0::{
+    read_cable0_stiffness, Cable0Stiffness, MIN_STRETCHES as CABLE0_MIN_STRETCHES,
+    MIN_TOTAL_S as CABLE0_MIN_TOTAL_S,
+};
 pub use jae::{identify_jae, identify_jae_with, validate_jae};
 pub use joint::{JointFit, JOINT_DIFF_HALF_WINDOW_S, JOINT_MIN_TRAVEL_RAD};
 pub use options::IdentOptions;

@@ -36,15 +36,19 @@ against when the rope first went slack (`f1_true_n` at zero).
     python3 scripts/cable0-stiffness.py t.csv --plant V/plant.toml \\
         --loading l.csv --config V/config.toml
 
-Standard library only. The rope wheel radius and gear ratio come from the
+Standard library only (the log reader is `logcsv.py`, beside this
+script). The rope wheel radius and gear ratio come from the
 plant file when given, else the datasheet's (6 mm, 35).
 """
 
 import argparse
-import csv
 import math
+import os
 import re
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import logcsv  # noqa: E402
 
 MIN_STRETCH_ROWS = 20
 STILL_X1_M_S = 2e-5
@@ -82,38 +86,27 @@ def fixed_effects_slope(stretches, col):
 
 
 def study(path, m_per_rad):
-    with open(path, newline="") as f:
-        reader = csv.reader(f)
-        header = next(reader)
-        need = ["phi_rad", "x1_m", "tension1_hat_n", "x1_vel_m_s", "phi_vel_rad_s"]
-        missing = [c for c in need if c not in header]
-        if missing:
-            sys.exit(f"{path}: no column {', '.join(missing)}")
-        ix = {c: header.index(c) for c in header}
-        truth = "f1_true_n" in ix
-        every, stretches, current, last_sign, last_row = [], [], None, 0, -2
-        for n, row in enumerate(reader):
-            if n < SKIP_ROWS:
-                continue
-            try:
-                e = float(row[ix["phi_rad"]]) * m_per_rad - float(row[ix["x1_m"]])
-                reading = float(row[ix["tension1_hat_n"]])
-                true_n = float(row[ix["f1_true_n"]]) if truth else float("nan")
-                x1_vel = float(row[ix["x1_vel_m_s"]])
-                phi_vel = float(row[ix["phi_vel_rad_s"]])
-            except (ValueError, IndexError):
-                sys.exit(f"{path}: line {n + 2}: not a number where one is needed")
-            every.append((e, reading, true_n))
-            sign = 1 if phi_vel > 0 else -1
-            if abs(x1_vel) < STILL_X1_M_S and abs(phi_vel) > TURNING_RAD_S:
-                if current is not None and sign == last_sign and n == last_row + 1:
-                    current.append((e, reading, true_n))
-                else:
-                    current = [(e, reading, true_n)]
-                    stretches.append(current)
-                last_sign, last_row = sign, n
+    need = ["phi_rad", "x1_m", "tension1_hat_n", "x1_vel_m_s", "phi_vel_rad_s"]
+    col = logcsv.read_columns(path, need, optional=["f1_true_n"])
+    truth = "f1_true_n" in col
+    every, stretches, current, last_sign, last_row = [], [], None, 0, -2
+    for n in range(SKIP_ROWS, len(col["phi_rad"])):
+        e = col["phi_rad"][n] * m_per_rad - col["x1_m"][n]
+        reading = col["tension1_hat_n"][n]
+        true_n = col["f1_true_n"][n] if truth else float("nan")
+        x1_vel = col["x1_vel_m_s"][n]
+        phi_vel = col["phi_vel_rad_s"][n]
+        every.append((e, reading, true_n))
+        sign = 1 if phi_vel > 0 else -1
+        if abs(x1_vel) < STILL_X1_M_S and abs(phi_vel) > TURNING_RAD_S:
+            if current is not None and sign == last_sign and n == last_row + 1:
+                current.append((e, reading, true_n))
             else:
-                current = None
+                current = [(e, reading, true_n)]
+                stretches.append(current)
+            last_sign, last_row = sign, n
+        else:
+            current = None
     stretches = [s for s in stretches if len(s) >= MIN_STRETCH_ROWS]
     rows = sum(len(s) for s in stretches)
     out = {
@@ -139,30 +132,23 @@ def replay_check_2(path, config_text, stiffness_n_m, m_per_rad):
     """(first slack time, (latch time, true tension) or None) on a loading log."""
     f_sc1 = abs(config_value(config_text, "f_sc1_n"))
     limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
-    with open(path, newline="") as f:
-        reader = csv.reader(f)
-        header = next(reader)
-        need = ["t_s", "phi_rad", "x1_m", "tension1_stretch_n", "f1_true_n", "fault_code"]
-        missing = [c for c in need if c not in header]
-        if missing:
-            sys.exit(f"{path}: no column {', '.join(missing)}")
-        ix = {c: header.index(c) for c in header}
-        floor, slack, latch = -math.inf, None, None
-        for n, row in enumerate(reader):
-            try:
-                t = float(row[ix["t_s"]])
-                e = float(row[ix["phi_rad"]]) * m_per_rad - float(row[ix["x1_m"]])
-                t1 = max(0.0, float(row[ix["tension1_stretch_n"]]))
-                true_n = float(row[ix["f1_true_n"]])
-            except (ValueError, IndexError):
-                sys.exit(f"{path}: line {n + 2}: not a number where one is needed")
-            floor = max(floor, e - (t1 + 2.0 * f_sc1 + limit) / stiffness_n_m)
-            if slack is None and true_n <= 0.0:
-                slack = t
-            if latch is None and e < floor:
-                latch = (t, true_n)
-            if row[ix["fault_code"]] not in ("", "0"):
-                break
+    need = ["t_s", "phi_rad", "x1_m", "tension1_stretch_n", "f1_true_n", "fault_code"]
+    # An empty `fault_code` cell (NaN) is no fault, as 0 is.
+    col = logcsv.read_columns(path, need, allow_empty=["fault_code"])
+    floor, slack, latch = -math.inf, None, None
+    for n in range(len(col["t_s"])):
+        t = col["t_s"][n]
+        e = col["phi_rad"][n] * m_per_rad - col["x1_m"][n]
+        t1 = max(0.0, col["tension1_stretch_n"][n])
+        true_n = col["f1_true_n"][n]
+        floor = max(floor, e - (t1 + 2.0 * f_sc1 + limit) / stiffness_n_m)
+        if slack is None and true_n <= 0.0:
+            slack = t
+        if latch is None and e < floor:
+            latch = (t, true_n)
+        fault = col["fault_code"][n]
+        if fault == fault and fault != 0:
+            break
     return slack, latch
 
 
@@ -171,20 +157,15 @@ def check_2_margin(path, config_text):
     over a simulated log (`f1_true_n`), or None without that column."""
     f_sc1 = abs(config_value(config_text, "f_sc1_n"))
     limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
-    with open(path, newline="") as f:
-        reader = csv.reader(f)
-        header = next(reader)
-        if "f1_true_n" not in header or "tension1_stretch_n" not in header:
-            return None
-        it, i1 = header.index("f1_true_n"), header.index("tension1_stretch_n")
-        least, largest = math.inf, 0.0
-        for n, row in enumerate(reader):
-            if n < SKIP_ROWS:
-                continue
-            t0 = float(row[it])
-            bound = max(0.0, float(row[i1])) + 2.0 * f_sc1
-            least = min(least, bound - t0)
-            largest = max(largest, t0 / (bound + limit))
+    col = logcsv.read_columns(path, [], optional=["f1_true_n", "tension1_stretch_n"])
+    if "f1_true_n" not in col or "tension1_stretch_n" not in col:
+        return None
+    least, largest = math.inf, 0.0
+    for n in range(SKIP_ROWS, len(col["f1_true_n"])):
+        t0 = col["f1_true_n"][n]
+        bound = max(0.0, col["tension1_stretch_n"][n]) + 2.0 * f_sc1
+        least = min(least, bound - t0)
+        largest = max(largest, t0 / (bound + limit))
     return least, largest
 
 

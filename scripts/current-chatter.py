@@ -18,36 +18,26 @@ For each CSV log it prints:
         --plant V/plant.toml --out t.csv
     python3 scripts/current-chatter.py t.csv
 
-Standard library only.
+Standard library only (the log reader is `logcsv.py`, beside this
+script).
 """
 
 import argparse
 import cmath
-import csv
 import math
+import os
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import logcsv  # noqa: E402
 
 
 def load(path):
-    with open(path, newline="") as f:
-        reader = csv.reader(f)
-        header = next(reader)
-        for c in ("t_s", "i_ref_a"):
-            if c not in header:
-                sys.exit(f"{path}: no column {c}")
-        it, ii = header.index("t_s"), header.index("i_ref_a")
-        ifault = header.index("fault_code") if "fault_code" in header else None
-        t, i, fault = [], [], None
-        for n, row in enumerate(reader):
-            try:
-                t.append(float(row[it]))
-                i.append(float(row[ii]))
-            except (ValueError, IndexError):
-                sys.exit(f"{path}: line {n + 2}: not a number where one is needed")
-            if fault is None and ifault is not None and row[ifault] not in ("", "0"):
-                fault = (row[ifault], t[-1])
-    if len(t) < 3:
-        sys.exit(f"{path}: fewer than three rows")
+    col = logcsv.read_columns(path, ["t_s", "i_ref_a"], optional=["fault_code"], min_rows=3)
+    t, i = col["t_s"], col["i_ref_a"]
+    # The first row with a fault: an empty cell (NaN) or 0 is none.
+    codes = col.get("fault_code", [])
+    fault = next(((f"{c:g}", t[k]) for k, c in enumerate(codes) if c == c and c != 0), None)
     return t, i, fault
 
 

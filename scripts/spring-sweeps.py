@@ -16,10 +16,13 @@ slope and least-squares fits of the rows on x2 (K only), on x2, x2', x2''
 differs between the accelerating and the decelerating part of a sweep.
 Needs numpy.
 """
-import csv
+import os
 import sys
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import logcsv  # noqa: E402
 
 COLS = ["t_s", "x1_vel_m_s", "x2_m", "x2_vel_m_s", "x2_acc_m_s2",
         "tension1_hat_n", "f1_true_n", "fw1_true_n"]
@@ -31,12 +34,7 @@ def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
     path, spring = sys.argv[1], float(sys.argv[2])
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    missing = [c for c in COLS if rows and c not in rows[0]]
-    if not rows or missing:
-        sys.exit(f"{path}: no rows or missing columns {missing} (a simulated jae-ident log?)")
-    d = {c: np.array([float(r[c]) for r in rows]) for c in COLS}
+    d = {c: np.array(v) for c, v in logcsv.read_columns(path, COLS, min_rows=2).items()}
     dt = d["t_s"][1] - d["t_s"][0]
     v1, v2 = d["x1_vel_m_s"], d["x2_vel_m_s"]
     w = max(1, int(0.02 / dt))

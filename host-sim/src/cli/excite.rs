@@ -166,6 +166,19 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
         "predicted std ratio per column [q'', q', sgn, q, 1]: {}",
         ratios.join(" ")
     );
+    for (name, refs) in [
+        (args.like.as_str(), &references),
+        ("excite", &run_references),
+    ] {
+        let b = excite::pair_bound(refs, PREDICTION_RATE_HZ);
+        crate::stdoutln!(
+            "{name}: most correlated columns {} and {} (|cos| {:.3}): no regressor holding both goes under a condition number of {:.2}",
+            excite::COLUMN_NAMES[b.columns.0],
+            excite::COLUMN_NAMES[b.columns.1],
+            b.correlation,
+            b.condition_at_least
+        );
+    }
     write_atomic(&args.out, excite::to_toml(&design)?.as_bytes())
         .with_context(|| format!("writing {}", args.out.display()))?;
     crate::stdoutln!(

@@ -157,6 +157,60 @@ fn condition_of(samples: &[Sample]) -> f64 {
     }
 }
 
+/// Names of the columns of `[q'', q', sgn(q'), q, 1]`, for messages.
+pub const COLUMN_NAMES: [&str; COLUMNS] = ["q''", "q'", "sgn(q')", "q", "1"];
+
+/// The two most correlated columns of the equilibrated regressor predicted
+/// from `segments`' reference, and what they alone force on the condition
+/// number.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairBound {
+    /// The columns (indices into [`COLUMN_NAMES`]), first < second.
+    pub columns: (usize, usize),
+    /// `|cos|` of the angle between them.
+    pub correlation: f64,
+    /// `sqrt((1 + r) / (1 - r))`: no regressor holding both columns has a
+    /// smaller condition number once they are equilibrated (two unit
+    /// columns at `|cos| = r` give `|A u|² = 1 ± r` along `u = (e_i ±
+    /// e_j) / sqrt 2`, so `sigma_max² >= 1 + r` and `sigma_min² <= 1 - r`).
+    pub condition_at_least: f64,
+}
+
+/// The pair of columns that bounds the predicted condition number from
+/// below ([`PairBound`]): what a design has to decorrelate to go lower.
+pub fn pair_bound(segments: &[(Trajectory, f64)], rate_hz: f64) -> PairBound {
+    pair_bound_of(&samples(segments, rate_hz))
+}
+
+fn pair_bound_of(samples: &[Sample]) -> PairBound {
+    let mut gram = [[0.0_f64; COLUMNS]; COLUMNS];
+    for_each_row(samples, |row| {
+        for (i, gi) in gram.iter_mut().enumerate() {
+            for (j, g) in gi.iter_mut().enumerate() {
+                *g += row[i] * row[j];
+            }
+        }
+    });
+    let mut best = PairBound {
+        columns: (0, 1),
+        correlation: f64::NAN,
+        condition_at_least: f64::NAN,
+    };
+    for i in 0..COLUMNS {
+        for j in i + 1..COLUMNS {
+            let r = (gram[i][j] / (gram[i][i] * gram[j][j]).sqrt()).abs();
+            if r.is_finite() && !(r <= best.correlation) {
+                best = PairBound {
+                    columns: (i, j),
+                    correlation: r,
+                    condition_at_least: ((1.0 + r) / (1.0 - r)).sqrt(),
+                };
+            }
+        }
+    }
+    best
+}
+
 /// Standard deviation of each parameter of `[q'', q', sgn(q'), q, 1]` that
 /// a fit on `segments`' predicted regressor at `rate_hz` would give with a
 /// residual of unit standard deviation: `sqrt(diag((A^T A)^-1))`. The ratio
@@ -631,6 +685,35 @@ mod tests {
         // Two sines of different frequencies break the dependence.
         let c2 = condition(&[(sine(0.5, 0.5), 10.0), (sine(0.5, 0.23), 10.0)], 200.0);
         assert!(c2 < c / 10.0, "{c2} vs {c}");
+    }
+
+    /// A sine's velocity and its sign correlate `2 sqrt 2 / pi` (0.90), so
+    /// no run of sines at constant speed sign changes goes under 4.36; the
+    /// pair bound of any run is at most its condition number, and a
+    /// single sine's is its acceleration against its angle (parallel).
+    #[test]
+    fn the_pair_bound_is_the_most_correlated_columns_and_never_above_the_condition() {
+        // Whole periods of two sines of equal peak speed.
+        let two = [(sine(0.5, 0.5), 10.0), (sine(1.0, 0.25), 8.0)];
+        let b = pair_bound(&two, 200.0);
+        assert_eq!(b.columns, (1, 2), "{b:?}");
+        let r = 2.0 * 2.0_f64.sqrt() / std::f64::consts::PI;
+        assert!((b.correlation - r).abs() < 0.01, "{b:?}");
+        assert!((b.condition_at_least - 4.36).abs() < 0.1, "{b:?}");
+        assert!(b.condition_at_least <= condition(&two, 200.0));
+        let one = pair_bound(&[(sine(0.5, 0.5), 20.0)], 200.0);
+        assert_eq!(one.columns, (0, 3), "{one:?}");
+        assert!(one.correlation > 0.999, "{one:?}");
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..5 {
+            let p: [f64; DIM] = std::array::from_fn(|_| rng.gen_range(-1.0..1.0));
+            let run = [(at_rest(&p, 0.1), 20.0)];
+            let (b, c) = (pair_bound(&run, 100.0), condition(&run, 100.0));
+            assert!(
+                b.condition_at_least <= c * (1.0 + 1e-9),
+                "{b:?} against {c}"
+            );
+        }
     }
 
     #[test]

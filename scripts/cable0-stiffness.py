@@ -200,7 +200,7 @@ def main():
         if a.config:
             config_text = open(a.config).read()
             margin = check_2_margin(path, config_text)
-            if margin:
+            if margin and margin[1] > 0:
                 print(
                     f"  check 2's margin on this log: the rope's true tension at least {margin[0]:.2f} N "
                     f"below T_1 + 2 f_sc1, at most {margin[1]:.3f} of T_1 + 2 f_sc1 + limit "
@@ -208,14 +208,15 @@ def main():
                 )
         if a.loading:
             k1 = config_value(config_text, "cable1_n_m")
-            k0 = s["stretches_reading"] * a.scale
-            for name, k in (("cable 1's", k1), (f"the stretches' x {a.scale:g}", k0)):
+            scaled = s["stretches_reading"] * a.scale
+            for name, k in (("cable 1's", k1), (f"the stretches' x {a.scale:g}", scaled)):
                 if not k > 0:
                     print(f"  check 2 with {name} stiffness: none read")
                     continue
                 slack, latch = replay_check_2(a.loading, config_text, k, radius_m / gear)
                 when = f"latches at {latch[0]:.3f} s" if latch else "does not latch"
-                print(f"  check 2 with {name} stiffness ({k:.0f} N/m): {when}; rope first slack at {slack} s")
+                first = f"rope first slack at {slack:.3f} s" if slack is not None else "rope never slack"
+                print(f"  check 2 with {name} stiffness ({k:.0f} N/m): {when}; {first}")
 
 
 if __name__ == "__main__":

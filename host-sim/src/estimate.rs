@@ -22,6 +22,7 @@ use cable_joint::Config;
 
 use crate::derive::derive_noted;
 use crate::log::Log;
+use crate::plot::{Figure, Panel, Series};
 use crate::stats::{Acc, Summary};
 
 /// What a replay found, for the terminal.
@@ -214,6 +215,53 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             against_log,
         },
     ))
+}
+
+/// The figure `estimate --plot` writes from the replay's output `out`: the
+/// tip force (the fused estimate inside its bound, the DOB as published,
+/// the stretch estimate, and the log's reference `f_ext_n` where it has
+/// one) and the joint angle (the JAE's, and the log's `theta_rad` where it
+/// has one), against time. `title` heads the force panel (the log's name;
+/// the first fault, when one latched, is added to it).
+///
+/// # Errors
+/// A column the replay always writes is missing from `out`.
+pub fn figure(out: &Log, title: &str, s: &EstimateSummary) -> Result<Figure> {
+    let t = out.time_s()?.to_vec();
+    let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);
+    let fault = s
+        .first_fault
+        .as_ref()
+        .map_or(String::new(), |(k, code, _)| {
+            format!(" (fault {code} latched at t = {:.3} s)", t[*k])
+        });
+    let mut force = Panel::new(format!("{title}: tip force{fault}"), "t [s]", "F_ext [N]")
+        // In drawing order: the noisy DOB underneath, the fused estimate
+        // and the reference on top.
+        .with(Series::line("DOB (seed)", t.clone(), col("f_ext_hat_n")?))
+        .with(Series::line("stretch", t.clone(), col("f_ext_stretch_n")?))
+        .with(Series::line("bound, low", t.clone(), col("f_ext_lo_n")?))
+        .with(Series::line("bound, high", t.clone(), col("f_ext_hi_n")?))
+        .with(Series::line("fused", t.clone(), col("f_ext_fused_n")?));
+    if let Some(reference) = out.col("f_ext_n") {
+        force = force.with(Series::line(
+            "reference f_ext_n",
+            t.clone(),
+            reference.to_vec(),
+        ));
+    }
+    let deg = |v: &[f64]| v.iter().map(|r| r.to_degrees()).collect::<Vec<_>>();
+    let mut angle = Panel::new("joint angle", "t [s]", "theta [deg]").with(Series::line(
+        "JAE theta_hat",
+        t.clone(),
+        deg(&col("theta_hat_rad")?),
+    ));
+    if let Some(theta) = out.col("theta_rad") {
+        angle = angle.with(Series::line("magnetic encoder theta_rad", t, deg(theta)));
+    }
+    let mut fig = Figure::grid(vec![force, angle], 1);
+    fig.panel_px = (1000, 420);
+    Ok(fig)
 }
 
 /// Every estimate the replay wrote is finite; else the error names the

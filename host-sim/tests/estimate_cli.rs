@@ -215,6 +215,39 @@ fn estimate_command_writes_the_estimates_and_names_a_bad_log() {
     assert!(!out3.exists());
 }
 
+/// `--plot STEM` draws the replay beside the CSV: both figures are written
+/// with it and name the fault; a stem in a directory that does not exist
+/// is refused and the CSV is not written either (all or none).
+#[test]
+fn estimate_plot_writes_the_figure_with_the_csv_or_neither() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("run_1khz.csv");
+    loading_log_1khz().write(&input).unwrap();
+    let output = dir.path().join("est.csv");
+    let stem = dir.path().join("est");
+    let o = run_estimate_with(&input, &output, &["--plot".as_ref(), stem.as_os_str()]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let svg = std::fs::read_to_string(dir.path().join("est.svg")).unwrap();
+    for label in [
+        "fused",
+        "bound, low",
+        "DOB (seed)",
+        "reference f_ext_n",
+        "joint angle",
+    ] {
+        assert!(svg.contains(label), "no `{label}` in the figure");
+    }
+    assert!(dir.path().join("est.png").metadata().unwrap().len() > 1000);
+    assert!(output.exists() && stdout.contains("est.svg"), "{stdout}");
+
+    let output2 = dir.path().join("est2.csv");
+    let nowhere = dir.path().join("no-such-dir").join("est");
+    let o = run_estimate_with(&input, &output2, &["--plot".as_ref(), nowhere.as_os_str()]);
+    assert!(!o.status.success());
+    assert!(!output2.exists(), "the CSV was written without its figure");
+}
+
 /// A configuration file that sets only a 1 kHz control rate: `simulate` and
 /// `estimate` both run with it, each saying which rate-dependent settings
 /// it derived; the same file with a bandwidth the rate cannot serve is

@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use cable_joint::Config;
 
 use crate::estimate::{estimate, EstimateSummary};
+use crate::output::Outputs;
 
 /// Arguments of `host-sim estimate`.
 #[derive(clap::Args, Debug, Clone)]
@@ -26,6 +27,11 @@ pub struct EstimateArgs {
     /// needs nothing: its decimation is read from it.
     #[arg(long, value_name = "N")]
     pub ticks_per_row: Option<u32>,
+    /// Also draw the tip force (the fused estimate inside its bound, the
+    /// DOB, the stretch estimate, the log's reference force) and the joint
+    /// angle against time, as STEM.svg and STEM.png.
+    #[arg(long, value_name = "STEM")]
+    pub plot: Option<PathBuf>,
 }
 
 /// `host-sim estimate`.
@@ -55,9 +61,19 @@ pub fn run(args: EstimateArgs) -> Result<()> {
     for w in row_loss_warnings(&name, &s) {
         eprintln!("{w}");
     }
-    out.write(&args.out)?;
+    // The CSV and the figure are written together or not at all.
+    let mut files = Outputs::new();
+    out.stage(&mut files, &args.out)?;
+    if let Some(stem) = &args.plot {
+        let fig = crate::estimate::figure(&out, &name, &s)?;
+        crate::plot::stage_figure(&mut files, &fig, stem)?;
+    }
+    let written = files.commit()?;
     crate::stdoutln!("{}", format_summary(&name, &s));
     crate::stdoutln!("wrote {} ({} rows)", args.out.display(), s.rows);
+    for f in written.iter().skip(1) {
+        crate::stdoutln!("wrote {}", f.display());
+    }
     Ok(())
 }
 

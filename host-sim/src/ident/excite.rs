@@ -199,7 +199,7 @@ fn pair_bound_of(samples: &[Sample]) -> PairBound {
     for i in 0..COLUMNS {
         for j in i + 1..COLUMNS {
             let r = (gram[i][j] / (gram[i][i] * gram[j][j]).sqrt()).abs();
-            if r.is_finite() && !(r <= best.correlation) {
+            if r.is_finite() && (best.correlation.is_nan() || r > best.correlation) {
                 best = PairBound {
                     columns: (i, j),
                     correlation: r,

@@ -288,6 +288,56 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     }
     if let Some(f) = summary.fault {
         crate::stdoutln!("  FAULT latched: {f} (code {})", f.code());
+        // Whether the scenario closes the loop on `theta_hat` (with
+        // `--oracle` the plant's own JAE stands in for the configuration's).
+        let on_jae = !args.oracle
+            && crate::scenario::plan(name, &crate::scenario::ScenarioOptions::default()).is_ok_and(
+                |p| {
+                    p.segments.iter().any(|s| {
+                        s.command
+                            .is_some_and(|c| c.mode == cable_joint::Mode::JointClosedLoop)
+                    })
+                },
+            );
+        if let Some(hint) = datasheet_jae_hint(f, &config).filter(|_| on_jae) {
+            crate::stdoutln!("  {hint}");
+        }
     }
     Ok(())
+}
+
+/// Why an I²t fault may be the configuration's, not the plant's: with the
+/// datasheet's JAE (the seed's `c1` = +0.0805) a run that closes the loop on
+/// `theta_hat` drives the current into a limit cycle that heats the winding
+/// (README, "What keeps 1 kHz quiet"; `tension-ident` latches it 13 s in on
+/// the default plant). `None` for any other fault or an identified JAE.
+fn datasheet_jae_hint(fault: cable_joint::fault::Fault, config: &Config) -> Option<String> {
+    let datasheet = config.jae == Config::default().jae;
+    (fault == cable_joint::fault::Fault::I2t && datasheet).then(|| {
+        "note: this configuration's JAE is still the datasheet's (the seed's c1 = +0.0805): \
+         closed on it, the loop's current chatters and heats the winding. Identify the JAE on \
+         this machine first (`simulate --scenario jae-ident`, `identify --procedure jae \
+         --config-out jae.toml`) and run with `--config jae.toml`, as the README's rig \
+         workflow does"
+            .to_owned()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cable_joint::fault::Fault;
+
+    /// The hint names the datasheet JAE only for an I²t fault under the
+    /// datasheet's JAE: an identified JAE, or another fault, gets none.
+    #[test]
+    fn the_i2t_hint_is_given_only_under_the_datasheet_jae() {
+        let datasheet = Config::default();
+        let hint = datasheet_jae_hint(Fault::I2t, &datasheet).expect("a hint");
+        assert!(hint.contains("identify --procedure jae"), "{hint}");
+        let mut identified = datasheet;
+        identified.jae.c_acc_rad_s2_m = -0.011;
+        assert_eq!(datasheet_jae_hint(Fault::I2t, &identified), None);
+        assert_eq!(datasheet_jae_hint(Fault::AdcRail, &datasheet), None);
+    }
 }

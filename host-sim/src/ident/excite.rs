@@ -183,14 +183,7 @@ pub fn pair_bound(segments: &[(Trajectory, f64)], rate_hz: f64) -> PairBound {
 }
 
 fn pair_bound_of(samples: &[Sample]) -> PairBound {
-    let mut gram = [[0.0_f64; COLUMNS]; COLUMNS];
-    for_each_row(samples, |row| {
-        for (i, gi) in gram.iter_mut().enumerate() {
-            for (j, g) in gi.iter_mut().enumerate() {
-                *g += row[i] * row[j];
-            }
-        }
-    });
+    let gram = gram_of(samples);
     let mut best = PairBound {
         columns: (0, 1),
         correlation: f64::NAN,
@@ -198,7 +191,7 @@ fn pair_bound_of(samples: &[Sample]) -> PairBound {
     };
     for i in 0..COLUMNS {
         for j in i + 1..COLUMNS {
-            let r = (gram[i][j] / (gram[i][i] * gram[j][j]).sqrt()).abs();
+            let r = (gram[(i, j)] / (gram[(i, i)] * gram[(j, j)]).sqrt()).abs();
             if r.is_finite() && (best.correlation.is_nan() || r > best.correlation) {
                 best = PairBound {
                     columns: (i, j),
@@ -221,15 +214,21 @@ pub fn unit_std(segments: &[(Trajectory, f64)], rate_hz: f64) -> [f64; COLUMNS] 
 }
 
 fn unit_std_of(samples: &[Sample]) -> [f64; COLUMNS] {
+    match gram_of(samples).try_inverse() {
+        Some(inv) => std::array::from_fn(|k| inv[(k, k)].max(0.0).sqrt()),
+        None => [f64::INFINITY; COLUMNS],
+    }
+}
+
+/// `A^T A` of the predicted regressor `A` of `samples` (its rows from
+/// [`for_each_row`]).
+fn gram_of(samples: &[Sample]) -> nalgebra::SMatrix<f64, COLUMNS, COLUMNS> {
     let mut m = nalgebra::SMatrix::<f64, COLUMNS, COLUMNS>::zeros();
     for_each_row(samples, |row| {
         let phi = nalgebra::SVector::<f64, COLUMNS>::from(row);
         m += phi * phi.transpose();
     });
-    match m.try_inverse() {
-        Some(inv) => std::array::from_fn(|k| inv[(k, k)].max(0.0).sqrt()),
-        None => [f64::INFINITY; COLUMNS],
-    }
+    m
 }
 
 /// Each predicted regressor row of `samples`, the sign held as the

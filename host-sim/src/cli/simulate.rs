@@ -214,7 +214,8 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
-    let sim = simulate(plant, config, &args.options(name)?)?;
+    let opts = args.options(name)?;
+    let sim = simulate(plant, config, &opts)?;
     let summary = sim.summary;
     // The log and the raw trace are written together, or neither is.
     let mut outputs = Outputs::new();
@@ -288,18 +289,14 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     }
     if let Some(f) = summary.fault {
         crate::stdoutln!("  FAULT latched: {f} (code {})", f.code());
-        // Whether the scenario closes the loop on `theta_hat` (with
-        // `--oracle` the plant's own JAE stands in for the configuration's).
-        let on_jae = !args.oracle
-            && crate::scenario::plan(name, &crate::scenario::ScenarioOptions::default()).is_ok_and(
-                |p| {
-                    p.segments.iter().any(|s| {
-                        s.command
-                            .is_some_and(|c| c.mode == cable_joint::Mode::JointClosedLoop)
-                    })
-                },
-            );
-        if let Some(hint) = datasheet_jae_hint(f, &config).filter(|_| on_jae) {
+        // Whether the run closed the loop on `theta_hat` (its own plan;
+        // with `--oracle` the plant's JAE stood in for the configuration's).
+        let on_jae = !opts.oracle
+            && opts
+                .scenario_options()
+                .and_then(|o| crate::scenario::plan(name, &o))
+                .is_ok_and(|p| p.closes_loop_on_jae());
+        if let Some(hint) = datasheet_jae_hint(f, &config, on_jae) {
             crate::stdoutln!("  {hint}");
         }
     }
@@ -310,10 +307,15 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
 /// datasheet's JAE (the seed's `c1` = +0.0805) a run that closes the loop on
 /// `theta_hat` drives the current into a limit cycle that heats the winding
 /// (README, "What keeps 1 kHz quiet"; `tension-ident` latches it 13 s in on
-/// the default plant). `None` for any other fault or an identified JAE.
-fn datasheet_jae_hint(fault: cable_joint::fault::Fault, config: &Config) -> Option<String> {
+/// the default plant). `None` for any other fault, an identified JAE, or a
+/// run that did not close the loop on the JAE (`on_jae` false).
+fn datasheet_jae_hint(
+    fault: cable_joint::fault::Fault,
+    config: &Config,
+    on_jae: bool,
+) -> Option<String> {
     let datasheet = config.jae == Config::default().jae;
-    (fault == cable_joint::fault::Fault::I2t && datasheet).then(|| {
+    (fault == cable_joint::fault::Fault::I2t && datasheet && on_jae).then(|| {
         "note: this configuration's JAE is still the datasheet's (the seed's c1 = +0.0805): \
          closed on it, the loop's current chatters and heats the winding. Identify the JAE on \
          this machine first (`simulate --scenario jae-ident`, `identify --procedure jae \
@@ -329,15 +331,17 @@ mod tests {
     use cable_joint::fault::Fault;
 
     /// The hint names the datasheet JAE only for an I²t fault under the
-    /// datasheet's JAE: an identified JAE, or another fault, gets none.
+    /// datasheet's JAE in a run on the JAE: an identified JAE, another
+    /// fault, or a run on the motor's angle gets none.
     #[test]
     fn the_i2t_hint_is_given_only_under_the_datasheet_jae() {
         let datasheet = Config::default();
-        let hint = datasheet_jae_hint(Fault::I2t, &datasheet).expect("a hint");
+        let hint = datasheet_jae_hint(Fault::I2t, &datasheet, true).expect("a hint");
         assert!(hint.contains("identify --procedure jae"), "{hint}");
         let mut identified = datasheet;
         identified.jae.c_acc_rad_s2_m = -0.011;
-        assert_eq!(datasheet_jae_hint(Fault::I2t, &identified), None);
-        assert_eq!(datasheet_jae_hint(Fault::AdcRail, &datasheet), None);
+        assert_eq!(datasheet_jae_hint(Fault::I2t, &identified, true), None);
+        assert_eq!(datasheet_jae_hint(Fault::AdcRail, &datasheet, true), None);
+        assert_eq!(datasheet_jae_hint(Fault::I2t, &datasheet, false), None);
     }
 }

@@ -67,6 +67,14 @@ impl Plan {
         out
     }
 
+    /// Whether any command closes the loop on the estimated joint angle
+    /// (`Mode::JointClosedLoop`).
+    pub fn closes_loop_on_jae(&self) -> bool {
+        self.segments
+            .iter()
+            .any(|s| s.command.is_some_and(|c| c.mode == Mode::JointClosedLoop))
+    }
+
     /// Adjust the plant parameters for this scenario: the motor decoupled
     /// for `bm-noload`; the magnetic encoder removed if the plan does not
     /// fit it (a plant file can also remove it).

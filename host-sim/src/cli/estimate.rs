@@ -64,14 +64,17 @@ pub fn run(args: EstimateArgs) -> Result<()> {
     // The CSV and the figure are written together or not at all.
     let mut files = Outputs::new();
     out.stage(&mut files, &args.out)?;
-    if let Some(stem) = &args.plot {
-        let fig = crate::estimate::figure(&out, &name, &s)?;
-        crate::plot::stage_figure(&mut files, &fig, stem)?;
-    }
-    let written = files.commit()?;
+    let figures = match &args.plot {
+        Some(stem) => {
+            let fig = crate::estimate::figure(&out, &name, &s)?;
+            crate::plot::stage_figure(&mut files, &fig, stem)?.to_vec()
+        }
+        None => Vec::new(),
+    };
+    files.commit()?;
     crate::stdoutln!("{}", format_summary(&name, &s));
     crate::stdoutln!("wrote {} ({} rows)", args.out.display(), s.rows);
-    for f in written.iter().skip(1) {
+    for f in &figures {
         crate::stdoutln!("wrote {}", f.display());
     }
     Ok(())

@@ -3,16 +3,32 @@
 //!
 //! The rope's elongation `e = phi r_m / z_i - x1` is measured (motor
 //! encoder and grating 1), and the motor's torque balance reads its
-//! tension (`tension1_hat_n`). A plain slope of the reading against `e`
-//! comes out 1.4 to 1.9 times the rope's on the simulator's plants: the
-//! drive's own friction rides on the reading and turns with the motion
+//! tension. A plain slope of the DOB's reading (`tension1_hat_n`) against
+//! `e` comes out 1.4 to 1.9 times the rope's on the simulator's plants:
+//! the drive's own friction rides on the reading and turns with the motion
 //! (README, "Cable 0's stiffness for the slack check"). So the slope is
 //! taken only over stretches where slider 1 stands still and the motor
 //! turns one way, each stretch with an offset of its own: there the
 //! friction is one constant per stretch and `e` changes by the rope's
-//! stretch alone. Through a quantized `e` the slope reads low rather than
-//! high, which is the side the check can take.
+//! stretch alone.
+//!
+//! The DOB's reading is that balance through its low-pass `Q` (seed Eq.
+//! 17, cut-off `dob.cutoff_rad_s`, 10 Hz by default), and the stretches
+//! come right after the motor reverses, within about `1 / g` of it. There
+//! `Q` still lags the rising tension (the slope reads low) and still
+//! carries the drive's friction from its old sign to its new one (the
+//! slope reads high): on the report's variants and draws 70-109 the two
+//! left readings of 0.65 to 1.03 times the rope's, and 1.06 times on a
+//! plant with cables twice as stiff. So the slope is taken on the reading
+//! with `Q` undone, tick by tick from the same pole the core's filter has
+//! ([`unfiltered`]): the balance itself, whose friction is one constant
+//! per stretch (0.94 to 1.04 times the rope's on the same plants). Undoing
+//! `Q` lets the current's noise and the ripple of the observer's
+//! differenced speed through; a moving mean over [`MEAN_S`] on both sides
+//! averages it without biasing the slope, and the standard error is
+//! written beside it.
 
+use cable_joint::control::filter::LowPass1;
 use serde::Serialize;
 
 use super::replay::Prepared;
@@ -24,6 +40,11 @@ pub const STILL_X1_M_S: f64 = 2e-5;
 pub const TURNING_RAD_S: f64 = 0.3;
 /// A stretch lasts at least this long, s.
 pub const MIN_STRETCH_S: f64 = 0.01;
+/// Both sides of the slope are averaged over this long inside each
+/// stretch, s (half the shortest stretch): the same moving mean on the
+/// elongation and on the reading keeps the slope exact and averages the
+/// ripple the velocity observer leaves in the unfiltered reading.
+pub const MEAN_S: f64 = 0.005;
 /// Stretches and time the slope needs before it is written: on the
 /// report's presliding plant a single stretch of 20 rows (10 ms at 2 kHz)
 /// read 3.85 times the rope's stiffness.
@@ -45,6 +66,9 @@ pub struct Cable0Stiffness {
     /// Their total duration, s (each row counts for the mean row interval
     /// of its stretch).
     pub seconds: f64,
+    /// The slope's standard error, N/m, from the scatter about it (one
+    /// independent sample per [`MEAN_S`] window).
+    pub std_error_n_m: f64,
 }
 
 /// Sums of the fixed-effects slope over the stretches closed so far.
@@ -52,6 +76,10 @@ pub struct Cable0Stiffness {
 struct Sums {
     num: f64,
     den: f64,
+    /// Sum of the readings' squares about their stretch means.
+    syy: f64,
+    /// Independent samples in the moving means (one a window).
+    independent: f64,
     stretches: usize,
     rows: usize,
     seconds: f64,
@@ -59,7 +87,8 @@ struct Sums {
 
 impl Sums {
     /// Take `stretch` (time, elongation, reading) if it lasts long enough,
-    /// about its own means, and empty it.
+    /// its moving means over [`MEAN_S`] about their own means, and empty
+    /// it.
     fn close(&mut self, stretch: &mut Vec<(f64, f64, f64)>) {
         let lasts = matches!(
             (stretch.first(), stretch.last()),
@@ -67,16 +96,31 @@ impl Sums {
         );
         if lasts {
             let n = stretch.len() as f64;
-            let me = stretch.iter().map(|s| s.1).sum::<f64>() / n;
-            let mr = stretch.iter().map(|s| s.2).sum::<f64>() / n;
-            for (_, e, r) in stretch.iter() {
+            // `lasts` means two rows at least, `MIN_STRETCH_S` apart.
+            let seconds = (stretch[stretch.len() - 1].0 - stretch[0].0) * n / (n - 1.0);
+            // The window in rows (at least one), and the means over it
+            // that lie wholly inside the stretch: none from another
+            // stretch's friction.
+            let width = ((MEAN_S * n / seconds).round() as usize).clamp(1, stretch.len() - 1);
+            let means: Vec<(f64, f64)> = stretch
+                .windows(width)
+                .map(|w| {
+                    let sum = w.iter().fold((0.0, 0.0), |a, s| (a.0 + s.1, a.1 + s.2));
+                    (sum.0 / width as f64, sum.1 / width as f64)
+                })
+                .collect();
+            let m = means.len() as f64;
+            let me = means.iter().map(|s| s.0).sum::<f64>() / m;
+            let mr = means.iter().map(|s| s.1).sum::<f64>() / m;
+            for (e, r) in means.iter() {
                 self.num += (e - me) * (r - mr);
                 self.den += (e - me) * (e - me);
+                self.syy += (r - mr) * (r - mr);
             }
+            self.independent += m / width as f64;
             self.stretches += 1;
             self.rows += stretch.len();
-            // `lasts` means two rows at least, `MIN_STRETCH_S` apart.
-            self.seconds += (stretch[stretch.len() - 1].0 - stretch[0].0) * n / (n - 1.0);
+            self.seconds += seconds;
         }
         stretch.clear();
     }
@@ -90,6 +134,8 @@ impl Sums {
         let Sums {
             num,
             den,
+            syy,
+            independent,
             stretches,
             rows,
             seconds,
@@ -108,13 +154,35 @@ impl Sums {
                  {cable1_n_m:.0} N/m"
             ));
         }
+        // One mean per stretch and the slope are fitted; the moving means
+        // share their rows, so the scatter counts one sample a window.
+        let scatter = (syy - n_m * num).max(0.0) / den;
+        let dof = (independent - stretches as f64 - 1.0).max(1.0);
+        let std_error_n_m = (scatter / dof).sqrt();
         Ok(Cable0Stiffness {
             n_m,
             stretches,
             rows,
             seconds,
+            std_error_n_m,
         })
     }
+}
+
+/// The input of the one-pole low-pass with pole `pole` whose output is
+/// `filtered`, a row every control tick: `u[k] = (y[k] - a y[k-1]) / (1 -
+/// a)` ([`LowPass1::update`] solved for its input). The first row has no
+/// predecessor and is NaN.
+pub fn unfiltered(filtered: &[f64], pole: f64) -> Vec<f64> {
+    let first = filtered.first().map(|_| f64::NAN);
+    first
+        .into_iter()
+        .chain(
+            filtered
+                .windows(2)
+                .map(|w| (w[1] - pole * w[0]) / (1.0 - pole)),
+        )
+        .collect()
 }
 
 /// `K_w0` from the logs, or why they do not give it.
@@ -123,7 +191,12 @@ pub fn read_cable0_stiffness(preps: &[Prepared]) -> Result<Cable0Stiffness, Stri
     for p in preps {
         let col = |c: &str| p.col(c).map_err(|e| format!("{e:#}"));
         let (phi, x1, x1_vel) = (col("phi_rad")?, col("x1_m")?, col("x1_vel_m_s")?);
-        let (phi_vel, reading) = (col("phi_vel_rad_s")?, col("tension1_hat_n")?);
+        let phi_vel = col("phi_vel_rad_s")?;
+        // The replay has a row every tick, so the DOB's `Q` is undone
+        // from one row to the next whatever the log's decimation.
+        let cfg = p.config();
+        let pole = LowPass1::new(cfg.dob.cutoff_rad_s, cfg.period_s()).pole();
+        let reading = unfiltered(&col("tension1_hat_n")?, f64::from(pole));
         let t = p.t_s().map_err(|e| format!("{e:#}"))?;
         // Rope per motor radian, as the core's cable-0 check has it.
         let m_per_rad = 1.0 / f64::from(p.config().machine.motor_rad_per_cable_m());
@@ -194,5 +267,74 @@ mod tests {
         assert!(few.unwrap_err().contains("stretches"));
         let soft = sums(5e3, 1000.0, 6, 25).stiffness(1.1e4).unwrap_err();
         assert!(soft.contains("below cable 1's"), "{soft}");
+    }
+
+    /// `unfiltered` gives back, to f32's rounding, the input the core's
+    /// low-pass was fed.
+    #[test]
+    fn unfiltered_undoes_the_core_s_low_pass() {
+        let lp = LowPass1::new(62.83, 1.0 / 1000.0);
+        let input: Vec<f32> = (0..200).map(|k| (k as f32 * 0.37).sin() * 20.0).collect();
+        let mut y = 0.0;
+        let output: Vec<f64> = input
+            .iter()
+            .map(|u| f64::from(lp.update(&mut y, *u)))
+            .collect();
+        let back = unfiltered(&output, f64::from(lp.pole()));
+        assert!(back[0].is_nan());
+        for (k, (u, b)) in input.iter().zip(&back).enumerate().skip(1) {
+            assert!(
+                (f64::from(*u) - b).abs() < 1e-3,
+                "tick {k}: fed {u}, got {b}"
+            );
+        }
+    }
+
+    /// Stretches just after the motor reverses, as on a calibration run:
+    /// the drive's friction `f` flips at the reversal and the rope then
+    /// stretches faster and faster, so the DOB's reading `Q[K e + f sgn]`
+    /// still lags the tension and still carries the friction's change.
+    /// Its slope against `e` is off by more than 5 %; with `Q` undone
+    /// and the ripple the observer leaves on top, the slope is the rope's.
+    #[test]
+    fn the_slope_is_taken_with_the_dob_s_low_pass_undone() {
+        let (k_n_m, friction_n, rate_hz) = (2.0e5, 3.6, 1000.0);
+        let lp = LowPass1::new(2.0 * std::f32::consts::PI * 10.0, 1.0 / rate_hz as f32);
+        let (mut plain, mut undone) = (Sums::default(), Sums::default());
+        let mut reading = 0.0;
+        let mut e = 0.0;
+        for i in 0..8 {
+            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+            // 15 ticks between the reversal and the stretch, 20 in it.
+            let (mut stretch_plain, mut stretch_undone) = (Vec::new(), Vec::new());
+            let mut last = f64::from(reading);
+            for j in 0..35 {
+                e += sign * 1e-7 * (1.0 + 0.15 * f64::from(j));
+                let ripple_n = 0.2 * (f64::from(j) * 2.0 * std::f64::consts::PI * 0.1).sin();
+                let tension_n = k_n_m * e + friction_n * sign;
+                let r = f64::from(lp.update(&mut reading, tension_n as f32));
+                let raw = unfiltered(&[last, r], f64::from(lp.pole()))[1] + ripple_n;
+                last = r;
+                if j >= 15 {
+                    let t = f64::from(i * 35 + j) / rate_hz;
+                    stretch_plain.push((t, e, r));
+                    stretch_undone.push((t, e, raw));
+                }
+            }
+            plain.close(&mut stretch_plain);
+            undone.close(&mut stretch_undone);
+        }
+        let plain = plain.stiffness(1e4).unwrap();
+        let undone = undone.stiffness(1e4).unwrap();
+        assert!(
+            (plain.n_m / k_n_m - 1.0).abs() > 0.05,
+            "the filtered reading's slope {} N/m for {k_n_m}",
+            plain.n_m
+        );
+        assert!(
+            (undone.n_m / k_n_m - 1.0).abs() < 0.02,
+            "with Q undone {} N/m for {k_n_m}",
+            undone.n_m
+        );
     }
 }

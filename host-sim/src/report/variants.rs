@@ -460,9 +460,18 @@ fn identified_vs_plant(c: &Config, p: &PlantParams) -> String {
     } else {
         "the spring measured through the motor"
     };
+    let rope_n_m = p.cable0.stiffness_n_m;
+    let cable0 = match f64::from(c.stretch.cable0_n_m) {
+        k if k > 0.0 => format!(
+            "K_w0 {k:.0} N/m, {:.3} of the plant's {rope_n_m:.0}",
+            k / rope_n_m
+        ),
+        _ => format!("K_w0 not read (plant {rope_n_m:.0} N/m; cable 1's bound)"),
+    };
     format!(
         "identified pin Coulomb {:.2} mN·m (plant {:.2} kinetic, {:.2} static); \
          K_w1 {:.0} N/m, K_w2 {:.0} N/m (plant {:.0}, {:.0}) from {spring}, {:.0} N/m (plant {:.0}); \
+         {cable0}; \
          JAE sign term {:.3}°, JAE floor {:.3}° (model error and the sign term's uncertainty)",
         1e3 * c.fusion.pin_coulomb_nm,
         1e3 * p.joint.coulomb_nm,
@@ -705,6 +714,21 @@ mod tests {
     use super::*;
     use crate::plant::{PlantState, Tensions};
     use cable_joint::{Output, RawSample};
+
+    /// The variant's note gives cable 0's stiffness as read against the
+    /// plant's rope, or says it was not read and the check keeps cable 1's
+    /// bound.
+    #[test]
+    fn the_note_gives_cable_0_s_reading_against_the_plant_s_rope() {
+        let plant = PlantParams::default();
+        let mut c = Config::default();
+        c.stretch.cable0_n_m = (0.9 * plant.cable0.stiffness_n_m) as f32;
+        let read = identified_vs_plant(&c, &plant);
+        assert!(read.contains("0.900 of the plant's"), "{read}");
+        c.stretch.cable0_n_m = 0.0;
+        let unread = identified_vs_plant(&c, &plant);
+        assert!(unread.contains("K_w0 not read"), "{unread}");
+    }
 
     fn tick(rope_n: f64, cable1_n: f64, theta_rad: f64) -> TickRecord {
         TickRecord {

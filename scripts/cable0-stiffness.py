@@ -12,7 +12,13 @@ against cable 0's measured elongation `e = phi r_m / z_i - x1`:
 * over the stretches where slider 1 stands still (|x1'| below 20 um/s)
   and the motor turns one way (|phi'| above 0.3 rad/s), each stretch with
   an offset of its own (a fixed-effects fit: the motor's friction is one
-  constant per stretch).
+  constant per stretch), and
+* over the same stretches with the DOB's low-pass `Q` undone row by row
+  and a 5 ms moving mean on both sides, as `identify` reads it (the
+  filtered reading lags the rising tension and still carries the
+  friction's change at the reversal just before each stretch). `Q`'s
+  cut-off is `dob.cutoff_rad_s` from `--config`, else the default 10 Hz;
+  the log must have a row every control tick (as `simulate` writes).
 
 With the simulator's columns (`f1_true_n`, the rope's true tension) it
 prints the same slopes on the truth, and with the plant file the rope's
@@ -50,10 +56,12 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import logcsv  # noqa: E402
 
-MIN_STRETCH_ROWS = 20
+MIN_STRETCH_S = 0.01
 STILL_X1_M_S = 2e-5
 TURNING_RAD_S = 0.3
 SKIP_ROWS = 400
+MEAN_S = 0.005
+DEFAULT_DOB_CUTOFF_RAD_S = 2.0 * math.pi * 10.0
 
 
 def plant_value(text, table, key):
@@ -85,14 +93,28 @@ def fixed_effects_slope(stretches, col):
     return num / den if den > 0 else float("nan")
 
 
-def study(path, m_per_rad):
-    need = ["phi_rad", "x1_m", "tension1_hat_n", "x1_vel_m_s", "phi_vel_rad_s"]
+def moving_means(rows, width):
+    """Each stretch's moving means over `width` rows, wholly inside it."""
+    return [
+        tuple(sum(r[c] for r in rows[i : i + width]) / width for c in range(len(rows[0])))
+        for i in range(len(rows) - width + 1)
+    ]
+
+
+def study(path, m_per_rad, dob_cutoff_rad_s):
+    need = ["t_s", "phi_rad", "x1_m", "tension1_hat_n", "x1_vel_m_s", "phi_vel_rad_s"]
     col = logcsv.read_columns(path, need, optional=["f1_true_n"])
     truth = "f1_true_n" in col
+    t = col["t_s"]
+    if len(t) < SKIP_ROWS + 2:
+        sys.exit(f"{path}: {len(t)} rows, fewer than the {SKIP_ROWS + 2} the study skips and needs")
+    rate_hz = (len(t) - 1) / (t[-1] - t[0])
+    pole = math.exp(-dob_cutoff_rad_s / rate_hz)
     every, stretches, current, last_sign, last_row = [], [], None, 0, -2
     for n in range(SKIP_ROWS, len(col["phi_rad"])):
         e = col["phi_rad"][n] * m_per_rad - col["x1_m"][n]
         reading = col["tension1_hat_n"][n]
+        undone = (reading - pole * col["tension1_hat_n"][n - 1]) / (1.0 - pole)
         true_n = col["f1_true_n"][n] if truth else float("nan")
         x1_vel = col["x1_vel_m_s"][n]
         phi_vel = col["phi_vel_rad_s"][n]
@@ -100,20 +122,24 @@ def study(path, m_per_rad):
         sign = 1 if phi_vel > 0 else -1
         if abs(x1_vel) < STILL_X1_M_S and abs(phi_vel) > TURNING_RAD_S:
             if current is not None and sign == last_sign and n == last_row + 1:
-                current.append((e, reading, true_n))
+                current.append((e, reading, true_n, undone))
             else:
-                current = [(e, reading, true_n)]
+                current = [(e, reading, true_n, undone)]
                 stretches.append(current)
             last_sign, last_row = sign, n
         else:
             current = None
-    stretches = [s for s in stretches if len(s) >= MIN_STRETCH_ROWS]
+    stretches = [s for s in stretches if (len(s) - 1) / rate_hz >= MIN_STRETCH_S]
     rows = sum(len(s) for s in stretches)
+    width = max(1, round(MEAN_S * rate_hz))
+    means = [moving_means(s, width) for s in stretches if len(s) > width]
     out = {
         "all_rows_reading": slope([(e, r) for e, r, _ in every]),
         "stretches": len(stretches),
         "stretch_rows": rows,
         "stretches_reading": fixed_effects_slope(stretches, 1) if rows else float("nan"),
+        "stretches_undone": fixed_effects_slope(means, 3) if means else float("nan"),
+        "rate_hz": rate_hz,
     }
     if truth:
         out["all_rows_truth"] = slope([(e, t) for e, _, t in every])
@@ -128,13 +154,18 @@ def config_value(text, key):
     return float(m.group(1))
 
 
-def replay_check_2(path, config_text, stiffness_n_m, m_per_rad):
-    """(first slack time, (latch time, true tension) or None) on a loading log."""
-    f_sc1 = abs(config_value(config_text, "f_sc1_n"))
-    limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
+def read_loading(path):
+    """The loading log's columns check 2's replay needs."""
     need = ["t_s", "phi_rad", "x1_m", "tension1_stretch_n", "f1_true_n", "fault_code"]
     # An empty `fault_code` cell (NaN) is no fault, as 0 is.
-    col = logcsv.read_columns(path, need, allow_empty=["fault_code"])
+    return logcsv.read_columns(path, need, allow_empty=["fault_code"])
+
+
+def replay_check_2(col, config_text, stiffness_n_m, m_per_rad):
+    """(first slack time, (latch time, true tension) or None) on a loading
+    log's columns (`read_loading`)."""
+    f_sc1 = abs(config_value(config_text, "f_sc1_n"))
+    limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
     floor, slack, latch = -math.inf, None, None
     for n in range(len(col["t_s"])):
         t = col["t_s"][n]
@@ -186,16 +217,26 @@ def main():
         k0 = plant_value(text, "cable0", "stiffness_n_m")
         radius_m = plant_value(text, "motor", "rope_wheel_radius_m") or radius_m
         gear = plant_value(text, "motor", "gear_ratio") or gear
+    # Read once: a loading log runs to hundreds of megabytes.
+    loading = read_loading(a.loading) if a.loading else None
+    cutoff = DEFAULT_DOB_CUTOFF_RAD_S
+    if a.config:
+        cutoff = config_value(open(a.config).read(), "cutoff_rad_s")
     for path in a.logs:
-        s = study(path, radius_m / gear)
+        s = study(path, radius_m / gear, cutoff)
         line = (
             f"{path}: all rows {s['all_rows_reading']:.0f} N/m; "
-            f"{s['stretches']} stretches ({s['stretch_rows']} rows) {s['stretches_reading']:.0f} N/m"
+            f"{s['stretches']} stretches ({s['stretch_rows']} rows) {s['stretches_reading']:.0f} N/m, "
+            f"{s['stretches_undone']:.0f} N/m with Q undone ({cutoff:.1f} rad/s at "
+            f"{s['rate_hz']:.0f} Hz)"
         )
         if "stretches_truth" in s:
             line += f"; on the true tension {s['all_rows_truth']:.0f} / {s['stretches_truth']:.0f} N/m"
         if k0:
-            line += f"; rope {k0:.0f} N/m, stretches / rope {s['stretches_reading'] / k0:.2f}"
+            line += (
+                f"; rope {k0:.0f} N/m, stretches / rope {s['stretches_reading'] / k0:.2f}, "
+                f"with Q undone {s['stretches_undone'] / k0:.2f}"
+            )
         print(line)
         if a.config:
             config_text = open(a.config).read()
@@ -208,12 +249,12 @@ def main():
                 )
         if a.loading:
             k1 = config_value(config_text, "cable1_n_m")
-            scaled = s["stretches_reading"] * a.scale
+            scaled = s["stretches_undone"] * a.scale
             for name, k in (("cable 1's", k1), (f"the stretches' x {a.scale:g}", scaled)):
                 if not k > 0:
                     print(f"  check 2 with {name} stiffness: none read")
                     continue
-                slack, latch = replay_check_2(a.loading, config_text, k, radius_m / gear)
+                slack, latch = replay_check_2(loading, config_text, k, radius_m / gear)
                 when = f"latches at {latch[0]:.3f} s" if latch else "does not latch"
                 first = f"rope first slack at {slack:.3f} s" if slack is not None else "rope never slack"
                 print(f"  check 2 with {name} stiffness ({k:.0f} N/m): {when}; {first}")

@@ -53,6 +53,10 @@ def main():
         a, b = slice(k + int(0.05 / dt), k + length // 3), slice(j - length // 3, j)
         if length * dt > 0.3 and a.stop > a.start:
             diff = lambda c: d[c][b].mean() - d[c][a].mean()
+            # +1 accelerating, -1 decelerating. A friction of the motion's
+            # sign that differs between the two, s (f0 + f1 / 2 (1 +
+            # accelerating)), varies by s f1 / 2 accelerating: hence `s`
+            # once more on the column (which so equals sign(acc), s² = 1).
             accelerating = np.sign(acc) * s
             x.append([diff("x2_m"), diff("x2_vel_m_s"), diff("x2_acc_m_s2"),
                       s * (accelerating[b].mean() - accelerating[a].mean())])

@@ -981,6 +981,36 @@ fn cable_0_s_stiffness_is_read_off_a_500_hz_run_within_the_rope_s_bounds() {
     assert!(k.seconds >= host_sim::ident::CABLE0_MIN_TOTAL_S, "{k:?}");
 }
 
+/// Cable 0's stiffness on plants drawn ±30 % as the report draws them
+/// (seeds no figure was tuned on), at 1 kHz and 2 kHz: `B_m` and the JAE
+/// identified on each plant first, as a user would, then the tension
+/// run; each reading within a tenth of that plant's rope and within three
+/// standard errors.
+#[test]
+fn cable_0_s_stiffness_is_read_on_drawn_plants_at_1_and_2_khz() {
+    let opts = IdentOptions::default();
+    for (seed, rate_hz) in [(150, 1000.0), (151, 1000.0), (152, 2000.0), (153, 2000.0)] {
+        let plant = host_sim::report::variants::drawn(seed);
+        let mut config = Config::default().at_rate(rate_hz).0;
+        let bm_log = simulate_on(plant, "bm-noload", &decoupled(&config), None, 6.0);
+        let jae_log = simulate_on(plant, "jae-ident", &config, None, 12.0);
+        identify_bm_with(&[("bm", &bm_log)], &config, &opts)
+            .expect("B_m")
+            .apply(&mut config);
+        identify_jae_with(&[("jae", &jae_log)], &config, &opts)
+            .expect("JAE")
+            .apply(&mut config);
+        let log = simulate_on(plant, "tension-ident", &config, None, 30.0);
+        let r = identify_tension_with(&[("tension", &log)], &config, &opts).unwrap();
+        let k = r.cable0.expect("read");
+        let rope_n_m = plant.cable0.stiffness_n_m;
+        assert!(
+            reads_the_rope(&k, rope_n_m),
+            "draw {seed} at {rate_hz} Hz: read {k:?} for a rope of {rope_n_m} N/m"
+        );
+    }
+}
+
 /// Cable 0's stiffness, read where slider 1 stands still and the motor
 /// turns one way with the DOB's low-pass undone: within a tenth of the
 /// plant's rope and within three standard errors of it (the filtered

@@ -58,18 +58,7 @@ struct Chain {
 fn chain() -> &'static Chain {
     static CHAIN: OnceLock<Chain> = OnceLock::new();
     CHAIN.get_or_init(|| {
-        let opts = IdentOptions::default();
-        let base = Config::default();
-        // The unhooked rope wheel is a slack transmission by design.
-        let bm_log = simulate("bm-noload", &decoupled(&base), None, 6.0);
-        let jae_log = simulate("jae-ident", &base, None, 12.0);
-        let mut config = base;
-        identify_bm_with(&[("bm", &bm_log)], &config, &opts)
-            .expect("B_m")
-            .apply(&mut config);
-        identify_jae_with(&[("jae", &jae_log)], &config, &opts)
-            .expect("JAE")
-            .apply(&mut config);
+        let (bm_log, jae_log, config) = bm_and_jae_on(PlantParams::default(), Config::default());
         let tension_log = simulate("tension-ident", &config, None, 30.0);
         let track_log = simulate("track-jae", &config, Some(7), 10.0);
         Chain {
@@ -81,6 +70,23 @@ fn chain() -> &'static Chain {
             track_log,
         }
     })
+}
+
+/// A no-load motor run and a JAE run on `plant`, and `base` with `B_m`
+/// and the JAE identified from them, as a user starts.
+fn bm_and_jae_on(plant: PlantParams, base: Config) -> (Log, Log, Config) {
+    let opts = IdentOptions::default();
+    // The unhooked rope wheel is a slack transmission by design.
+    let bm_log = simulate_on(plant, "bm-noload", &decoupled(&base), None, 6.0);
+    let jae_log = simulate_on(plant, "jae-ident", &base, None, 12.0);
+    let mut config = base;
+    identify_bm_with(&[("bm", &bm_log)], &config, &opts)
+        .expect("B_m")
+        .apply(&mut config);
+    identify_jae_with(&[("jae", &jae_log)], &config, &opts)
+        .expect("JAE")
+        .apply(&mut config);
+    (bm_log, jae_log, config)
 }
 
 fn rel(a: f64, b: f64) -> f64 {
@@ -991,15 +997,7 @@ fn cable_0_s_stiffness_is_read_on_drawn_plants_at_1_and_2_khz() {
     let opts = IdentOptions::default();
     for (seed, rate_hz) in [(150, 1000.0), (151, 1000.0), (152, 2000.0), (153, 2000.0)] {
         let plant = host_sim::report::variants::drawn(seed);
-        let mut config = Config::default().at_rate(rate_hz).0;
-        let bm_log = simulate_on(plant, "bm-noload", &decoupled(&config), None, 6.0);
-        let jae_log = simulate_on(plant, "jae-ident", &config, None, 12.0);
-        identify_bm_with(&[("bm", &bm_log)], &config, &opts)
-            .expect("B_m")
-            .apply(&mut config);
-        identify_jae_with(&[("jae", &jae_log)], &config, &opts)
-            .expect("JAE")
-            .apply(&mut config);
+        let (_, _, config) = bm_and_jae_on(plant, Config::default().at_rate(rate_hz).0);
         let log = simulate_on(plant, "tension-ident", &config, None, 30.0);
         let r = identify_tension_with(&[("tension", &log)], &config, &opts).unwrap();
         let k = r.cable0.expect("read");

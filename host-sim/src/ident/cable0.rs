@@ -67,7 +67,7 @@ pub struct Cable0Stiffness {
     /// of its stretch).
     pub seconds: f64,
     /// The slope's standard error, N/m, from the scatter about it (one
-    /// independent sample per [`MEAN_S`] window).
+    /// independent sample per 5 ms window, the moving mean's).
     pub std_error_n_m: f64,
 }
 

@@ -20,9 +20,11 @@
 //! slope reads high): on the report's variants and draws 70-109 the two
 //! left readings of 0.65 to 1.03 times the rope's, and 1.06 times on a
 //! plant with cables twice as stiff. So the slope is taken on the reading
-//! with `Q` undone, tick by tick from the same pole the core's filter has
-//! ([`unfiltered`]): the balance itself, whose friction is one constant
-//! per stretch (0.94 to 1.04 times the rope's on the same plants). Undoing
+//! with `Q` undone from each log row to the next with the same pole the
+//! core's filter has ([`unfiltered`]; over the row's ticks on a decimated
+//! recording, the elongation through the same weights): the balance
+//! itself, whose friction is one constant per stretch (0.94 to 1.04 times
+//! the rope's on the same plants). Undoing
 //! `Q` lets the current's noise and the ripple of the observer's
 //! differenced speed through; a moving mean over [`MEAN_S`] on both sides
 //! averages it without biasing the slope, and the standard error is
@@ -169,20 +171,31 @@ impl Sums {
     }
 }
 
-/// The input of the one-pole low-pass with pole `pole` whose output is
-/// `filtered`, a row every control tick: `u[k] = (y[k] - a y[k-1]) / (1 -
-/// a)` ([`LowPass1::update`] solved for its input). The first row has no
-/// predecessor and is NaN.
-pub fn unfiltered(filtered: &[f64], pole: f64) -> Vec<f64> {
-    let first = filtered.first().map(|_| f64::NAN);
-    first
-        .into_iter()
-        .chain(
-            filtered
-                .windows(2)
-                .map(|w| (w[1] - pole * w[0]) / (1.0 - pole)),
-        )
-        .collect()
+/// Over the ticks `from + 1 ..= to` of a replay (a row a tick), the mean
+/// input of the one-pole low-pass with pole `a` whose output is
+/// `filtered`, and the mean of `signal` with the same weights. The
+/// input's weight at tick `i` is proportional to `a^(to - i)`, and its
+/// mean over the `n` ticks is `(y[to] - a^n y[from]) / (1 - a^n)`
+/// ([`LowPass1::update`] solved for its input, `n` times over). One tick
+/// (a log with every tick) gives the input itself and `signal[to]`; a
+/// decimated log's row gives what the filtered reading can tell of the
+/// ticks since the row before, whatever the replay filled them with.
+pub fn unfiltered(
+    filtered: &[f64],
+    signal: &[f64],
+    pole: f64,
+    from: usize,
+    to: usize,
+) -> (f64, f64) {
+    let (mut power, mut weights, mut sum) = (1.0, 0.0, 0.0);
+    for i in (from + 1..=to).rev() {
+        sum += power * signal[i];
+        weights += power;
+        power *= pole;
+    }
+    // `power` is now `a^n`.
+    let input = (filtered[to] - power * filtered[from]) / (1.0 - power);
+    (input, sum / weights)
 }
 
 /// `K_w0` from the logs, or why they do not give it.
@@ -191,31 +204,42 @@ pub fn read_cable0_stiffness(preps: &[Prepared]) -> Result<Cable0Stiffness, Stri
     for p in preps {
         let col = |c: &str| p.col(c).map_err(|e| format!("{e:#}"));
         let (phi, x1, x1_vel) = (col("phi_rad")?, col("x1_m")?, col("x1_vel_m_s")?);
-        let phi_vel = col("phi_vel_rad_s")?;
-        // The replay has a row every tick, so the DOB's `Q` is undone
-        // from one row to the next whatever the log's decimation.
+        let (phi_vel, filtered) = (col("phi_vel_rad_s")?, col("tension1_hat_n")?);
         let cfg = p.config();
-        let pole = LowPass1::new(cfg.dob.cutoff_rad_s, cfg.period_s()).pole();
-        let reading = unfiltered(&col("tension1_hat_n")?, f64::from(pole));
+        let pole = f64::from(LowPass1::new(cfg.dob.cutoff_rad_s, cfg.period_s()).pole());
         let t = p.t_s().map_err(|e| format!("{e:#}"))?;
-        // Rope per motor radian, as the core's cable-0 check has it.
-        let m_per_rad = 1.0 / f64::from(p.config().machine.motor_rad_per_cable_m());
+        // Rope per motor radian, as the core's cable-0 check has it: the
+        // elongation at every tick of the replay.
+        let m_per_rad = 1.0 / f64::from(cfg.machine.motor_rad_per_cable_m());
+        let e: Vec<f64> = phi
+            .iter()
+            .zip(&x1)
+            .map(|(p, x)| p * m_per_rad - x)
+            .collect();
         let mut stretch = Vec::new();
         // The log row and the motor's direction of the last row taken.
         let mut last: Option<(usize, f64)> = None;
+        // The replay's tick of the log's row before.
+        let mut before: Option<usize> = None;
         for k in (0..p.len()).filter(|k| p.measured(*k)) {
+            // The DOB's `Q` undone since the row before, and the
+            // elongation through the same weights.
+            let (reading, elongation) = before.map_or((f64::NAN, f64::NAN), |j| {
+                unfiltered(&filtered, &e, pole, j, k)
+            });
+            before = Some(k);
             let sign = phi_vel[k].signum();
             let inside = p.usable[k]
                 && x1_vel[k].abs() < STILL_X1_M_S
                 && phi_vel[k].abs() > TURNING_RAD_S
-                && [phi[k], x1[k], reading[k]].iter().all(|v| v.is_finite());
+                && [elongation, reading].iter().all(|v| v.is_finite());
             let follows = last.is_some_and(|(row, s)| p.log_row(k) == row + 1 && s == sign);
             if !(inside && follows) {
                 sums.close(&mut stretch);
             }
             last = inside.then(|| (p.log_row(k), sign));
             if inside {
-                stretch.push((t[k], phi[k] * m_per_rad - x1[k], reading[k]));
+                stretch.push((t[k], elongation, reading));
             }
         }
         sums.close(&mut stretch);
@@ -270,23 +294,44 @@ mod tests {
     }
 
     /// `unfiltered` gives back, to f32's rounding, the input the core's
-    /// low-pass was fed.
+    /// low-pass was fed: tick by tick, and over a gap of `n` ticks (a
+    /// decimated log's rows) the input's mean with the weights `a^(to -
+    /// i)`, the same mean as it gives of the signal beside.
     #[test]
     fn unfiltered_undoes_the_core_s_low_pass() {
         let lp = LowPass1::new(62.83, 1.0 / 1000.0);
+        let a = f64::from(lp.pole());
         let input: Vec<f32> = (0..200).map(|k| (k as f32 * 0.37).sin() * 20.0).collect();
+        let signal: Vec<f64> = input.iter().map(|u| f64::from(*u)).collect();
         let mut y = 0.0;
         let output: Vec<f64> = input
             .iter()
             .map(|u| f64::from(lp.update(&mut y, *u)))
             .collect();
-        let back = unfiltered(&output, f64::from(lp.pole()));
-        assert!(back[0].is_nan());
-        for (k, (u, b)) in input.iter().zip(&back).enumerate().skip(1) {
+        for k in 1..output.len() {
+            let (u, s) = unfiltered(&output, &signal, a, k - 1, k);
             assert!(
-                (f64::from(*u) - b).abs() < 1e-3,
-                "tick {k}: fed {u}, got {b}"
+                (signal[k] - u).abs() < 1e-3,
+                "tick {k}: fed {}, got {u}",
+                signal[k]
             );
+            assert_eq!(s, signal[k]);
+        }
+        for n in [3, 10] {
+            for to in (n..output.len()).step_by(n) {
+                let (u, s) = unfiltered(&output, &signal, a, to - n, to);
+                let w: Vec<f64> = (0..n).map(|j| a.powi(j as i32)).collect();
+                let mean =
+                    (0..n).map(|j| w[j] * signal[to - j]).sum::<f64>() / w.iter().sum::<f64>();
+                assert!(
+                    (mean - u).abs() < 1e-3,
+                    "{n} ticks to {to}: mean {mean}, got {u}"
+                );
+                assert!(
+                    (mean - s).abs() < 1e-9,
+                    "{n} ticks to {to}: signal {mean}, got {s}"
+                );
+            }
         }
     }
 
@@ -308,12 +353,13 @@ mod tests {
             // 15 ticks between the reversal and the stretch, 20 in it.
             let (mut stretch_plain, mut stretch_undone) = (Vec::new(), Vec::new());
             let mut last = f64::from(reading);
+            let ticks = [0.0, 0.0];
             for j in 0..35 {
                 e += sign * 1e-7 * (1.0 + 0.15 * f64::from(j));
                 let ripple_n = 0.2 * (f64::from(j) * 2.0 * std::f64::consts::PI * 0.1).sin();
                 let tension_n = k_n_m * e + friction_n * sign;
                 let r = f64::from(lp.update(&mut reading, tension_n as f32));
-                let raw = unfiltered(&[last, r], f64::from(lp.pole()))[1] + ripple_n;
+                let raw = unfiltered(&[last, r], &ticks, f64::from(lp.pole()), 0, 1).0 + ripple_n;
                 last = r;
                 if j >= 15 {
                     let t = f64::from(i * 35 + j) / rate_hz;

@@ -24,11 +24,10 @@
 //! core's filter has ([`unfiltered`]; over the row's ticks on a decimated
 //! recording, the elongation through the same weights): the balance
 //! itself, whose friction is one constant per stretch (0.94 to 1.04 times
-//! the rope's on the same plants). Undoing
-//! `Q` lets the current's noise and the ripple of the observer's
-//! differenced speed through; a moving mean over [`MEAN_S`] on both sides
-//! averages it without biasing the slope, and the standard error is
-//! written beside it.
+//! the rope's on the same plants). Undoing `Q` lets the current's noise
+//! and the ripple of the observer's differenced speed through; a moving
+//! mean over [`MEAN_S`] on both sides averages it without biasing the
+//! slope, and the standard error is written beside it.
 
 use cable_joint::control::filter::LowPass1;
 use serde::Serialize;
@@ -353,6 +352,7 @@ mod tests {
             // 15 ticks between the reversal and the stretch, 20 in it.
             let (mut stretch_plain, mut stretch_undone) = (Vec::new(), Vec::new());
             let mut last = f64::from(reading);
+            // `unfiltered`'s second signal is not used here.
             let ticks = [0.0, 0.0];
             for j in 0..35 {
                 e += sign * 1e-7 * (1.0 + 0.15 * f64::from(j));

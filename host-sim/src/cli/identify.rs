@@ -578,10 +578,16 @@ pub fn format_report(r: &IdentifyReport) -> String {
             Ok(k) => {
                 let _ = writeln!(
                     s,
-                    "  -> stretch.cable0_n_m = {:.0} (standard error {:.0}): cable 0's stiffness \
-                     over {} stretches ({} rows, {:.2} s) where slider 1 stood still and the motor \
-                     turned one way (the cable-0 slack check's reach)\n",
-                    k.n_m, k.std_error_n_m, k.stretches, k.rows, k.seconds
+                    "  -> stretch.cable0_n_m = {:.0} (standard error {:.0}, {:.0} % of it): cable \
+                     0's stiffness over {} stretches ({} rows, {:.2} s) where slider 1 stood still \
+                     and the motor turned one way (the cable-0 slack check's reach; more reversals \
+                     in the tension run narrow it)\n",
+                    k.n_m,
+                    k.std_error_n_m,
+                    100.0 * k.std_error_n_m / k.n_m,
+                    k.stretches,
+                    k.rows,
+                    k.seconds
                 );
             }
             Err(why) => {

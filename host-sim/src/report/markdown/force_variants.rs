@@ -12,6 +12,42 @@ fn pct(v: f64) -> String {
     }
 }
 
+/// Cable 0's stiffness as each variant's identification read it, against
+/// the plant's rope: on how many variants, their range, and where it was
+/// not read (the cable-0 check keeps cable 1's bound there).
+pub fn cable0_line(results: &[VariantResult]) -> String {
+    let mut shares = Vec::new();
+    let mut unread = Vec::new();
+    for r in results {
+        let read = r.config.map(|c| f64::from(c.stretch.cable0_n_m));
+        match read {
+            Some(k) if k > 0.0 => shares.push(k / r.plant.cable0.stiffness_n_m),
+            Some(_) => unread.push(r.name.as_str()),
+            // Identification failed: nothing was read or run.
+            None => {}
+        }
+    }
+    let identified = shares.len() + unread.len();
+    let mut line = format!(
+        "Cable 0's stiffness as `identify` read it (`stretch.cable0_n_m`, the cable-0 slack \
+         check's reach): on {} of {identified} identified variants",
+        shares.len()
+    );
+    if let (Some(lo), Some(hi)) = (
+        shares.iter().copied().reduce(f64::min),
+        shares.iter().copied().reduce(f64::max),
+    ) {
+        line += &format!(", {lo:.3} to {hi:.3} times the plant's rope");
+    }
+    if !unread.is_empty() {
+        line += &format!(
+            "; not read on {} (the check keeps cable 1's bound there)",
+            unread.join(", ")
+        );
+    }
+    line + "."
+}
+
 /// The goals of the issue, judged per variant (passive: no probing).
 pub fn goal_lines(r: &VariantResult) -> Vec<(String, bool)> {
     let mut g = Vec::new();
@@ -252,6 +288,7 @@ pub fn markdown(results: &[VariantResult]) -> String {
             table_row(&mut s, ["", "", "fused + probing"], &p.sources[2], p, &run);
         }
     }
+    let _ = writeln!(s, "\n{}", cable0_line(results));
     let _ = writeln!(
         s,
         "\nGoals per variant (passive estimate; every variant listed):\n"
@@ -336,4 +373,56 @@ pub fn markdown(results: &[VariantResult]) -> String {
         crate::report::kalman::FRICTION_TAU_S
     );
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::PlantParams;
+    use cable_joint::Config;
+
+    fn variant(name: &str, cable0_n_m: Option<f32>) -> VariantResult {
+        let plant = PlantParams::default();
+        VariantResult {
+            name: name.into(),
+            what: String::new(),
+            rate_hz: 2000.0,
+            error: None,
+            notes: Vec::new(),
+            pin_at_tip_n: f64::NAN,
+            pin_stick_slip_step_deg: [f64::NAN; 2],
+            jae_blind_band_deg: f64::NAN,
+            passive: Protocol::default(),
+            probing: None,
+            plant,
+            config: cable0_n_m.map(|k| {
+                let mut c = Config::default();
+                c.stretch.cable0_n_m = k;
+                c
+            }),
+        }
+    }
+
+    /// The line counts the variants read, gives their range against each
+    /// plant's rope, names the ones not read, and leaves out a variant
+    /// whose identification failed.
+    #[test]
+    fn the_cable_0_line_gives_the_readings_range_and_the_variants_not_read() {
+        let rope = PlantParams::default().cable0.stiffness_n_m as f32;
+        let results = [
+            variant("a", Some(0.95 * rope)),
+            variant("b", Some(1.02 * rope)),
+            variant("c", Some(0.0)),
+            variant("d", None),
+        ];
+        let line = cable0_line(&results);
+        assert!(line.contains("on 2 of 3 identified variants"), "{line}");
+        assert!(line.contains("0.950 to 1.020 times"), "{line}");
+        assert!(line.contains("not read on c ("), "{line}");
+        let none = cable0_line(&results[2..3]);
+        assert!(
+            none.contains("on 0 of 1") && !none.contains("times"),
+            "{none}"
+        );
+    }
 }

@@ -300,8 +300,10 @@ pub struct StretchConfig {
     pub cable2_n_m: f32,
     /// Cable 0 stiffness `K_w0` (rope wheel to slider 1), N/m, as
     /// `identify --procedure tension` reads it where slider 1 stands still
-    /// and the motor turns one way (a slope through the measured
-    /// elongation, so it reads low rather than high). Only the cable-0
+    /// and the motor turns one way (the slope of the motor's torque balance,
+    /// the DOB's low-pass undone, against the measured elongation: within a
+    /// few percent of the rope's either side on the simulator's plants, and
+    /// the check's margin holds a reading well above it). Only the cable-0
     /// slack check that bounds the rope's tension by cable 1's and slider
     /// 1's friction uses it. 0 = not identified: cable 1's stiffness
     /// stands in, a lower bound (cable 0 is the rope's shortest stretch).

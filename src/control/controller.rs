@@ -901,7 +901,8 @@ impl Controller {
         //    (slider 1's friction, static up to twice its kinetic band), so
         //    on every tick `e - reach <= e_0` with
         //    `reach = (T_1 + 2 f_sc1 + limit) / K_w0`, `K_w0` as `identify`
-        //    read it (`stretch.cable0_n_m`, low rather than high) or else
+        //    read it (`stretch.cable0_n_m`, within a few percent either
+        //    side; the floor stays under `e_0` well above that) or else
         //    `K_w1`. The highest such value seen is a floor under `e_0`;
         //    `e` below it is slack. Check 1 keeps `K_w1`: its bound rests
         //    on the motor's reading at the last taut tick, which the

@@ -453,6 +453,13 @@ impl Recorder for CaseRec {
 /// stretch estimate's scale rests on the spring rate through `c4` (Eq. 16):
 /// measured through the motor when the calibration run pins it down, else
 /// the datasheet's.
+/// `K_w0` as the identification wrote it, as a share of the plant's rope
+/// stiffness; `None` where it was not read (0: cable 1's bound stands in).
+pub fn cable0_share(c: &Config, p: &PlantParams) -> Option<f64> {
+    let k_n_m = f64::from(c.stretch.cable0_n_m);
+    (k_n_m > 0.0).then(|| k_n_m / p.cable0.stiffness_n_m)
+}
+
 fn identified_vs_plant(c: &Config, p: &PlantParams) -> String {
     let datasheet = cable_joint::config::Machine::default().spring_n_m;
     let spring = if c.machine.spring_n_m == datasheet {
@@ -461,12 +468,12 @@ fn identified_vs_plant(c: &Config, p: &PlantParams) -> String {
         "the spring measured through the motor"
     };
     let rope_n_m = p.cable0.stiffness_n_m;
-    let cable0 = match f64::from(c.stretch.cable0_n_m) {
-        k if k > 0.0 => format!(
-            "K_w0 {k:.0} N/m, {:.3} of the plant's {rope_n_m:.0}",
-            k / rope_n_m
+    let cable0 = match cable0_share(c, p) {
+        Some(share) => format!(
+            "K_w0 {:.0} N/m, {share:.3} of the plant's {rope_n_m:.0}",
+            c.stretch.cable0_n_m
         ),
-        _ => format!("K_w0 not read (plant {rope_n_m:.0} N/m; cable 1's bound)"),
+        None => format!("K_w0 not read (plant {rope_n_m:.0} N/m; cable 1's bound)"),
     };
     format!(
         "identified pin Coulomb {:.2} mN·m (plant {:.2} kinetic, {:.2} static); \

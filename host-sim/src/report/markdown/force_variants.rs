@@ -2,7 +2,9 @@
 //! estimate, passive and with probing, and the goals met or not met per
 //! variant.
 
-use crate::report::variants::{Protocol, SourceStats, VariantResult, FIRST_KALMAN, SOURCES};
+use crate::report::variants::{
+    cable0_share, Protocol, SourceStats, VariantResult, FIRST_KALMAN, SOURCES,
+};
 
 fn pct(v: f64) -> String {
     if v.is_finite() {
@@ -19,10 +21,9 @@ pub fn cable0_line(results: &[VariantResult]) -> String {
     let mut shares = Vec::new();
     let mut unread = Vec::new();
     for r in results {
-        let read = r.config.map(|c| f64::from(c.stretch.cable0_n_m));
-        match read {
-            Some(k) if k > 0.0 => shares.push(k / r.plant.cable0.stiffness_n_m),
-            Some(_) => unread.push(r.name.as_str()),
+        match r.config.map(|c| cable0_share(&c, &r.plant)) {
+            Some(Some(share)) => shares.push(share),
+            Some(None) => unread.push(r.name.as_str()),
             // Identification failed: nothing was read or run.
             None => {}
         }

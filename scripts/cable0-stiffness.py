@@ -42,8 +42,8 @@ against when the rope first went slack (`f1_true_n` at zero).
     python3 scripts/cable0-stiffness.py t.csv --plant V/plant.toml \\
         --loading l.csv --config V/config.toml
 
-Standard library only (the log reader is `logcsv.py`, beside this
-script). The rope wheel radius and gear ratio come from the
+Standard library only (the log and configuration readers are `logcsv.py`
+and `configkeys.py`, beside this script). The rope wheel radius and gear ratio come from the
 plant file when given, else the datasheet's (6 mm, 35).
 """
 
@@ -54,6 +54,7 @@ import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import configkeys  # noqa: E402
 import logcsv  # noqa: E402
 
 MIN_STRETCH_S = 0.01
@@ -102,8 +103,9 @@ def moving_means(rows, width):
 
 
 def study(path, m_per_rad, dob_cutoff_rad_s):
+    """The slopes, and the log's columns (`check_2_margin` reads them too)."""
     need = ["t_s", "phi_rad", "x1_m", "tension1_hat_n", "x1_vel_m_s", "phi_vel_rad_s"]
-    col = logcsv.read_columns(path, need, optional=["f1_true_n"])
+    col = logcsv.read_columns(path, need, optional=["f1_true_n", "tension1_stretch_n"])
     truth = "f1_true_n" in col
     t = col["t_s"]
     if len(t) < SKIP_ROWS + 2:
@@ -140,18 +142,12 @@ def study(path, m_per_rad, dob_cutoff_rad_s):
         "stretches_reading": fixed_effects_slope(stretches, 1) if rows else float("nan"),
         "stretches_undone": fixed_effects_slope(means, 3) if means else float("nan"),
         "rate_hz": rate_hz,
+        "columns": col,
     }
     if truth:
         out["all_rows_truth"] = slope([(e, t) for e, _, t in every])
         out["stretches_truth"] = fixed_effects_slope(stretches, 2) if rows else float("nan")
     return out
-
-
-def config_value(text, key):
-    m = re.search(r"\n" + key + r" = ([0-9.eE+-]+)", text)
-    if not m:
-        sys.exit(f"configuration: no {key}")
-    return float(m.group(1))
 
 
 def read_loading(path):
@@ -161,11 +157,12 @@ def read_loading(path):
     return logcsv.read_columns(path, need, allow_empty=["fault_code"])
 
 
-def replay_check_2(col, config_text, stiffness_n_m, m_per_rad):
+def replay_check_2(col, config_value, stiffness_n_m, m_per_rad):
     """(first slack time, (latch time, true tension) or None) on a loading
-    log's columns (`read_loading`)."""
-    f_sc1 = abs(config_value(config_text, "f_sc1_n"))
-    limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
+    log's columns (`read_loading`); `config_value(key)` reads the
+    configuration."""
+    f_sc1 = abs(config_value("f_sc1_n"))
+    limit = config_value("min_tension_fraction") * config_value("preload_n")
     floor, slack, latch = -math.inf, None, None
     for n in range(len(col["t_s"])):
         t = col["t_s"][n]
@@ -183,12 +180,12 @@ def replay_check_2(col, config_text, stiffness_n_m, m_per_rad):
     return slack, latch
 
 
-def check_2_margin(path, config_text):
+def check_2_margin(col, config_value):
     """(least `T_1 + 2 f_sc1 - T_0`, largest `T_0 / (T_1 + 2 f_sc1 + limit)`)
-    over a simulated log (`f1_true_n`), or None without that column."""
-    f_sc1 = abs(config_value(config_text, "f_sc1_n"))
-    limit = config_value(config_text, "min_tension_fraction") * config_value(config_text, "preload_n")
-    col = logcsv.read_columns(path, [], optional=["f1_true_n", "tension1_stretch_n"])
+    over a simulated log's columns (`f1_true_n`), or None without that
+    column; `config_value(key)` reads the configuration."""
+    f_sc1 = abs(config_value("f_sc1_n"))
+    limit = config_value("min_tension_fraction") * config_value("preload_n")
     if "f1_true_n" not in col or "tension1_stretch_n" not in col:
         return None
     least, largest = math.inf, 0.0
@@ -221,7 +218,9 @@ def main():
     loading = read_loading(a.loading) if a.loading else None
     cutoff = DEFAULT_DOB_CUTOFF_RAD_S
     if a.config:
-        cutoff = config_value(open(a.config).read(), "cutoff_rad_s")
+        config_text = open(a.config).read()
+        config_value = lambda key: configkeys.value(a.config, config_text, key)  # noqa: E731
+        cutoff = config_value("cutoff_rad_s")
     for path in a.logs:
         s = study(path, radius_m / gear, cutoff)
         line = (
@@ -239,8 +238,7 @@ def main():
             )
         print(line)
         if a.config:
-            config_text = open(a.config).read()
-            margin = check_2_margin(path, config_text)
+            margin = check_2_margin(s["columns"], config_value)
             if margin and margin[1] > 0:
                 print(
                     f"  check 2's margin on this log: the rope's true tension at least {margin[0]:.2f} N "
@@ -248,13 +246,13 @@ def main():
                     f"(a stiffness up to {1.0 / margin[1]:.2f} times the rope's keeps the floor under e_0)"
                 )
         if a.loading:
-            k1 = config_value(config_text, "cable1_n_m")
+            k1 = config_value("cable1_n_m")
             scaled = s["stretches_undone"] * a.scale
             for name, k in (("cable 1's", k1), (f"the stretches' x {a.scale:g}", scaled)):
                 if not k > 0:
                     print(f"  check 2 with {name} stiffness: none read")
                     continue
-                slack, latch = replay_check_2(loading, config_text, k, radius_m / gear)
+                slack, latch = replay_check_2(loading, config_value, k, radius_m / gear)
                 when = f"latches at {latch[0]:.3f} s" if latch else "does not latch"
                 first = f"rope first slack at {slack:.3f} s" if slack is not None else "rope never slack"
                 print(f"  check 2 with {name} stiffness ({k:.0f} N/m): {when}; {first}")

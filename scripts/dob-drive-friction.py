@@ -25,26 +25,20 @@ which the two held signs differ.
 
 `tau_c` is `bm.coulomb_nm` of the identification's JSON (the no-load
 motor run's Coulomb term; the script stops if it was not kept). Needs
-numpy; the log reader is `logcsv.py`, beside this script.
+numpy; the log and configuration readers are `logcsv.py` and
+`configkeys.py`, beside this script.
 """
 import json
 import os
-import re
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import configkeys  # noqa: E402
 import logcsv  # noqa: E402
 
 COLS = ["phase", "phi_vel_rad_s", "x1_vel_m_s", "f_ext_n", "f_ext_hat_n"]
-
-
-def config_value(path, text, key):
-    m = re.search(r"\n" + key + r" = ([0-9.eE+-]+)", text)
-    if not m:
-        sys.exit(f"{path}: no {key}")
-    return float(m.group(1))
 
 
 def held_sign(v, switch):
@@ -73,7 +67,7 @@ def main():
         sys.exit(__doc__)
     log, config, ident = sys.argv[1:]
     text = open(config).read()
-    value = lambda key: config_value(config, text, key)  # noqa: E731
+    value = lambda key: configkeys.value(config, text, key)  # noqa: E731
     try:
         tau_c = json.load(open(ident))["bm"]["coulomb_nm"]
     except (OSError, ValueError, KeyError, TypeError) as e:

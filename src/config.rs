@@ -445,7 +445,12 @@ pub struct ProbeConfig {
     /// within 4 points except on one drawn plant, 0.2° with 0.07° to 0.38°
     /// more tip motion; the default 0.1° lies between them. On the pin-friction
     /// variant 0.1° was the worst amplitude (50.6 % above 1 N, from one case,
-    /// against 86 % to 87 % at 0.05°, 0.15° and 0.2°): not traced yet.
+    /// against 86 % to 87 % at 0.05°, 0.15° and 0.2°). Traced (stop 56): at a
+    /// hold that starts at rest, no fixed small amplitude frees a stuck pin
+    /// (the dither swings the cables' torque on it by far less than its
+    /// static band); the hold's slow drift freed it, after a time that
+    /// depends on where the pin stuck. The amplitude now grows while the
+    /// joint does not follow (`max_amplitude_rad`).
     pub amplitude_rad: f32,
     /// Dither frequency, Hz (rounded so a period is eight blocks of whole
     /// ticks). 4 Hz: at 8 Hz (0.1°) the worst case at 0.3 N was 8 to 11
@@ -453,6 +458,13 @@ pub struct ProbeConfig {
     /// on the two others); at 2 Hz it was lower on all four, and the
     /// one-period mean lags a load change by half a second.
     pub frequency_hz: f32,
+    /// Largest amplitude the dither grows to while the joint does not
+    /// follow it, rad ([`crate::probe::Probe::update`]: after each period
+    /// in which slider 2 travelled no more than one grating count, the
+    /// amplitude doubles, up to this; the first period the joint follows,
+    /// it is `amplitude_rad` again). At or below `amplitude_rad` it never
+    /// grows.
+    pub max_amplitude_rad: f32,
 }
 
 impl Default for ProbeConfig {
@@ -461,6 +473,7 @@ impl Default for ProbeConfig {
             enabled: false,
             amplitude_rad: 0.1 * crate::math::PI / 180.0,
             frequency_hz: 4.0,
+            max_amplitude_rad: 1.6 * crate::math::PI / 180.0,
         }
     }
 }
@@ -1283,6 +1296,12 @@ impl Config {
             p.amplitude_rad,
             1e-5..=0.035,
             "between 1e-5 rad and 0.035 rad (2°)",
+        )?;
+        within(
+            "probe.max_amplitude_rad",
+            p.max_amplitude_rad,
+            0.0..=0.035,
+            "between 0 and 0.035 rad (2°)",
         )?;
         within(
             "probe.frequency_hz",

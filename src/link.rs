@@ -40,8 +40,8 @@ use crate::controller::{Command, PreparedConfig};
 /// `cascade.kd_on_observer_rate`, `jae.sign_travel_m` and the Bouc–Wen
 /// effect kind; 5: the program's `homing.motor_only`; 6: the
 /// configuration's `fusion.pin_identified`; 7: its `stretch.cable0_n_m`;
-/// 8: its `cascade.payout_stop`).
-pub const LINK_VERSION: u8 = 8;
+/// 8: its `cascade.payout_stop`; 9: its `probe.max_amplitude_rad`).
+pub const LINK_VERSION: u8 = 9;
 
 /// The host link's baud rate on the prototype's serial port (USART2, 8N1:
 /// ten bits a byte on the line).

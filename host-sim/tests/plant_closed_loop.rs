@@ -366,3 +366,91 @@ fn the_payout_stop_keeps_a_stuck_slider_1_from_costing_the_hold() {
         }
     }
 }
+
+/// Probing from rest on the pin-friction variant (the pin ×3): a 0.1°
+/// dither swings the cables' torque on a stuck pin by far less than its
+/// static band, so at a hold that starts at rest (the protocol's 0° cases)
+/// the pin never slips on the dither; only the hold's slow drift freed it,
+/// seconds later, and until then the probed mean was the stuck pin's
+/// torque (0.3 N off under a 0.3 N load). The dither now doubles each period in
+/// which slider 2 did not follow (`probe.max_amplitude_rad`), and the
+/// joint slips from the first periods on. With the growth switched off
+/// (the largest amplitude the configured one) the joint stays stuck, and
+/// `fusion_flags`' `PROBE_STUCK` says so on the ticks it does. Configuration
+/// as `identify` writes it for the default plant, probing on.
+#[test]
+fn a_growing_dither_frees_a_stuck_pin_and_says_when_it_has_not() {
+    let plant = host_sim::report::variants::variants()
+        .into_iter()
+        .find(|v| v.name == "pin friction")
+        .expect("the pin-friction variant")
+        .plant;
+    let fixture = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/identified/default.toml"
+    );
+    let mut cfg = host_sim::io::config::load_config(fixture).unwrap();
+    cfg.probe.enabled = true;
+    let opts = ScenarioOptions {
+        angle_deg: Some(0.0),
+        mass_g: Some(30.0),
+        direction: Some(Direction::Pos),
+        ..ScenarioOptions::default()
+    };
+    let stuck_flag = cable_joint::fusion::flags::PROBE_STUCK;
+    // Share of the hold's ticks (no load and loaded) in which the plant's
+    // joint moved less than 0.01° over the last dither period, share of them
+    // flagged stuck, and the probed estimate's mean error under the load.
+    let run = |max_amplitude_rad: f32| {
+        let mut c = cfg;
+        c.probe.max_amplitude_rad = max_amplitude_rad;
+        let period = (c.control_rate_hz / c.probe.frequency_hz) as usize;
+        let mut ticks = Vec::<TickRecord>::new();
+        let sum = scenario::run("loading", plant, c, Some(1), &opts, &mut ticks).unwrap();
+        assert_eq!(sum.fault, None);
+        let phase = |t: &TickRecord| {
+            (scenario::Phase::NoLoad.code()..=scenario::Phase::Stable.code()).contains(&t.phase)
+        };
+        let (mut hold, mut stuck, mut flagged) = (0usize, 0usize, 0usize);
+        for (k, t) in ticks.iter().enumerate().skip(period) {
+            if !phase(t) {
+                continue;
+            }
+            let window = &ticks[k + 1 - period..=k];
+            let (lo, hi) = window.iter().fold((f64::MAX, f64::MIN), |(lo, hi), w| {
+                (lo.min(w.state.theta_rad), hi.max(w.state.theta_rad))
+            });
+            hold += 1;
+            stuck += usize::from(hi - lo < 0.01f64.to_radians());
+            flagged += usize::from(t.output.est.fusion_flags & stuck_flag != 0);
+        }
+        let loaded: Vec<&TickRecord> = ticks
+            .iter()
+            .filter(|t| t.phase == scenario::Phase::Stable.code())
+            .collect();
+        let error_n = loaded
+            .iter()
+            .map(|t| f64::from(t.output.est.f_ext_fused_n) - t.f_ext_n)
+            .sum::<f64>()
+            / loaded.len() as f64;
+        (
+            stuck as f64 / hold as f64,
+            flagged as f64 / hold as f64,
+            error_n,
+        )
+    };
+    let (stuck, flagged, error_n) = run(cfg.probe.amplitude_rad);
+    assert!(stuck > 0.5, "without growth stuck {stuck:.3} of the hold");
+    assert!(
+        (flagged - stuck).abs() < 0.1,
+        "flagged {flagged:.3}, stuck {stuck:.3}"
+    );
+    assert!(error_n > 0.2, "without growth {error_n:.3} N off");
+    let (stuck, flagged, error_n) = run(cfg.probe.max_amplitude_rad);
+    assert!(cfg.probe.max_amplitude_rad > 4.0 * cfg.probe.amplitude_rad);
+    assert!(
+        stuck < 0.05 && flagged < 0.05,
+        "with growth stuck {stuck:.3}, flagged {flagged:.3}"
+    );
+    assert!(error_n.abs() < 0.05, "with growth {error_n:.3} N off");
+}

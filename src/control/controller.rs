@@ -263,7 +263,7 @@ impl Derived {
             motor_obs: TrackingObserver::new(d.motor_bandwidth_hz, period_s),
             dob: Dob::new(&c.dob, m, period_s),
             fusion: Fusion::new(c, period_s),
-            probe: Probe::new(&c.probe, period_s),
+            probe: Probe::new(&c.probe, period_s, c.scales.grating_m_per_count),
             grip: Grip::new(c.dob.cutoff_rad_s, period_s),
             force_lp: LowPass1::new(c.dob.cutoff_rad_s, period_s),
             blend: (c.cascade.jae_blend_hz > 0.0)
@@ -1053,11 +1053,14 @@ impl Controller {
                 tension1_dob_n: dob_out.tension1_n,
                 cable0_m,
             };
-            if let Some(p) = d.probe.update(&mut st.probe, values) {
+            if let Some(p) = d.probe.update(&mut st.probe, values, x2_m) {
                 fused.f_ext_n = p.f_ext_n;
                 fused.lo_n = p.lo_n;
                 fused.hi_n = p.hi_n;
                 fused.flags |= fusion::flags::PROBED;
+                if st.probe.stuck() {
+                    fused.flags |= fusion::flags::PROBE_STUCK;
+                }
             }
         } else if st.probing {
             st.probe.restart();
@@ -1760,25 +1763,35 @@ mod tests {
             * crate::probe::BLOCKS as u32;
         let mut c = holding(config);
         let probed = |o: &Output| o.est.fusion_flags & crate::fusion::flags::PROBED != 0;
-        let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+        let mut range = [(f32::MAX, f32::MIN); 2];
         for k in 0..2 * period_ticks - 1 {
             let o = c.step(&at_rest());
             assert!(
                 !probed(&o),
                 "published at tick {k}, before two whole periods"
             );
-            lo = lo.min(o.est.theta_ref_rad);
-            hi = hi.max(o.est.theta_ref_rad);
+            let (lo, hi) = &mut range[(k / period_ticks) as usize];
+            *lo = lo.min(o.est.theta_ref_rad);
+            *hi = hi.max(o.est.theta_ref_rad);
         }
+        // The readings stand still: the first period dithers at the
+        // configured amplitude, the second at twice it (the probe's growth
+        // on a joint that does not follow).
         let amp = config.probe.amplitude_rad;
-        assert!(
-            (hi - amp).abs() < 0.01 * amp && (lo + amp).abs() < 0.01 * amp,
-            "{lo}..{hi}"
-        );
+        for ((lo, hi), a) in range.into_iter().zip([amp, 2.0 * amp]) {
+            assert!(
+                (hi - a).abs() < 0.01 * a && (lo + a).abs() < 0.01 * a,
+                "{lo}..{hi} against ±{a}"
+            );
+        }
         let o = c.step(&at_rest());
         assert!(
             probed(&o),
             "the mean is published after the settling period"
+        );
+        assert!(
+            o.est.fusion_flags & crate::fusion::flags::PROBE_STUCK != 0,
+            "a mean over a joint that never moved says so"
         );
         assert!(o.est.f_ext_lo_n <= o.est.f_ext_fused_n && o.est.f_ext_fused_n <= o.est.f_ext_hi_n);
         // A moving reference is not dithered, and the mean starts over.

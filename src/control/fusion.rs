@@ -73,6 +73,12 @@ pub mod flags {
     /// (`cascade.payout_stop`) held the motor from unwinding this tick (its
     /// reading put cable 0 near slack while the motor kept paying out).
     pub const PAYOUT_STOPPED: u8 = 32;
+    /// Set by the controller with [`PROBED`]: the joint did not follow the
+    /// dither over the last whole period (slider 2 travelled no more than
+    /// one grating count), so the period's mean is a
+    /// passive estimate averaged, not friction averaged out; the dither's
+    /// amplitude grows until the joint follows ([`crate::probe`]).
+    pub const PROBE_STUCK: u8 = 64;
 }
 
 /// Largest ratio of the two sliders' speeds at which the chain still counts

@@ -43,6 +43,10 @@ pub const BLOCKS: usize = 8;
 /// Quantities averaged over a period (the fields of [`Averaged`]).
 const VALUES: usize = 5;
 
+/// Factor by which the dither's amplitude grows after a period in which the
+/// joint did not follow it (see [`Probe::update`]).
+pub const GROWTH: f32 = 2.0;
+
 /// Constants derived from [`ProbeConfig`] and the control period.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Probe {
@@ -57,6 +61,13 @@ pub struct Probe {
     block_ticks: u32,
     /// `1 / ticks per period`.
     inv_period_ticks: f32,
+    /// Largest factor on the amplitude
+    /// ([`ProbeConfig::max_amplitude_rad`] over [`ProbeConfig::amplitude_rad`]).
+    max_gain: f32,
+    /// Slider 2's travel over a period below which the joint counts as not
+    /// following the dither: one and a half grating counts (a travel of one
+    /// count is the reading's flicker at a count's edge, not motion), m.
+    follow_m: f32,
 }
 
 /// State of the dither and of its synchronous mean.
@@ -77,6 +88,15 @@ pub struct ProbeState {
     /// The means over the last whole period, refreshed at each block's end
     /// once the first period of the hold has passed.
     mean: Option<Averaged>,
+    /// Factor on the configured amplitude for the current period.
+    gain: f32,
+    /// Slider 2's least and greatest position in the current period, m
+    /// (`None` before its first tick).
+    x2_range_m: Option<(f32, f32)>,
+    /// Whether slider 2 travelled no more than a grating count in the last
+    /// whole period: the joint did not follow the dither, so its friction
+    /// did not average out.
+    stuck: bool,
 }
 
 impl Default for ProbeState {
@@ -89,6 +109,9 @@ impl Default for ProbeState {
             ring: [[0.0; VALUES]; BLOCKS],
             blocks_done: 0,
             mean: None,
+            gain: 1.0,
+            x2_range_m: None,
+            stuck: false,
         }
     }
 }
@@ -105,12 +128,27 @@ impl ProbeState {
         self.acc = [0.0; VALUES];
         self.blocks_done = 0;
         self.mean = None;
+        self.gain = 1.0;
+        self.x2_range_m = None;
+        self.stuck = false;
     }
 
     /// The means over the last whole dither period, once published (the
     /// value [`Probe::update`] last returned).
     pub fn mean(&self) -> Option<Averaged> {
         self.mean
+    }
+
+    /// Whether the joint did not follow the dither over the last whole
+    /// period (slider 2 travelled no more than one grating count): a mean
+    /// over such a period is a passive estimate averaged, not a probed one.
+    pub fn stuck(&self) -> bool {
+        self.stuck
+    }
+
+    /// The factor on the configured amplitude in this period.
+    pub fn gain(&self) -> f32 {
+        self.gain
     }
 }
 
@@ -166,7 +204,8 @@ impl Probe {
     /// Precompute from the configuration; `period_s` is the control period.
     /// The frequency actually used is the one whose period is a whole number
     /// of blocks (see [`Probe::block_ticks`]).
-    pub fn new(config: &ProbeConfig, period_s: f32) -> Self {
+    /// `grating_m_per_count` is slider 2's reading's resolution.
+    pub fn new(config: &ProbeConfig, period_s: f32, grating_m_per_count: f32) -> Self {
         let block_ticks = Self::block_ticks(config, period_s);
         let period_ticks = block_ticks * BLOCKS as u32;
         let step_rad = 2.0 * math::PI / period_ticks as f32;
@@ -179,6 +218,14 @@ impl Probe {
             rot_sin: math::sin(step_rad),
             block_ticks,
             inv_period_ticks: 1.0 / period_ticks as f32,
+            max_gain: if config.amplitude_rad > 0.0
+                && config.max_amplitude_rad > config.amplitude_rad
+            {
+                config.max_amplitude_rad / config.amplitude_rad
+            } else {
+                1.0
+            },
+            follow_m: 1.5 * grating_m_per_count,
         }
     }
 
@@ -192,17 +239,38 @@ impl Probe {
     #[inline]
     pub fn dither(&self, st: &ProbeState) -> (f32, f32) {
         let (c, s) = st.phasor;
-        (self.amplitude_rad * s, self.amplitude_rad_s * c)
+        (
+            st.gain * self.amplitude_rad * s,
+            st.gain * self.amplitude_rad_s * c,
+        )
     }
 
     /// Add this tick's values, advance the phase, and return their means
     /// over the last whole period once the first period of the hold (the
     /// settling of the dither) has passed.
+    ///
+    /// `x2_m` is slider 2's position (the JAE's input). A period in which
+    /// it travelled no more than one grating count is one in which the
+    /// JAE saw nothing move: the chain stuck, its friction held whatever
+    /// torque the cables put on it, and nothing averaged out. The next
+    /// period's amplitude is then [`GROWTH`] times this one's, up to
+    /// [`ProbeConfig::max_amplitude_rad`], until the joint follows; the
+    /// first period it follows, the amplitude is the configured one again.
+    /// (A dither of the reference swings the motor, and the cables' torque
+    /// on a stuck joint, by an amount proportional to the amplitude; a stuck
+    /// pin whose static band that swing does not span never slips, and the
+    /// hold's own slow drift was all that freed it, seconds later.) The
+    /// amplitude changes only when a period starts, where the dither's
+    /// angle is zero.
     #[inline]
-    pub fn update(&self, st: &mut ProbeState, values: Averaged) -> Option<Averaged> {
+    pub fn update(&self, st: &mut ProbeState, values: Averaged, x2_m: f32) -> Option<Averaged> {
         for (a, v) in st.acc.iter_mut().zip(values.to_array()) {
             *a += v;
         }
+        st.x2_range_m = Some(match st.x2_range_m {
+            Some((lo, hi)) => (lo.min(x2_m), hi.max(x2_m)),
+            None => (x2_m, x2_m),
+        });
         let (c, s) = st.phasor;
         st.phasor = (
             c * self.rot_cos - s * self.rot_sin,
@@ -221,6 +289,14 @@ impl Probe {
                 st.block = 0;
                 // Exact phase once per period: no drift of the rotation.
                 st.phasor = (1.0, 0.0);
+                let (lo, hi) = st.x2_range_m.unwrap_or((x2_m, x2_m));
+                st.stuck = hi - lo < self.follow_m;
+                st.gain = if st.stuck {
+                    math::clamp(GROWTH * st.gain, 1.0, self.max_gain)
+                } else {
+                    1.0
+                };
+                st.x2_range_m = None;
             }
             st.blocks_done = st.blocks_done.saturating_add(1);
             // The ring changes only here: the mean is summed once a block,
@@ -252,7 +328,7 @@ mod tests {
             frequency_hz: f_hz,
             ..ProbeConfig::default()
         };
-        Probe::new(&c, 1.0 / rate_hz)
+        Probe::new(&c, 1.0 / rate_hz, 1e-6)
     }
 
     #[test]
@@ -279,7 +355,8 @@ mod tests {
             let (a, _) = p.dither(&st);
             max = max.max(a);
             min = min.min(a);
-            p.update(&mut st, Averaged::default());
+            // A joint that follows: slider 2 swings with it.
+            p.update(&mut st, Averaged::default(), 4e-3 * a);
         }
         let amp = ProbeConfig::default().amplitude_rad;
         assert!((max - amp).abs() < 1e-3 * amp, "{max} vs {amp}");
@@ -309,6 +386,7 @@ mod tests {
                     tension1_dob_n: v,
                     cable0_m: 1e-3 * angle,
                 },
+                4e-3 * angle,
             );
         }
         let out = last.expect("published after the settling period");
@@ -324,8 +402,81 @@ mod tests {
         let mut st = ProbeState::default();
         let ones = Averaged::from_array([1.0; VALUES]);
         for _ in 0..2 * p.block_ticks * BLOCKS as u32 - 1 {
-            assert!(p.update(&mut st, ones).is_none());
+            assert!(p.update(&mut st, ones, 0.0).is_none());
         }
-        assert_eq!(p.update(&mut st, ones), Some(ones));
+        assert_eq!(p.update(&mut st, ones, 0.0), Some(ones));
+    }
+
+    /// A joint that does not follow (slider 2 still): the amplitude doubles
+    /// each period up to the configured largest, and the period is flagged
+    /// stuck; once slider 2 follows the grown dither for a whole period the
+    /// amplitude is the configured one again. The amplitude only changes
+    /// where a period starts (the dither's angle is zero there).
+    #[test]
+    fn the_dither_grows_while_the_joint_does_not_follow_and_returns_once_it_does() {
+        let c = ProbeConfig {
+            enabled: true,
+            ..ProbeConfig::default()
+        };
+        let (r, count) = (4e-3, 1e-6);
+        let p = Probe::new(&c, 1.0 / 2000.0, count);
+        let n = p.block_ticks * BLOCKS as u32;
+        let mut st = ProbeState::default();
+        let mut peaks = [0.0f32; 7];
+        for peak in &mut peaks {
+            for _ in 0..n {
+                let (a, _) = p.dither(&st);
+                *peak = peak.max(a.abs());
+                let before = st.gain();
+                p.update(&mut st, Averaged::default(), 0.0);
+                if st.tick != 0 || st.block != 0 {
+                    assert_eq!(st.gain(), before, "changed inside a period");
+                }
+            }
+            assert!(st.stuck());
+        }
+        let amp = c.amplitude_rad;
+        for (k, peak) in peaks.iter().enumerate() {
+            let expected = (amp * GROWTH.powi(k as i32)).min(c.max_amplitude_rad);
+            assert!(
+                (peak - expected).abs() < 1e-3 * expected,
+                "period {k}: {peak} vs {expected}"
+            );
+        }
+        assert!(peaks[6] >= c.max_amplitude_rad * 0.999 && peaks[6] <= c.max_amplitude_rad * 1.001);
+        // Slider 2 follows the grown dither: back to the configured amplitude.
+        for _ in 0..n {
+            let (a, _) = p.dither(&st);
+            p.update(&mut st, Averaged::default(), r * a);
+        }
+        assert!(!st.stuck());
+        assert_eq!(st.gain(), 1.0);
+        // A reading that flickers by one count still counts as stuck; two
+        // counts of travel do not.
+        for k in 0..n {
+            p.update(&mut st, Averaged::default(), count * (k % 2) as f32);
+        }
+        assert!(st.stuck());
+        assert_eq!(st.gain(), GROWTH);
+        for k in 0..n {
+            p.update(&mut st, Averaged::default(), count * (k % 3) as f32);
+        }
+        assert!(!st.stuck());
+        assert_eq!(st.gain(), 1.0);
+        // A configured largest at or below the amplitude: it never grows.
+        let fixed = Probe::new(
+            &ProbeConfig {
+                max_amplitude_rad: 0.5 * amp,
+                ..c
+            },
+            1.0 / 2000.0,
+            count,
+        );
+        let mut st = ProbeState::default();
+        for _ in 0..3 * n {
+            fixed.update(&mut st, Averaged::default(), 0.0);
+        }
+        assert!(st.stuck());
+        assert_eq!(st.gain(), 1.0);
     }
 }

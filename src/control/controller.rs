@@ -1036,8 +1036,12 @@ impl Controller {
         st.last_ref_vel_rad_s = reference.vel_rad_s;
         // Probing: a dither on a hold, and the fused estimate replaced by
         // its mean over the last whole dither period once one is complete.
-        // Never during a grip: its law reads the estimate every tick.
+        // Never during a grip: its law reads the estimate every tick. Nor on
+        // a tick that primes the estimators afresh (start-up, homing's
+        // origin, a non-finite reading): they restart from the measurements
+        // there, and it is the tick's worst case (the whole state's reset).
         let probing = d.probe.enabled()
+            && st.primed
             && !gripping
             && self.command.mode != Mode::Idle
             && st.fault.is_none()
@@ -1053,7 +1057,7 @@ impl Controller {
                 tension1_dob_n: dob_out.tension1_n,
                 cable0_m,
             };
-            if let Some(p) = d.probe.update(&mut st.probe, values, x2_m) {
+            if let Some(p) = d.probe.update(&mut st.probe, values, x2_m, no_payout) {
                 fused.f_ext_n = p.f_ext_n;
                 fused.lo_n = p.lo_n;
                 fused.hi_n = p.hi_n;
@@ -1763,6 +1767,10 @@ mod tests {
             * crate::probe::BLOCKS as u32;
         let mut c = holding(config);
         let probed = |o: &Output| o.est.fusion_flags & crate::fusion::flags::PROBED != 0;
+        // The first tick primes the estimators from the measurements: no
+        // dither there.
+        let first = c.step(&at_rest());
+        assert!(!probed(&first) && first.est.theta_ref_rad == 0.0);
         let mut range = [(f32::MAX, f32::MIN); 2];
         for k in 0..2 * period_ticks - 1 {
             let o = c.step(&at_rest());

@@ -91,12 +91,16 @@ pub struct ProbeState {
     /// Factor on the configured amplitude for the current period.
     gain: f32,
     /// Slider 2's least and greatest position in the current period, m
-    /// (`None` before its first tick).
-    x2_range_m: Option<(f32, f32)>,
+    /// (infinities before its first tick).
+    x2_lo_m: f32,
+    x2_hi_m: f32,
     /// Whether slider 2 travelled no more than a grating count in the last
     /// whole period: the joint did not follow the dither, so its friction
     /// did not average out.
     stuck: bool,
+    /// Whether the payout stop held the motor in any tick of the current
+    /// period.
+    held_in_period: bool,
 }
 
 impl Default for ProbeState {
@@ -110,8 +114,10 @@ impl Default for ProbeState {
             blocks_done: 0,
             mean: None,
             gain: 1.0,
-            x2_range_m: None,
+            x2_lo_m: f32::INFINITY,
+            x2_hi_m: f32::NEG_INFINITY,
             stuck: false,
+            held_in_period: false,
         }
     }
 }
@@ -129,8 +135,10 @@ impl ProbeState {
         self.blocks_done = 0;
         self.mean = None;
         self.gain = 1.0;
-        self.x2_range_m = None;
+        self.x2_lo_m = f32::INFINITY;
+        self.x2_hi_m = f32::NEG_INFINITY;
         self.stuck = false;
+        self.held_in_period = false;
     }
 
     /// The means over the last whole dither period, once published (the
@@ -245,6 +253,22 @@ impl Probe {
         )
     }
 
+    /// A period's end: whether slider 2 stood still over it, and the next
+    /// period's amplitude (see [`Probe::update`]). Once a period, so kept
+    /// out of the tick's inlined path.
+    #[inline(never)]
+    fn end_period(&self, st: &mut ProbeState) {
+        st.stuck = st.x2_hi_m - st.x2_lo_m < self.follow_m;
+        st.gain = if st.stuck && !st.held_in_period {
+            math::clamp(GROWTH * st.gain, 1.0, self.max_gain)
+        } else {
+            1.0
+        };
+        st.x2_lo_m = f32::INFINITY;
+        st.x2_hi_m = f32::NEG_INFINITY;
+        st.held_in_period = false;
+    }
+
     /// Add this tick's values, advance the phase, and return their means
     /// over the last whole period once the first period of the hold (the
     /// settling of the dither) has passed.
@@ -262,15 +286,32 @@ impl Probe {
     /// hold's own slow drift was all that freed it, seconds later.) The
     /// amplitude changes only when a period starts, where the dither's
     /// angle is zero.
+    ///
+    /// `motor_held` says the payout stop held the motor from unwinding in
+    /// this tick (`cascade.payout_stop`): a chain the stop holds stands
+    /// still because cable 0 is nearly slack, not because friction holds
+    /// it, and a larger swing would only pay out more rope on its unwinding
+    /// half. A period with such a tick does not grow the amplitude; it
+    /// returns to the configured one.
     #[inline]
-    pub fn update(&self, st: &mut ProbeState, values: Averaged, x2_m: f32) -> Option<Averaged> {
+    pub fn update(
+        &self,
+        st: &mut ProbeState,
+        values: Averaged,
+        x2_m: f32,
+        motor_held: bool,
+    ) -> Option<Averaged> {
+        st.held_in_period |= motor_held;
         for (a, v) in st.acc.iter_mut().zip(values.to_array()) {
             *a += v;
         }
-        st.x2_range_m = Some(match st.x2_range_m {
-            Some((lo, hi)) => (lo.min(x2_m), hi.max(x2_m)),
-            None => (x2_m, x2_m),
-        });
+        // Plain comparisons: the M4F has no single-instruction min/max.
+        if x2_m < st.x2_lo_m {
+            st.x2_lo_m = x2_m;
+        }
+        if x2_m > st.x2_hi_m {
+            st.x2_hi_m = x2_m;
+        }
         let (c, s) = st.phasor;
         st.phasor = (
             c * self.rot_cos - s * self.rot_sin,
@@ -289,14 +330,7 @@ impl Probe {
                 st.block = 0;
                 // Exact phase once per period: no drift of the rotation.
                 st.phasor = (1.0, 0.0);
-                let (lo, hi) = st.x2_range_m.unwrap_or((x2_m, x2_m));
-                st.stuck = hi - lo < self.follow_m;
-                st.gain = if st.stuck {
-                    math::clamp(GROWTH * st.gain, 1.0, self.max_gain)
-                } else {
-                    1.0
-                };
-                st.x2_range_m = None;
+                self.end_period(st);
             }
             st.blocks_done = st.blocks_done.saturating_add(1);
             // The ring changes only here: the mean is summed once a block,
@@ -356,7 +390,7 @@ mod tests {
             max = max.max(a);
             min = min.min(a);
             // A joint that follows: slider 2 swings with it.
-            p.update(&mut st, Averaged::default(), 4e-3 * a);
+            p.update(&mut st, Averaged::default(), 4e-3 * a, false);
         }
         let amp = ProbeConfig::default().amplitude_rad;
         assert!((max - amp).abs() < 1e-3 * amp, "{max} vs {amp}");
@@ -387,6 +421,7 @@ mod tests {
                     cable0_m: 1e-3 * angle,
                 },
                 4e-3 * angle,
+                false,
             );
         }
         let out = last.expect("published after the settling period");
@@ -402,9 +437,9 @@ mod tests {
         let mut st = ProbeState::default();
         let ones = Averaged::from_array([1.0; VALUES]);
         for _ in 0..2 * p.block_ticks * BLOCKS as u32 - 1 {
-            assert!(p.update(&mut st, ones, 0.0).is_none());
+            assert!(p.update(&mut st, ones, 0.0, false).is_none());
         }
-        assert_eq!(p.update(&mut st, ones, 0.0), Some(ones));
+        assert_eq!(p.update(&mut st, ones, 0.0, false), Some(ones));
     }
 
     /// A joint that does not follow (slider 2 still): the amplitude doubles
@@ -428,7 +463,7 @@ mod tests {
                 let (a, _) = p.dither(&st);
                 *peak = peak.max(a.abs());
                 let before = st.gain();
-                p.update(&mut st, Averaged::default(), 0.0);
+                p.update(&mut st, Averaged::default(), 0.0, false);
                 if st.tick != 0 || st.block != 0 {
                     assert_eq!(st.gain(), before, "changed inside a period");
                 }
@@ -447,21 +482,32 @@ mod tests {
         // Slider 2 follows the grown dither: back to the configured amplitude.
         for _ in 0..n {
             let (a, _) = p.dither(&st);
-            p.update(&mut st, Averaged::default(), r * a);
+            p.update(&mut st, Averaged::default(), r * a, false);
         }
         assert!(!st.stuck());
         assert_eq!(st.gain(), 1.0);
         // A reading that flickers by one count still counts as stuck; two
         // counts of travel do not.
         for k in 0..n {
-            p.update(&mut st, Averaged::default(), count * (k % 2) as f32);
+            p.update(&mut st, Averaged::default(), count * (k % 2) as f32, false);
         }
         assert!(st.stuck());
         assert_eq!(st.gain(), GROWTH);
         for k in 0..n {
-            p.update(&mut st, Averaged::default(), count * (k % 3) as f32);
+            p.update(&mut st, Averaged::default(), count * (k % 3) as f32, false);
         }
         assert!(!st.stuck());
+        assert_eq!(st.gain(), 1.0);
+        // The payout stop held the motor for one tick of a stuck period: no
+        // growth, back to the configured amplitude; still flagged stuck.
+        for _ in 0..n {
+            p.update(&mut st, Averaged::default(), 0.0, false);
+        }
+        assert_eq!(st.gain(), GROWTH);
+        for k in 0..n {
+            p.update(&mut st, Averaged::default(), 0.0, k == n / 2);
+        }
+        assert!(st.stuck());
         assert_eq!(st.gain(), 1.0);
         // A configured largest at or below the amplitude: it never grows.
         let fixed = Probe::new(
@@ -474,7 +520,7 @@ mod tests {
         );
         let mut st = ProbeState::default();
         for _ in 0..3 * n {
-            fixed.update(&mut st, Averaged::default(), 0.0);
+            fixed.update(&mut st, Averaged::default(), 0.0, false);
         }
         assert!(st.stuck());
         assert_eq!(st.gain(), 1.0);

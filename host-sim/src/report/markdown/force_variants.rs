@@ -348,7 +348,10 @@ pub fn markdown(results: &[VariantResult]) -> String {
         "\nProbing (`[probe] enabled = true`, default 0.1° at 4 Hz, `cable_joint::probe`): the row \
          \"fused + probing\" is the same protocol with the dither on every hold; its estimate is the fused \
          estimate's mean over the last whole dither period, so it lags a load change by one period (0.25 s), \
-         and its tip motion is the stick-slip of the dithered chain, not twice the amplitude. Not built: the \
+         and its tip motion is the stick-slip of the dithered chain, not twice the amplitude. After a period in \
+         which slider 2 did not move (a grating count at most) the next period's amplitude is twice this one's, \
+         up to `max_amplitude_rad` (1.6° by default), and the configured one again once slider 2 moves \
+         (`fusion_flags` bit 64 marks the means over such a period). Not built: the \
          Dahl presliding state in the estimator (on the default prototype knowing slider 1's friction \
          would narrow the DOB's interval at rest from ±2.7 to ±1.5 N at the tip, the motor's own band \
          left, against the stretch interval's ±0.5 N; docs/force.md). The force scale of the stretch estimate rests on the \

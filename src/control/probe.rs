@@ -27,8 +27,11 @@
 //! slack, so while probing the check compares period means.
 //!
 //! Cost per tick: a phasor rotation (four multiplications; no
-//! transcendental function, the phasor is reset exactly once per period) and
-//! five additions; at each block's end, the ring's sums (forty additions).
+//! transcendental function, the phasor is reset exactly once per period),
+//! five additions, two comparisons for slider 2's range and two
+//! multiplications by the amplitude's factor; at each block's end, the
+//! ring's sums (forty additions); at each period's end, whether the joint
+//! followed and the next amplitude (see [`Probe::update`]).
 //! The window is exact without a buffer of every sample: the period is
 //! eight blocks of whole ticks, each block's sums go into an eight-slot
 //! ring, and the mean over the ring (one whole period) is refreshed at every

@@ -103,7 +103,11 @@ pub struct ProbeState {
     stuck: bool,
     /// Whether the payout stop held the motor in any tick of the current
     /// period.
-    held_in_period: bool,
+    hold_growth: bool,
+    /// Whether a period at the largest amplitude ended stuck: the dither
+    /// cannot free what holds the joint, so it stays at the configured
+    /// amplitude until slider 2 moves.
+    gave_up: bool,
 }
 
 impl Default for ProbeState {
@@ -120,7 +124,8 @@ impl Default for ProbeState {
             x2_lo_m: f32::INFINITY,
             x2_hi_m: f32::NEG_INFINITY,
             stuck: false,
-            held_in_period: false,
+            hold_growth: false,
+            gave_up: false,
         }
     }
 }
@@ -141,7 +146,8 @@ impl ProbeState {
         self.x2_lo_m = f32::INFINITY;
         self.x2_hi_m = f32::NEG_INFINITY;
         self.stuck = false;
-        self.held_in_period = false;
+        self.hold_growth = false;
+        self.gave_up = false;
     }
 
     /// The means over the last whole dither period, once published (the
@@ -262,14 +268,22 @@ impl Probe {
     #[inline(never)]
     fn end_period(&self, st: &mut ProbeState) {
         st.stuck = st.x2_hi_m - st.x2_lo_m < self.follow_m;
-        st.gain = if st.stuck && !st.held_in_period {
+        if !st.stuck {
+            st.gave_up = false;
+        } else if st.gain >= self.max_gain && self.max_gain > 1.0 {
+            st.gave_up = true;
+        }
+        // A load the last published mean is sure of (its bound excludes
+        // zero) presses the joint against something.
+        let loaded = matches!(st.mean, Some(m) if m.lo_n > 0.0 || m.hi_n < 0.0);
+        st.gain = if st.stuck && !st.hold_growth && !st.gave_up && !loaded {
             math::clamp(GROWTH * st.gain, 1.0, self.max_gain)
         } else {
             1.0
         };
         st.x2_lo_m = f32::INFINITY;
         st.x2_hi_m = f32::NEG_INFINITY;
-        st.held_in_period = false;
+        st.hold_growth = false;
     }
 
     /// Add this tick's values, advance the phase, and return their means
@@ -290,21 +304,26 @@ impl Probe {
     /// amplitude changes only when a period starts, where the dither's
     /// angle is zero.
     ///
-    /// `motor_held` says the payout stop held the motor from unwinding in
-    /// this tick (`cascade.payout_stop`): a chain the stop holds stands
-    /// still because cable 0 is nearly slack, not because friction holds
-    /// it, and a larger swing would only pay out more rope on its unwinding
-    /// half. A period with such a tick does not grow the amplitude; it
-    /// returns to the configured one.
+    /// The amplitude does not grow, and returns to the configured one, when
+    /// `hold_growth` was set in any tick of the period (the payout stop held
+    /// the motor from unwinding, `cascade.payout_stop`: the chain stands
+    /// still because cable 0 is nearly slack, and a larger swing would only
+    /// pay out more rope on its unwinding half), or when the last published
+    /// mean's bound excludes zero (a load is known to press the joint:
+    /// against an object a larger swing squeezes it, and the force the
+    /// probe averages is no longer constant over a period). And a period at
+    /// the largest amplitude that still ends stuck gives up: whatever holds
+    /// the joint, the dither cannot free it, so the amplitude stays the
+    /// configured one until slider 2 moves.
     #[inline]
     pub fn update(
         &self,
         st: &mut ProbeState,
         values: Averaged,
         x2_m: f32,
-        motor_held: bool,
+        hold_growth: bool,
     ) -> Option<Averaged> {
-        st.held_in_period |= motor_held;
+        st.hold_growth |= hold_growth;
         for (a, v) in st.acc.iter_mut().zip(values.to_array()) {
             *a += v;
         }
@@ -474,14 +493,17 @@ mod tests {
             assert!(st.stuck());
         }
         let amp = c.amplitude_rad;
-        for (k, peak) in peaks.iter().enumerate() {
+        for (k, peak) in peaks.iter().take(5).enumerate() {
             let expected = (amp * GROWTH.powi(k as i32)).min(c.max_amplitude_rad);
             assert!(
                 (peak - expected).abs() < 1e-3 * expected,
                 "period {k}: {peak} vs {expected}"
             );
         }
-        assert!(peaks[6] >= c.max_amplitude_rad * 0.999 && peaks[6] <= c.max_amplitude_rad * 1.001);
+        assert!(peaks[4] >= c.max_amplitude_rad * 0.999 && peaks[4] <= c.max_amplitude_rad * 1.001);
+        // A period at the largest amplitude that ended stuck gave up: the
+        // configured amplitude from then on, while slider 2 stands still.
+        assert!((peaks[5] - amp).abs() < 1e-3 * amp && (peaks[6] - amp).abs() < 1e-3 * amp);
         // Slider 2 follows the grown dither: back to the configured amplitude.
         for _ in 0..n {
             let (a, _) = p.dither(&st);
@@ -512,6 +534,19 @@ mod tests {
         }
         assert!(st.stuck());
         assert_eq!(st.gain(), 1.0);
+        // A load the published mean is sure of (its bound 1..3 N excludes
+        // zero): a stuck joint pressed against something, no growth.
+        let loaded = Averaged {
+            lo_n: 1.0,
+            hi_n: 3.0,
+            ..Averaged::default()
+        };
+        let mut pressed = ProbeState::default();
+        for _ in 0..4 * n {
+            p.update(&mut pressed, loaded, 0.0, false);
+        }
+        assert!(pressed.stuck() && pressed.mean().is_some());
+        assert_eq!(pressed.gain(), 1.0);
         // A configured largest at or below the amplitude: it never grows.
         let fixed = Probe::new(
             &ProbeConfig {

@@ -73,6 +73,7 @@ fn jaw_angle_from_the_input_side() {
     let deg = 180.0 / std::f64::consts::PI;
     let o = &a.outcome;
     let s = summary(&a, deg);
+    eprintln!("jaw angle: {s}");
     // Default inputs: motor angle, spindle angle, measured current, command.
     assert_eq!(
         a.problem.baseline_names,
@@ -80,13 +81,20 @@ fn jaw_angle_from_the_input_side() {
         "{s}"
     );
     assert!(o.final_fit.val_rmse < 0.6 * o.baseline.val_rmse, "{s}");
-    // 1.01° measured (every 10th row); 1.32° when do no harm set aside any
-    // term that raised one validation run's error by 1 %, significant or
-    // not, and before the stroke-held load.
-    assert!(o.final_fit.val_rmse * deg < 1.15, "{s}");
-    // Every kept term cut the validation error, in order.
+    // 0.77° measured (every 10th row, at most 8 terms); 1.01° before the
+    // stroke-held load's three parts were taken together as one effect,
+    // 1.32° when do no harm set aside any term that raised one validation
+    // run's error by 1 %, significant or not, and before the stroke-held
+    // load.
+    assert!(o.final_fit.val_rmse * deg < 0.9, "{s}");
+    // Every kept step cut the validation error, in order (the parts of a
+    // group share their step's fit).
     let mut last = o.baseline.val_rmse;
-    for st in &o.accepted {
+    for (k, st) in o.accepted.iter().enumerate() {
+        if k > 0 && st.group.is_some() && o.accepted[k - 1].group == st.group {
+            assert_eq!(st.fit.val_rmse, last, "{s}");
+            continue;
+        }
         assert!(st.fit.val_rmse < last * (1.0 - 0.01 + 1e-12), "{s}");
         last = st.fit.val_rmse;
     }
@@ -102,6 +110,9 @@ fn jaw_torque_from_the_input_side_and_with_the_input_torque_sensor() {
         plain.outcome.final_fit.val_rmse < 0.5 * plain.outcome.baseline.val_rmse,
         "{s}"
     );
+    // 5.8 mN·m measured (every 10th row, 8 terms); 11.0 before the
+    // stroke-held load's parts were taken together.
+    assert!(plain.outcome.final_fit.val_rmse < 7e-3, "{s}");
     let with_sensor = fit(
         "tau_ext_nm",
         Some(&["phi_rad", "spindle_rad", "i_meas_a", "cmd", "tau_in_nm"]),
@@ -109,9 +120,11 @@ fn jaw_torque_from_the_input_side_and_with_the_input_torque_sensor() {
         v,
     );
     let s2 = summary(&with_sensor, 1e3);
-    // 5.1 against 11.0 mN·m measured (every 10th row, 8 terms).
+    eprintln!("jaw torque: {s}\nwith the input torque sensor: {s2}");
+    // 4.4 against 5.8 mN·m measured (every 10th row, 8 terms; 5.1 against
+    // 11.0 before the stroke-held load's parts were taken together).
     assert!(
-        with_sensor.outcome.final_fit.val_rmse < 0.75 * plain.outcome.final_fit.val_rmse,
+        with_sensor.outcome.final_fit.val_rmse < 0.85 * plain.outcome.final_fit.val_rmse,
         "the input torque sensor helps: {s2} vs {s}"
     );
     assert!(with_sensor.outcome.final_fit.val_rmse < 6e-3, "{s2}");
@@ -153,15 +166,27 @@ fn five_runs_from_spindle_and_current_find_the_load_each_stroke_measured() {
     let deg = 180.0 / std::f64::consts::PI;
     let o = &a.outcome;
     let s = summary(&a, deg);
+    eprintln!("five runs: {s}");
     assert!(
         o.accepted
             .iter()
             .any(|st| st.label.starts_with("stroke_load")),
         "{s}"
     );
-    // 2.09° -> 0.76° measured here (every 10th row, 8 terms; 0.77° with the
-    // command's defaults); before the stroke-held load and the significance
-    // test: no term kept.
+    // Its three parts, taken together as one effect.
+    let parts = o
+        .accepted
+        .iter()
+        .filter(|st| {
+            st.group
+                .as_deref()
+                .is_some_and(|g| g.starts_with("stroke_load"))
+        })
+        .count();
+    assert!(parts >= 3, "{s}");
+    // 2.09° -> 0.71° measured here (every 10th row, 8 terms; 0.63° with the
+    // command's defaults); 0.76° before the parts were taken together;
+    // before the stroke-held load and the significance test: no term kept.
     assert!(o.final_fit.val_rmse < 0.5 * o.baseline.val_rmse, "{s}");
-    assert!(o.final_fit.val_rmse * deg < 1.0, "{s}");
+    assert!(o.final_fit.val_rmse * deg < 0.85, "{s}");
 }

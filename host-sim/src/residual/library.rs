@@ -211,6 +211,39 @@ pub fn candidate_library(spec: &LibrarySpec) -> Vec<Term> {
     v
 }
 
+/// Candidates that are parts of one effect and are taken together: the
+/// three parts of a `stroke_load` (the held load, the load times the
+/// direction, the direction) at one speed threshold and time constant. A
+/// load that the current carries with a gain and an offset of each stroke's
+/// own is `a u + b u sgn(v) + c sgn(v)`; one part alone is no such load
+/// estimate, and a forward selection that adds one column at a time may
+/// rank each part low (on the MRDLab runs each part alone raised the
+/// validation error) while the three together explain most of the
+/// residual. Each group is a list of indices into `candidates`, in the
+/// order Level, Signed, Direction; parts whose siblings are missing form
+/// no group.
+pub fn effect_groups(candidates: &[Term]) -> Vec<Vec<usize>> {
+    let part_of = |t: &Term| match t.kind {
+        EffectKind::StrokeHold { v_min, tau_s, part } => Some((t.input, t.aux, v_min, tau_s, part)),
+        _ => None,
+    };
+    let mut groups = Vec::new();
+    for (k, t) in candidates.iter().enumerate() {
+        let Some((input, aux, v_min, tau_s, StrokePart::Level)) = part_of(t) else {
+            continue;
+        };
+        let find = |want: StrokePart| {
+            candidates
+                .iter()
+                .position(|c| part_of(c) == Some((input, aux, v_min, tau_s, want)))
+        };
+        if let (Some(s), Some(d)) = (find(StrokePart::Signed), find(StrokePart::Direction)) {
+            groups.push(vec![k, s, d]);
+        }
+    }
+    groups
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -294,5 +327,31 @@ mod tests {
             ..spec
         };
         assert_eq!(candidate_library(&empty).len(), 5);
+    }
+
+    /// The three parts of each `stroke_load` form one group, in the order
+    /// level, signed, direction, at their own time constant; nothing else
+    /// is grouped, and a part without its siblings forms no group.
+    #[test]
+    fn the_parts_of_a_stroke_load_are_grouped_and_nothing_else() {
+        let mut lib = vec![
+            Term::new(EffectKind::Linear, 0),
+            Term::new(EffectKind::Cube, 0),
+        ];
+        for tau_s in [0.5, 2.0] {
+            for part in [StrokePart::Direction, StrokePart::Level, StrokePart::Signed] {
+                let kind = EffectKind::StrokeHold {
+                    v_min: 0.1,
+                    tau_s,
+                    part,
+                };
+                lib.push(Term::with_aux(kind, 3, 1));
+            }
+        }
+        let groups = effect_groups(&lib);
+        assert_eq!(groups, vec![vec![3, 4, 2], vec![6, 7, 5]]);
+        // Without its direction part the first is no group.
+        lib.remove(2);
+        assert_eq!(effect_groups(&lib), vec![vec![5, 6, 4]]);
     }
 }

@@ -59,6 +59,10 @@ pub struct Step {
     /// Correlation of the validation residual with the term's column,
     /// before (baseline) and after (final model); only for kept terms.
     pub evidence: Option<(f64, f64)>,
+    /// When the term is one part of an effect taken with its other parts
+    /// in the same step ([`effect_groups`](super::library::effect_groups)):
+    /// that effect's label. `err`, `fit` and `gain` are then the group's.
+    pub group: Option<String>,
 }
 
 /// A candidate of another effect family that explains the residual nearly

@@ -108,6 +108,7 @@ fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
         "gain": s.gain,
         "class": s.class,
         "rival": s.rival,
+        "group": s.group,
         "harm": s.harm.as_ref().map(|(run, rise)| json!({ "run": run, "rise": rise })),
         "evidence": s.evidence.map(|(before, after)| json!({
             "corr_before": before,
@@ -281,16 +282,35 @@ pub fn table(a: &Analysis) -> String {
 fn accepted_rows(s: &mut String, o: &Outcome, scale: f64) {
     let nb = o.baseline.coefs.len();
     for (k, st) in o.accepted.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            "{:<4}{:<44} {:>12.4} {:>12.4} {:>7.1}% {:>7.1}%",
-            format!("+{}", k + 1),
-            st.label,
-            st.fit.val_rmse * scale,
-            st.fit.train_rmse * scale,
-            100.0 * st.err,
-            100.0 * st.gain
-        );
+        // A group's parts share one step: its figures on the first part's
+        // row, the others named under it.
+        let later_part = k > 0 && st.group.is_some() && o.accepted[k - 1].group == st.group;
+        if let (Some(g), false) = (&st.group, later_part) {
+            let parts = o.accepted[k..]
+                .iter()
+                .take_while(|a| a.group.as_ref() == Some(g))
+                .count();
+            let _ = writeln!(s, "    one effect in {parts} parts, taken together: {g}");
+        }
+        if later_part {
+            let _ = writeln!(
+                s,
+                "{:<4}{:<44} (same step)",
+                format!("+{}", k + 1),
+                st.label
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "{:<4}{:<44} {:>12.4} {:>12.4} {:>7.1}% {:>7.1}%",
+                format!("+{}", k + 1),
+                st.label,
+                st.fit.val_rmse * scale,
+                st.fit.train_rmse * scale,
+                100.0 * st.err,
+                100.0 * st.gain
+            );
+        }
         if let Some(c) = o.final_fit.coefs.get(nb + k) {
             let _ = writeln!(
                 s,

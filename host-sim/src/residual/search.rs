@@ -115,6 +115,38 @@ impl Search {
         Some(errs)
     }
 
+    /// The error reduction ratio of the candidates `members` taken together
+    /// (one effect of several columns, [`effect_groups`](super::library::effect_groups)):
+    /// the share of the current residual's energy that the span of their
+    /// parts orthogonal to the model explains. `None` when a member is not
+    /// usable or already chosen, when the members are collinear with the
+    /// model or with each other, or when the residual is zero.
+    pub(super) fn group_err(&self, members: &[usize]) -> Option<f64> {
+        let rr = dot(&self.r, &self.r);
+        if rr <= 0.0
+            || members
+                .iter()
+                .any(|&k| !self.usable[k] || self.chosen.contains(&k))
+        {
+            return None;
+        }
+        let mut own: Vec<Vec<f64>> = Vec::with_capacity(members.len());
+        let mut explained = 0.0;
+        for &k in members {
+            let mut v = self.perp[k].clone();
+            project_out(&mut v, &own);
+            let n = dot(&v, &v).sqrt();
+            if n.is_nan() || n <= COLLINEAR_REL * self.norms0[k] {
+                return None;
+            }
+            v.iter_mut().for_each(|x| *x /= n);
+            explained += dot(&v, &self.r).powi(2);
+            own.push(v);
+        }
+        let err = explained / rr;
+        err.is_finite().then_some(err)
+    }
+
     /// Take candidate `k` into the model: its fit, its parameters, its runs'
     /// errors; the residual and the other candidates lose their part along it.
     pub(super) fn accept(

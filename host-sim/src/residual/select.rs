@@ -20,6 +20,15 @@
 //!    candidates in a row are set aside, or `max_terms` terms are in, the
 //!    selection stops. Training error never decides.
 //!
+//! Some effects are several columns that mean nothing apart: the three
+//! parts of a `stroke_load` (a load the current carries with a gain and an
+//! offset of each stroke's own, [`effect_groups`]). Such a group competes
+//! as one candidate, with the error reduction ratio of its parts' span, is
+//! judged and kept or set aside as one step, and counts as many terms as it
+//! has parts. On the MRDLab runs each part alone raised the validation
+//! error and was set aside, while the three together are the load estimate
+//! the jaw's angle and torque need.
+//!
 //! Here: the problem's data ([`Problem`], [`RunData`]), the options,
 //! [`select`] with its do-no-harm check and its per-run results. Steps 1-2
 //! (the orthogonal basis, the ratios, the best candidate) are in
@@ -32,6 +41,7 @@ use cable_joint::effects::Term;
 use cable_joint::filter::LowPass1;
 
 use super::families::{effect_class, term_label};
+use super::library::effect_groups;
 use super::outcome::{Outcome, Rival, RunError, RunTrace, Step};
 use super::search::{best, Search};
 use super::split::{check, corr, diagnostics, gather, model_fit, residual, Split};
@@ -160,6 +170,33 @@ impl Default for SelectOptions {
 /// of the taken term's ERR.
 pub const RIVAL_SHARE: f64 = 0.8;
 
+/// The label of a group of parts taken as one effect: the first part's
+/// label with every part's held signal, e.g.
+/// `stroke_load[u; u*sgn(v); sgn(v)](vmin=..,tau=..)`.
+fn group_name(members: &[usize], labels: &[String]) -> String {
+    let parts: Vec<&str> = members
+        .iter()
+        .filter_map(|&m| {
+            let l = labels[m].as_str();
+            let open = l.find('[')?;
+            let close = l.rfind(']')?;
+            l.get(open + 1..close)
+        })
+        .collect();
+    let first = &labels[members[0]];
+    match (first.find('['), first.rfind(']')) {
+        (Some(open), Some(close)) => {
+            format!(
+                "{}[{}]{}",
+                &first[..open],
+                parts.join("; "),
+                &first[close + 1..]
+            )
+        }
+        _ => first.clone(),
+    }
+}
+
 /// Run the selection.
 pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     check(problem)?;
@@ -189,14 +226,40 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     let mut accepted: Vec<Step> = Vec::new();
     let mut rejected: Vec<Step> = Vec::new();
     let mut set_aside = vec![false; problem.candidates.len()];
+    let groups = effect_groups(&problem.candidates);
+    let mut group_aside = vec![false; groups.len()];
     let mut misses = 0usize;
     while search.chosen.len() < opts.max_terms && misses < opts.patience {
         let Some(errs) = search.error_reduction_ratios(&set_aside) else {
             break;
         };
-        let Some((k, err)) = best(&errs, &classes, None) else {
-            break;
+        // The best single term, and the best group of parts of one effect
+        // that still fits in `max_terms`; a group competes with its ratio
+        // as one effect.
+        let room = opts.max_terms - search.chosen.len();
+        let single = best(&errs, &classes, None);
+        let group = groups
+            .iter()
+            .enumerate()
+            .filter(|(g, m)| !group_aside[*g] && m.len() <= room)
+            .filter_map(|(g, m)| search.group_err(m).map(|e| (g, e)))
+            .fold(None, |b: Option<(usize, f64)>, (g, e)| {
+                if b.is_none_or(|(_, be)| e > be) {
+                    Some((g, e))
+                } else {
+                    b
+                }
+            });
+        let (members, err, group_label) = match (single, group) {
+            (_, Some((g, ge))) if single.is_none_or(|(_, e)| ge > e) => (
+                groups[g].clone(),
+                ge,
+                Some((g, group_name(&groups[g], &labels))),
+            ),
+            (Some((k, e)), _) => (vec![k], e, None),
+            (None, _) => break,
         };
+        let k = members[0];
         let rival = best(&errs, &classes, Some(&classes[k]))
             .filter(|&(_, e)| e >= RIVAL_SHARE * err)
             .map(|(j, e)| Rival {
@@ -205,12 +268,16 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
                 err: e,
             });
         let mut idx = search.chosen.clone();
-        idx.push(k);
+        idx.extend(&members);
         let mut nm = search.names.clone();
-        nm.push(labels[k].clone());
+        nm.extend(members.iter().map(|&m| labels[m].clone()));
+        let set_aside_now = |set_aside: &mut [bool], group_aside: &mut [bool]| match group_label {
+            Some((g, _)) => group_aside[g] = true,
+            None => set_aside[k] = true,
+        };
         let Ok((mf, p)) = model_fit(&fit, &val, &idx, &nm) else {
             // Numerically dependent on the model: never a candidate again.
-            set_aside[k] = true;
+            set_aside_now(&mut set_aside, &mut group_aside);
             continue;
         };
         let gain = (search.current.val_rmse - mf.val_rmse) / search.current.val_rmse;
@@ -219,29 +286,36 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         // each harm nothing significant may still add up to harm.
         let harm = worst_harm(problem, &val, &cand_e, &search.current_e, opts.min_gain)
             .or_else(|| worst_harm(problem, &val, &cand_e, &base_e, opts.min_gain));
-        let term = problem.candidates[k];
-        let mut step = Step {
-            term,
-            candidate: k,
-            label: labels[k].clone(),
-            meaning: term.meaning(),
+        let step = |m: usize| Step {
+            term: problem.candidates[m],
+            candidate: m,
+            label: labels[m].clone(),
+            meaning: problem.candidates[m].meaning(),
             err,
             fit: mf.clone(),
             gain,
-            class: classes[k].clone(),
-            rival,
+            class: classes[m].clone(),
+            rival: rival.clone(),
             harm: None,
             evidence: None,
+            group: group_label.as_ref().map(|(_, l)| l.clone()),
         };
         if gain >= opts.min_gain && harm.is_none() {
-            search.accept(k, nm, mf, p, cand_e);
+            // Part by part into the basis; the fit is the whole group's.
+            for &m in &members {
+                search.accept(m, nm.clone(), mf.clone(), p.clone(), cand_e.clone());
+                accepted.push(step(m));
+            }
             misses = 0;
-            accepted.push(step);
         } else {
-            set_aside[k] = true;
+            set_aside_now(&mut set_aside, &mut group_aside);
             misses += 1;
-            step.harm = harm.filter(|_| gain >= opts.min_gain);
-            rejected.push(step);
+            let mut st = step(k);
+            if let Some((_, l)) = &group_label {
+                st.label = l.clone();
+            }
+            st.harm = harm.filter(|_| gain >= opts.min_gain);
+            rejected.push(st);
         }
     }
 
@@ -408,7 +482,7 @@ fn run_results(
 mod tests {
     use super::*;
     use crate::residual::families::term_column;
-    use cable_joint::effects::EffectKind;
+    use cable_joint::effects::{EffectKind, StrokePart};
 
     /// A run where `y = 2 + 0.5 u + 0.3 stop(u)`: the stop term must be found
     /// and its coefficient recovered; nothing else must be added.
@@ -621,5 +695,109 @@ mod tests {
         families.sort_unstable();
         assert_eq!(families, ["drift", "stiffness"]);
         assert!(rival.err >= RIVAL_SHARE * kept.err);
+    }
+
+    /// A load carried with a gain and an offset of each stroke's own:
+    /// `y = u + 0.9 held(u) - 0.3 held(u sgn v) - 0.07 held(sgn v)`, the
+    /// three `stroke_load` parts at one time constant. With only the
+    /// stroke's level among the candidates, nothing matches the load;
+    /// with all three parts the selection takes them in one step, as one
+    /// effect (each step names the group), recovers the coefficients and
+    /// leaves the noise.
+    #[test]
+    fn the_parts_of_one_stroke_load_are_taken_together() {
+        let part = |part| EffectKind::StrokeHold {
+            v_min: 0.05,
+            tau_s: 0.3,
+            part,
+        };
+        let parts = [StrokePart::Level, StrokePart::Signed, StrokePart::Direction];
+        let mk = |name: &str, f_hz: f64, level: f64| {
+            let n = 6000;
+            let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+            let w = 2.0 * std::f64::consts::PI * f_hz;
+            // Velocity and a load that depends on the stroke's direction.
+            let v: Vec<f32> = t.iter().map(|t| (w * t).cos() as f32).collect();
+            let u: Vec<f32> = v
+                .iter()
+                .zip(&t)
+                .map(|(v, t)| {
+                    (level * (1.0 + 0.4 * v.signum() as f64) + 0.05 * (7.0 * t).sin()) as f32
+                })
+                .collect();
+            let signals = vec![u.clone(), v];
+            let cols: Vec<Vec<f64>> = parts
+                .iter()
+                .map(|&p| term_column(&Term::with_aux(part(p), 0, 1), &signals, &t, None, None))
+                .collect();
+            let y: Vec<f64> = (0..n)
+                .map(|k| {
+                    f64::from(u[k]) + 0.9 * cols[0][k] - 0.3 * cols[1][k] - 0.07 * cols[2][k]
+                        + 1e-4 * ((k * 7919 % 1000) as f64 / 500.0 - 1.0)
+                })
+                .collect();
+            RunData {
+                name: name.into(),
+                fixed: vec![0.0; n],
+                baseline: vec![u.iter().map(|x| f64::from(*x)).collect(), vec![1.0; n]],
+                signals,
+                target: y,
+                fit_rows: 0..n,
+                val_rows: 0..0,
+                t_s: t,
+                ..Default::default()
+            }
+        };
+        let mut val = mk("val", 0.7, 1.5);
+        (val.fit_rows, val.val_rows) = (0..0, 0..val.t_s.len());
+        let problem = |candidates: Vec<Term>| Problem {
+            model: "generic".into(),
+            target: "y".into(),
+            baseline_names: vec!["u".into(), "const".into()],
+            signal_names: vec!["u".into(), "v".into()],
+            candidates,
+            runs: vec![mk("a", 0.5, 1.0), mk("b", 1.0, 2.0), val.clone()],
+            ..Default::default()
+        };
+        let all: Vec<Term> = parts
+            .iter()
+            .map(|&p| Term::with_aux(part(p), 0, 1))
+            .collect();
+        let out = select(&problem(all), &SelectOptions::default()).unwrap();
+        let labels: Vec<&String> = out.accepted.iter().map(|s| &s.label).collect();
+        assert_eq!(out.accepted.len(), 3, "accepted {labels:?}");
+        let group = out.accepted[0].group.clone().expect("taken as one effect");
+        assert!(
+            group.starts_with("stroke_load[u; u*sgn(v); sgn(v)]"),
+            "{group}"
+        );
+        for (s, want) in out.accepted.iter().zip(parts) {
+            assert_eq!(s.group.as_deref(), Some(group.as_str()));
+            assert!(matches!(s.term.kind, EffectKind::StrokeHold { part, .. } if part == want));
+        }
+        for (c, want) in out.final_fit.coefs[2..].iter().zip([0.9, -0.3, -0.07]) {
+            assert!(
+                (c.value - want).abs() < 0.01,
+                "{} = {} (want {want})",
+                c.name,
+                c.value
+            );
+        }
+        assert!(
+            out.after.rmse < 1e-3,
+            "left {} of {}",
+            out.after.rmse,
+            out.before.rmse
+        );
+        // The level alone (no group to take) leaves most of the load.
+        let level = vec![Term::with_aux(part(StrokePart::Level), 0, 1)];
+        let alone = select(&problem(level), &SelectOptions::default()).unwrap();
+        assert!(alone.accepted.iter().all(|s| s.group.is_none()));
+        assert!(
+            alone.after.rmse > 10.0 * out.after.rmse,
+            "the level alone {} against the group {}",
+            alone.after.rmse,
+            out.after.rmse
+        );
     }
 }

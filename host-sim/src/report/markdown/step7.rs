@@ -149,11 +149,15 @@ fn md_terms_added(out: &mut String, o: &Outcome, scale: f64, unit: &str) {
             .rival
             .as_ref()
             .map_or("no".into(), |r| format!("{} (`{}`)", r.class, r.label));
+        let label = match &s.group {
+            Some(g) => format!("`{}` (one part of `{g}`, taken together)", s.label),
+            None => format!("`{}`", s.label),
+        };
         let _ = writeln!(
             out,
-            "| {} | `{}` | {} | {} | {} | {:.1} % | {} | {} |",
+            "| {} | {} | {} | {} | {} | {:.1} % | {} | {} |",
             k + 1,
-            s.label,
+            label,
             s.class,
             s.meaning,
             fmt_num(s.fit.val_rmse * scale),

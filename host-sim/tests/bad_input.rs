@@ -150,6 +150,27 @@ fn validating_on_a_fitted_log_is_refused() {
     );
     assert!(err.contains("is also a fitted log"), "{err}");
     assert!(!config.exists(), "nothing written");
+    // A test log must have been neither fitted nor used to choose a term.
+    let third = simulated(d, "track-motor", 3.0, "third.csv");
+    for (used, what) in [
+        (&twin, "is also a fitted log"),
+        (&other, "is also a --validate log"),
+    ] {
+        let err = run_err(
+            host_sim()
+                .args(["residual", "--model", "jae", "--log"])
+                .arg(&log)
+                .arg("--validate")
+                .arg(&other)
+                .arg("--test")
+                .arg(&third)
+                .arg(used)
+                .arg("--config-out")
+                .arg(&config),
+        );
+        assert!(err.contains(what) && err.contains("--test"), "{err}");
+        assert!(!config.exists(), "nothing written");
+    }
 }
 
 /// `host-sim residual ... | head`: the reader of standard output goes away

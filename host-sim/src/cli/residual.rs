@@ -10,7 +10,7 @@ use crate::cli;
 use crate::import::MrdlabZero;
 use crate::output::Outputs;
 use crate::residual::{
-    analyse, config_with, read_logs, report, BuildOptions, ModelKind, SelectOptions,
+    analyse_tested, config_with, read_logs, report, BuildOptions, ModelKind, SelectOptions,
     GENERIC_MAX_TERMS,
 };
 
@@ -43,6 +43,12 @@ pub struct ResidualArgs {
     /// Logs to judge on (default: the last --holdout share of each --log).
     #[arg(long = "validate", num_args = 1..)]
     pub validate: Vec<PathBuf>,
+    /// Logs to test on: replayed like --validate, never fitted and never
+    /// used to choose a term, judged once by the chosen model (the
+    /// validation error decides what is kept, so it is a selected figure;
+    /// this one is not).
+    #[arg(long = "test", num_args = 1..)]
+    pub test: Vec<PathBuf>,
     /// Share of each fitting log held out when no --validate is given.
     #[arg(allow_negative_numbers = true, long, default_value_t = 0.3, value_parser = cli::f64_in(0.0, 0.95))]
     pub holdout: f64,
@@ -98,6 +104,28 @@ pub struct ResidualArgs {
     pub ticks_per_row: Option<u32>,
 }
 
+/// A `--test` log that is also fitted or validated is refused: it would
+/// not be a test of the chosen model.
+fn refuse_used_test(args: &ResidualArgs) -> Result<()> {
+    let resolved = |p: &PathBuf| p.canonicalize().unwrap_or_else(|_| p.clone());
+    for t in &args.test {
+        let r = resolved(t);
+        if args.logs.iter().any(|l| resolved(l) == r) {
+            bail!(
+                "--test {} is also a fitted log: a test needs data the fit did not see",
+                t.display()
+            );
+        }
+        if args.validate.iter().any(|v| resolved(v) == r) {
+            bail!(
+                "--test {} is also a --validate log: a test needs data that chose no term",
+                t.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Run the subcommand.
 pub fn run(args: ResidualArgs) -> Result<()> {
     if let Some(dir) = &args.plots {
@@ -130,6 +158,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         args.logs.iter().map(PathBuf::as_path),
         args.validate.iter().map(PathBuf::as_path),
     )?;
+    refuse_used_test(&args)?;
     let fit = read_logs(&args.logs, project, zero, args.t_max_s, args.ticks_per_row)?;
     let validate = read_logs(
         &args.validate,
@@ -138,6 +167,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         args.t_max_s,
         args.ticks_per_row,
     )?;
+    let test = read_logs(&args.test, project, zero, args.t_max_s, args.ticks_per_row)?;
     let options = SelectOptions {
         max_terms: args.max_terms.unwrap_or(kind.max_terms().0),
         min_gain: args.min_gain,
@@ -152,7 +182,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         other_sensors: args.other_sensors,
         holdout_with_validate: false,
     };
-    let a = analyse(kind, &fit, &validate, &config, build_opts, options)?;
+    let a = analyse_tested(kind, &fit, &validate, &test, &config, build_opts, options)?;
     crate::stdout!("{}", report::table(&a));
     // Every output is staged first and written only if all of them can be:
     // a failure leaves every existing file as it was.

@@ -135,6 +135,7 @@ pub(super) fn generic_run(
         signals,
         fit_rows: 0..0,
         val_rows: 0..0,
+        test_rows: 0..0,
         source_row: Vec::new(),
     })
 }

@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! host-sim residual --log FILE... [--model jae|tension|force | --target COL [--inputs COL,...]]
-//!                   [--validate FILE...] [--json OUT] [--plots DIR]
+//!                   [--validate FILE...] [--test FILE...] [--json OUT] [--plots DIR]
 //!                   [--config CFG] [--config-out OUT.toml]
 //! ```
 //!
@@ -48,7 +48,8 @@ use crate::import::MrdlabZero;
 
 pub use outcome::Outcome;
 pub use problem::{
-    build, is_reference, load_log, BuildOptions, ModelKind, NamedLog, REFERENCE_COLUMNS,
+    build, build_tested, is_reference, load_log, BuildOptions, ModelKind, NamedLog,
+    REFERENCE_COLUMNS,
 };
 pub use select::{select, Problem, SelectOptions};
 
@@ -70,6 +71,8 @@ pub struct Analysis {
     pub fit_logs: Vec<String>,
     /// Validation log names (empty: held-out part).
     pub validate_logs: Vec<String>,
+    /// Test log names (`--test`: judged once by the chosen model).
+    pub test_logs: Vec<String>,
     /// Share held out when no validation log was given.
     pub holdout: Option<f64>,
     /// How the problem was built.
@@ -126,6 +129,23 @@ pub fn analyse(
     validate: &[NamedLog],
     config: &Config,
     build_opts: BuildOptions,
+    options: SelectOptions,
+) -> Result<Analysis> {
+    analyse_tested(kind, fit, validate, &[], config, build_opts, options)
+}
+
+/// [`analyse`] with test logs: replayed like the validation logs, never
+/// fitted and never used to choose a term, judged once by the model the
+/// selection chose ([`Outcome::test_runs`]).
+/// The validation error decides what is kept, so it is a selected
+/// figure; the test logs' is not.
+pub fn analyse_tested(
+    kind: ModelKind,
+    fit: &[NamedLog],
+    validate: &[NamedLog],
+    test: &[NamedLog],
+    config: &Config,
+    build_opts: BuildOptions,
     mut options: SelectOptions,
 ) -> Result<Analysis> {
     let (cap, why) = kind.max_terms();
@@ -134,7 +154,7 @@ pub fn analyse(
         "at most {cap} effects ({why}), got {}",
         options.max_terms
     );
-    let (problem, _) = build(&kind, fit, validate, config, build_opts)?;
+    let (problem, _) = build_tested(&kind, fit, validate, test, config, build_opts)?;
     // The limit counts the terms the model already keeps.
     let used = match kind {
         ModelKind::Force => config.tension.added.len as usize,
@@ -157,6 +177,7 @@ pub fn analyse(
         options,
         fit_logs: fit.iter().map(|l| l.name.clone()).collect(),
         validate_logs: validate.iter().map(|l| l.name.clone()).collect(),
+        test_logs: test.iter().map(|l| l.name.clone()).collect(),
         holdout: (validate.is_empty() || build_opts.holdout_with_validate)
             .then_some(build_opts.holdout),
         build: build_opts,

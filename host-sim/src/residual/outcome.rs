@@ -116,7 +116,7 @@ pub struct RunTrace {
 pub struct RunError {
     /// Run name.
     pub name: String,
-    /// Validation rows used.
+    /// Rows judged (validation or test).
     pub rows: usize,
     /// Baseline RMSE.
     pub before_rmse: f64,
@@ -151,6 +151,9 @@ pub struct Outcome {
     pub runs: Vec<RunError>,
     /// Traces of the validation runs.
     pub traces: Vec<RunTrace>,
+    /// Per test run (`--test`: never fitted, never used to choose a term),
+    /// before and after; empty without test logs.
+    pub test_runs: Vec<RunError>,
 }
 
 impl Outcome {
@@ -162,6 +165,23 @@ impl Outcome {
             .zip(self.final_fit.coefs.iter().skip(nb))
             .map(|(s, c)| (s.term, c.value))
             .collect()
+    }
+
+    /// The pooled RMSE over the test runs, before and after (`None`
+    /// without test logs).
+    pub fn test_rmse(&self) -> Option<(f64, f64)> {
+        let n: usize = self.test_runs.iter().map(|r| r.rows).sum();
+        (n > 0).then(|| {
+            let pooled = |f: fn(&RunError) -> f64| {
+                let ss: f64 = self
+                    .test_runs
+                    .iter()
+                    .map(|r| r.rows as f64 * f(r).powi(2))
+                    .sum();
+                (ss / n as f64).sqrt()
+            };
+            (pooled(|r| r.before_rmse), pooled(|r| r.after_rmse))
+        })
     }
 
     /// The final baseline coefficients.

@@ -257,6 +257,20 @@ pub fn build(
     config: &Config,
     opts: BuildOptions,
 ) -> Result<(Problem, BuildInfo)> {
+    build_tested(kind, fit, validate, &[], config, opts)
+}
+
+/// [`build`] with test logs: each becomes a run whose rows (after
+/// `settle_s`) are test rows ([`RunData::test_rows`]), neither fitted nor
+/// used to choose a term.
+pub fn build_tested(
+    kind: &ModelKind,
+    fit: &[NamedLog],
+    validate: &[NamedLog],
+    test: &[NamedLog],
+    config: &Config,
+    opts: BuildOptions,
+) -> Result<(Problem, BuildInfo)> {
     ensure!(!fit.is_empty(), "no log to fit");
     ensure!(
         (0.0..1.0).contains(&opts.holdout),
@@ -274,35 +288,57 @@ pub fn build(
         ..Default::default()
     };
     let period0 = median_period_s(fit[0].log.time_s()?).context("log too short")?;
-    let (runs, info) = build_runs(kind, fit, validate, config, opts, period0, &mut problem)?;
+    let logs = Logs {
+        fit,
+        validate,
+        test,
+    };
+    let (runs, info) = build_runs(kind, &logs, config, opts, period0, &mut problem)?;
     problem.runs = runs;
     offer_candidates(kind, &mut problem, period0, opts);
     Ok((problem, info))
 }
 
+/// The logs of a problem by their use.
+struct Logs<'a> {
+    fit: &'a [NamedLog],
+    validate: &'a [NamedLog],
+    test: &'a [NamedLog],
+}
+
+/// What a log is for.
+#[derive(Clone, Copy, PartialEq)]
+enum Use {
+    Fit,
+    Validate,
+    Test,
+}
+
 /// Every log replayed into a run (its signals, target and baseline), with
-/// its fitting and validation rows; the configuration at the logs' rate.
+/// its fitting, validation or test rows; the configuration at the logs'
+/// rate.
 fn build_runs(
     kind: &ModelKind,
-    fit: &[NamedLog],
-    validate: &[NamedLog],
+    logs: &Logs,
     config: &Config,
     opts: BuildOptions,
     period0: f64,
     problem: &mut Problem,
 ) -> Result<(Vec<RunData>, BuildInfo)> {
+    let (fit, validate) = (logs.fit, logs.validate);
     let mut info = BuildInfo { config: *config };
     let all = fit
         .iter()
-        .map(|l| (l, true))
-        .chain(validate.iter().map(|l| (l, false)));
+        .map(|l| (l, Use::Fit))
+        .chain(validate.iter().map(|l| (l, Use::Validate)))
+        .chain(logs.test.iter().map(|l| (l, Use::Test)));
     let generic_cols = match kind {
         ModelKind::Generic { target, inputs } => Some(generic_columns(&fit[0], target, inputs)?),
         _ => None,
     };
     let mut runs = Vec::new();
     let mut control_period_s: Option<f32> = None;
-    for (nl, is_fit) in all {
+    for (nl, use_) in all {
         let p = median_period_s(nl.log.time_s()?).context("log too short")?;
         ensure!(
             p.is_finite() && p > 0.0,
@@ -342,7 +378,10 @@ fn build_runs(
         // the first sample) but neither fitted nor judged.
         let t0 = run.t_s.first().copied().unwrap_or(0.0);
         let start = run.t_s.partition_point(|t| *t < t0 + opts.settle_s).min(n);
-        let (f, v) = if !is_fit {
+        let (f, v) = if use_ == Use::Test {
+            run.test_rows = start..n;
+            (0..0, 0..0)
+        } else if use_ == Use::Validate {
             (0..0, start..n)
         } else if validate.is_empty() || opts.holdout_with_validate {
             let cut = ((1.0 - opts.holdout) * n as f64).round() as usize;
@@ -474,6 +513,7 @@ fn core_run(
             signals,
             fit_rows: 0..0,
             val_rows: 0..0,
+            test_rows: 0..0,
             source_row: replay.source_row,
         },
         cfg,

@@ -121,7 +121,8 @@ fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
 /// `after_rmse` (validation, SI unit), `baseline`, `effects` (kept, in
 /// order: `name`, `kind`, `meaning`, `signal`, `parameters`, `coef`,
 /// `val_rmse` after adding it, ...), `set_aside`, `final`, `diagnostics`,
-/// `runs`.
+/// `runs`, `test` (with `--test`: the test logs, `before_rmse`,
+/// `after_rmse` pooled and `runs`; else null).
 pub fn json(a: &Analysis) -> Value {
     let o = &a.outcome;
     let nb = o.baseline.coefs.len();
@@ -162,6 +163,12 @@ pub fn json(a: &Analysis) -> Value {
         "final": o.final_fit,
         "diagnostics": { "before": o.before, "after": o.after },
         "runs": o.runs,
+        "test": o.test_rmse().map(|(before, after)| json!({
+            "logs": a.test_logs,
+            "before_rmse": before,
+            "after_rmse": after,
+            "runs": o.test_runs,
+        })),
     })
 }
 
@@ -396,6 +403,28 @@ fn run_rows(s: &mut String, o: &Outcome, scale: f64, unit: &str) {
             "\nper validation run        RMSE before [{unit}]   after [{unit}]   mean after [{unit}]"
         );
         for r in &o.runs {
+            let _ = writeln!(
+                s,
+                "  {:<26} {:>12.4} {:>14.4} {:>16.4}",
+                r.name,
+                r.before_rmse * scale,
+                r.after_rmse * scale,
+                r.after_mean * scale
+            );
+        }
+    }
+    if let Some((before, after)) = o.test_rmse() {
+        let _ = writeln!(
+            s,
+            "\ntest (never fitted, never used to choose a term): RMSE {:.4} -> {:.4} {unit}",
+            before * scale,
+            after * scale
+        );
+        let _ = writeln!(
+            s,
+            "per test run              RMSE before [{unit}]   after [{unit}]   mean after [{unit}]"
+        );
+        for r in &o.test_runs {
             let _ = writeln!(
                 s,
                 "  {:<26} {:>12.4} {:>14.4} {:>16.4}",

@@ -74,6 +74,9 @@ pub struct RunData {
     pub fit_rows: Range<usize>,
     /// Rows used for validation.
     pub val_rows: Range<usize>,
+    /// Rows of a test log (`--test`): judged once, after the selection,
+    /// by the model it chose; never fitted and never used to choose.
+    pub test_rows: Range<usize>,
     /// A run replayed tick by tick ([`crate::derive::TickReplay`]): for
     /// each row, the log's row it is (`None` for a tick filled between a
     /// decimated or lossy log's rows, which is computed but neither fitted
@@ -207,7 +210,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         "{nb} baseline columns and {} terms exceed {MAX_COLUMNS} regressors",
         opts.max_terms
     );
-    let (fit, val) = gather(problem, opts.decimate)?;
+    let (fit, val, test) = gather(problem, opts.decimate)?;
     let labels: Vec<String> = problem
         .candidates
         .iter()
@@ -328,6 +331,14 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         step.evidence = Some((corr(&e_before, c), corr(&e_after, c)));
     }
     let (runs, traces) = run_results(problem, &val, &search, &e_before, &e_after);
+    // The test runs, judged once by the model chosen without them.
+    let (test_runs, _) = run_results(
+        problem,
+        &test,
+        &search,
+        &residual(&test, &[], &base_params),
+        &residual(&test, &search.chosen, &search.params),
+    );
     if !baseline.val_rmse.is_finite() {
         bail!("the baseline's validation error is not finite");
     }
@@ -343,6 +354,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         after,
         runs,
         traces,
+        test_runs,
     })
 }
 

@@ -104,19 +104,23 @@ pub(super) fn check(problem: &Problem) -> Result<()> {
     Ok(())
 }
 
-pub(super) fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split)> {
+/// The fitting, validation and test rows of every run, each split with the
+/// target, the baseline and every candidate's column.
+pub(super) fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split, Split)> {
     let mut fit = Split::default();
     let mut val = Split::default();
+    let mut test = Split::default();
     let nb = problem.baseline_names.len();
     let nc = problem.candidates.len();
-    for s in [&mut fit, &mut val] {
+    for s in [&mut fit, &mut val, &mut test] {
         s.base = vec![Vec::new(); nb];
         s.cand = vec![Vec::new(); nc];
     }
     for (ri, run) in problem.runs.iter().enumerate() {
         let fit_rows = rows_of(run, &run.fit_rows, decimate);
         let val_rows = rows_of(run, &run.val_rows, decimate);
-        if fit_rows.is_empty() && val_rows.is_empty() {
+        let test_rows = rows_of(run, &run.test_rows, decimate);
+        if fit_rows.is_empty() && val_rows.is_empty() && test_rows.is_empty() {
             continue;
         }
         let cols: Vec<Vec<f64>> = problem
@@ -132,7 +136,11 @@ pub(super) fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split
                 )
             })
             .collect();
-        for (s, rows) in [(&mut fit, fit_rows), (&mut val, val_rows)] {
+        for (s, rows) in [
+            (&mut fit, fit_rows),
+            (&mut val, val_rows),
+            (&mut test, test_rows),
+        ] {
             if rows.is_empty() {
                 continue;
             }
@@ -186,7 +194,7 @@ pub(super) fn gather(problem: &Problem, decimate: usize) -> Result<(Split, Split
             }
         );
     }
-    Ok((fit, val))
+    Ok((fit, val, test))
 }
 
 /// Least squares of `y` on the columns `idx_base` (baseline) and `idx_cand`

@@ -7,7 +7,7 @@ use anyhow::Result;
 use cable_joint::effects::Term;
 use serde_json::{json, Value};
 
-use super::outcome::{Coef, Diagnostics, Outcome, Step};
+use super::outcome::{Coef, Diagnostics, Outcome, RunError, Step};
 use super::Analysis;
 use crate::output::Outputs;
 use crate::plot::{stage_figure, Figure, Panel, Series};
@@ -395,23 +395,12 @@ fn other_sensors_row(s: &mut String, a: &Analysis) {
     }
 }
 
-/// Each validation run's error before and after (with several runs).
+/// Each validation run's error before and after (with several runs), and
+/// each test run's (with `--test`).
 fn run_rows(s: &mut String, o: &Outcome, scale: f64, unit: &str) {
     if o.runs.len() > 1 {
-        let _ = writeln!(
-            s,
-            "\nper validation run        RMSE before [{unit}]   after [{unit}]   mean after [{unit}]"
-        );
-        for r in &o.runs {
-            let _ = writeln!(
-                s,
-                "  {:<26} {:>12.4} {:>14.4} {:>16.4}",
-                r.name,
-                r.before_rmse * scale,
-                r.after_rmse * scale,
-                r.after_mean * scale
-            );
-        }
+        let _ = writeln!(s);
+        run_table(s, "per validation run", &o.runs, scale, unit);
     }
     if let Some((before, after)) = o.test_rmse() {
         let _ = writeln!(
@@ -420,20 +409,25 @@ fn run_rows(s: &mut String, o: &Outcome, scale: f64, unit: &str) {
             before * scale,
             after * scale
         );
+        run_table(s, "per test run", &o.test_runs, scale, unit);
+    }
+}
+
+/// One row per run: RMSE before and after, and the mean after.
+fn run_table(s: &mut String, title: &str, runs: &[RunError], scale: f64, unit: &str) {
+    let _ = writeln!(
+        s,
+        "{title:<26}RMSE before [{unit}]   after [{unit}]   mean after [{unit}]"
+    );
+    for r in runs {
         let _ = writeln!(
             s,
-            "per test run              RMSE before [{unit}]   after [{unit}]   mean after [{unit}]"
+            "  {:<26} {:>12.4} {:>14.4} {:>16.4}",
+            r.name,
+            r.before_rmse * scale,
+            r.after_rmse * scale,
+            r.after_mean * scale
         );
-        for r in &o.test_runs {
-            let _ = writeln!(
-                s,
-                "  {:<26} {:>12.4} {:>14.4} {:>16.4}",
-                r.name,
-                r.before_rmse * scale,
-                r.after_rmse * scale,
-                r.after_mean * scale
-            );
-        }
     }
 }
 

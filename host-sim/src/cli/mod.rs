@@ -44,14 +44,29 @@ pub fn refuse_fitted_validation<'a>(
     fit: impl IntoIterator<Item = &'a Path>,
     validate: impl IntoIterator<Item = &'a Path>,
 ) -> anyhow::Result<()> {
+    refuse_reused(
+        fit,
+        validate,
+        "--validate",
+        "a fitted log: validation needs data the fit did not see",
+    )
+}
+
+/// Refuses a file given as `flag` that is also one of `used`: `what` says
+/// what the earlier use is and why it disqualifies the file, e.g. "a
+/// fitted log: validation needs data the fit did not see". Paths are
+/// compared resolved, as in [`refuse_fitted_validation`].
+pub fn refuse_reused<'a>(
+    used: impl IntoIterator<Item = &'a Path>,
+    given: impl IntoIterator<Item = &'a Path>,
+    flag: &str,
+    what: &str,
+) -> anyhow::Result<()> {
     let resolved = |p: &Path| -> PathBuf { p.canonicalize().unwrap_or_else(|_| p.to_path_buf()) };
-    let fitted: Vec<PathBuf> = fit.into_iter().map(resolved).collect();
-    for v in validate {
-        if fitted.contains(&resolved(v)) {
-            anyhow::bail!(
-                "--validate {} is also a fitted log: validation needs data the fit did not see",
-                v.display()
-            );
+    let used: Vec<PathBuf> = used.into_iter().map(resolved).collect();
+    for g in given {
+        if used.contains(&resolved(g)) {
+            anyhow::bail!("{flag} {} is also {what}", g.display());
         }
     }
     Ok(())

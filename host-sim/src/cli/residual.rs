@@ -104,28 +104,6 @@ pub struct ResidualArgs {
     pub ticks_per_row: Option<u32>,
 }
 
-/// A `--test` log that is also fitted or validated is refused: it would
-/// not be a test of the chosen model.
-fn refuse_used_test(args: &ResidualArgs) -> Result<()> {
-    let resolved = |p: &PathBuf| p.canonicalize().unwrap_or_else(|_| p.clone());
-    for t in &args.test {
-        let r = resolved(t);
-        if args.logs.iter().any(|l| resolved(l) == r) {
-            bail!(
-                "--test {} is also a fitted log: a test needs data the fit did not see",
-                t.display()
-            );
-        }
-        if args.validate.iter().any(|v| resolved(v) == r) {
-            bail!(
-                "--test {} is also a --validate log: a test needs data that chose no term",
-                t.display()
-            );
-        }
-    }
-    Ok(())
-}
-
 /// Run the subcommand.
 pub fn run(args: ResidualArgs) -> Result<()> {
     if let Some(dir) = &args.plots {
@@ -158,7 +136,20 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         args.logs.iter().map(PathBuf::as_path),
         args.validate.iter().map(PathBuf::as_path),
     )?;
-    refuse_used_test(&args)?;
+    // A test log fitted or validated would not test the chosen model.
+    let test_paths = || args.test.iter().map(PathBuf::as_path);
+    super::refuse_reused(
+        args.logs.iter().map(PathBuf::as_path),
+        test_paths(),
+        "--test",
+        "a fitted log: a test needs data the fit did not see",
+    )?;
+    super::refuse_reused(
+        args.validate.iter().map(PathBuf::as_path),
+        test_paths(),
+        "--test",
+        "a --validate log: a test needs data that chose no term",
+    )?;
     let fit = read_logs(&args.logs, project, zero, args.t_max_s, args.ticks_per_row)?;
     let validate = read_logs(
         &args.validate,

@@ -67,14 +67,56 @@ pub fn effect_class(t: &Term, names: &[String], other: &[u8]) -> String {
     .to_string()
 }
 
+/// A signal's name, `#i` when it has none.
+fn signal_name(names: &[String], i: u8) -> String {
+    names
+        .get(i as usize)
+        .cloned()
+        .unwrap_or_else(|| format!("#{i}"))
+}
+
+/// What a `stroke_load` part holds, with signal names: `u`, `u*sgn(v)` or
+/// `sgn(v)`.
+fn stroke_held(t: &Term, part: StrokePart, names: &[String]) -> String {
+    let sig = |i: u8| signal_name(names, i);
+    match part {
+        StrokePart::Level => sig(t.input),
+        StrokePart::Signed => format!("{}*sgn({})", sig(t.input), sig(t.aux)),
+        StrokePart::Direction => format!("sgn({})", sig(t.aux)),
+    }
+}
+
+/// The label of parts taken together as one effect
+/// ([`effect_groups`](super::library::effect_groups)): for a `stroke_load`
+/// every part's held signal in one bracket,
+/// `stroke_load[u; u*sgn(v); sgn(v)](vmin=..,tau=..)`; otherwise the first
+/// part's label.
+pub fn group_label(parts: &[Term], names: &[String]) -> String {
+    let Some(first) = parts.first() else {
+        return String::new();
+    };
+    match first.kind {
+        EffectKind::StrokeHold { v_min, tau_s, .. } => {
+            let held: Vec<String> = parts
+                .iter()
+                .filter_map(|t| match t.kind {
+                    EffectKind::StrokeHold { part, .. } => Some(stroke_held(t, part, names)),
+                    _ => None,
+                })
+                .collect();
+            format!(
+                "{}[{}](vmin={v_min:.3e},tau={tau_s:.4}s)",
+                first.name(),
+                held.join("; ")
+            )
+        }
+        _ => term_label(first, names),
+    }
+}
+
 /// A term's name with signal names in place of indices.
 pub fn term_label(t: &Term, names: &[String]) -> String {
-    let sig = |i: u8| {
-        names
-            .get(i as usize)
-            .cloned()
-            .unwrap_or_else(|| format!("#{i}"))
-    };
+    let sig = |i: u8| signal_name(names, i);
     let n = t.name();
     match t.kind {
         EffectKind::Constant => n.to_owned(),
@@ -114,11 +156,7 @@ pub fn term_label(t: &Term, names: &[String]) -> String {
         | EffectKind::Thermal { tau_s }
         | EffectKind::LoadMemory { tau_s } => format!("{n}[{}](tau={tau_s:.4}s)", sig(t.input)),
         EffectKind::StrokeHold { v_min, tau_s, part } => {
-            let held = match part {
-                StrokePart::Level => sig(t.input),
-                StrokePart::Signed => format!("{}*sgn({})", sig(t.input), sig(t.aux)),
-                StrokePart::Direction => format!("sgn({})", sig(t.aux)),
-            };
+            let held = stroke_held(t, part, names);
             format!("{n}[{held}](vmin={v_min:.3e},tau={tau_s:.4}s)")
         }
     }

@@ -184,15 +184,21 @@ pub(super) fn best(
     classes: &[String],
     skip_class: Option<&str>,
 ) -> Option<(usize, f64)> {
-    errs.iter()
-        .enumerate()
-        .filter(|(k, _)| skip_class.is_none_or(|c| classes[*k] != c))
-        .filter_map(|(k, e)| e.map(|e| (k, e)))
-        .fold(None, |b: Option<(usize, f64)>, (k, e)| {
-            if b.is_none_or(|(_, be)| e > be) {
-                Some((k, e))
-            } else {
-                b
-            }
-        })
+    first_max(
+        errs.iter()
+            .enumerate()
+            .filter(|(k, _)| skip_class.is_none_or(|c| classes[*k] != c))
+            .filter_map(|(k, e)| e.map(|e| (k, e))),
+    )
+}
+
+/// The `(index, ratio)` with the largest ratio, the first of equals.
+pub(super) fn first_max(items: impl Iterator<Item = (usize, f64)>) -> Option<(usize, f64)> {
+    items.fold(None, |b: Option<(usize, f64)>, (k, e)| {
+        if b.is_none_or(|(_, be)| e > be) {
+            Some((k, e))
+        } else {
+            b
+        }
+    })
 }

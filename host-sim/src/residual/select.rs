@@ -40,10 +40,10 @@ use anyhow::{bail, ensure, Result};
 use cable_joint::effects::Term;
 use cable_joint::filter::LowPass1;
 
-use super::families::{effect_class, term_label};
+use super::families::{effect_class, group_label, term_label};
 use super::library::effect_groups;
 use super::outcome::{Outcome, Rival, RunError, RunTrace, Step};
-use super::search::{best, Search};
+use super::search::{best, first_max, Search};
 use super::split::{check, corr, diagnostics, gather, model_fit, residual, Split};
 use crate::stats::rms;
 
@@ -173,33 +173,6 @@ impl Default for SelectOptions {
 /// of the taken term's ERR.
 pub const RIVAL_SHARE: f64 = 0.8;
 
-/// The label of a group of parts taken as one effect: the first part's
-/// label with every part's held signal, e.g.
-/// `stroke_load[u; u*sgn(v); sgn(v)](vmin=..,tau=..)`.
-fn group_name(members: &[usize], labels: &[String]) -> String {
-    let parts: Vec<&str> = members
-        .iter()
-        .filter_map(|&m| {
-            let l = labels[m].as_str();
-            let open = l.find('[')?;
-            let close = l.rfind(']')?;
-            l.get(open + 1..close)
-        })
-        .collect();
-    let first = &labels[members[0]];
-    match (first.find('['), first.rfind(']')) {
-        (Some(open), Some(close)) => {
-            format!(
-                "{}[{}]{}",
-                &first[..open],
-                parts.join("; "),
-                &first[close + 1..]
-            )
-        }
-        _ => first.clone(),
-    }
-}
-
 /// Run the selection.
 pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     check(problem)?;
@@ -241,24 +214,22 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         // as one effect.
         let room = opts.max_terms - search.chosen.len();
         let single = best(&errs, &classes, None);
-        let group = groups
-            .iter()
-            .enumerate()
-            .filter(|(g, m)| !group_aside[*g] && m.len() <= room)
-            .filter_map(|(g, m)| search.group_err(m).map(|e| (g, e)))
-            .fold(None, |b: Option<(usize, f64)>, (g, e)| {
-                if b.is_none_or(|(_, be)| e > be) {
-                    Some((g, e))
-                } else {
-                    b
-                }
-            });
+        let group = first_max(
+            groups
+                .iter()
+                .enumerate()
+                .filter(|(g, m)| !group_aside[*g] && m.len() <= room)
+                .filter_map(|(g, m)| search.group_err(m).map(|e| (g, e))),
+        );
         let (members, err, group_label) = match (single, group) {
-            (_, Some((g, ge))) if single.is_none_or(|(_, e)| ge > e) => (
-                groups[g].clone(),
-                ge,
-                Some((g, group_name(&groups[g], &labels))),
-            ),
+            (_, Some((g, ge))) if single.is_none_or(|(_, e)| ge > e) => {
+                let parts: Vec<Term> = groups[g].iter().map(|&m| problem.candidates[m]).collect();
+                (
+                    groups[g].clone(),
+                    ge,
+                    Some((g, group_label(&parts, &problem.signal_names))),
+                )
+            }
             (Some((k, e)), _) => (vec![k], e, None),
             (None, _) => break,
         };
@@ -332,10 +303,9 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     }
     let (runs, traces) = run_results(problem, &val, &search, &e_before, &e_after);
     // The test runs, judged once by the model chosen without them.
-    let (test_runs, _) = run_results(
+    let test_runs = run_errors(
         problem,
         &test,
-        &search,
         &residual(&test, &[], &base_params),
         &residual(&test, &search.chosen, &search.params),
     );
@@ -433,6 +403,29 @@ fn batch_mean_se(d: &[f64], batches: usize) -> Option<(f64, f64)> {
     Some((mean, (var / batches as f64).sqrt()))
 }
 
+/// Each run of `split`: its RMSE before and after and its mean error after.
+fn run_errors(
+    problem: &Problem,
+    split: &Split,
+    e_before: &[f64],
+    e_after: &[f64],
+) -> Vec<RunError> {
+    split
+        .runs
+        .iter()
+        .map(|(ri, first, rows)| {
+            let seg = *first..*first + rows.len();
+            RunError {
+                name: problem.runs[*ri].name.clone(),
+                rows: rows.len(),
+                before_rmse: rms(&e_before[seg.clone()]),
+                after_rmse: rms(&e_after[seg.clone()]),
+                after_mean: e_after[seg].iter().sum::<f64>() / rows.len().max(1) as f64,
+            }
+        })
+        .collect()
+}
+
 /// Each validation run's errors before and after, and its traces for the
 /// plots (target, model before and after, each kept term's input and
 /// contribution).
@@ -444,18 +437,11 @@ fn run_results(
     e_after: &[f64],
 ) -> (Vec<RunError>, Vec<RunTrace>) {
     let nb = problem.baseline_names.len();
-    let mut runs = Vec::new();
+    let runs = run_errors(problem, val, e_before, e_after);
     let mut traces = Vec::new();
     for (ri, first, rows) in &val.runs {
         let run = &problem.runs[*ri];
         let seg = *first..*first + rows.len();
-        runs.push(RunError {
-            name: run.name.clone(),
-            rows: rows.len(),
-            before_rmse: rms(&e_before[seg.clone()]),
-            after_rmse: rms(&e_after[seg.clone()]),
-            after_mean: e_after[seg.clone()].iter().sum::<f64>() / rows.len().max(1) as f64,
-        });
         let target: Vec<f64> = rows.iter().map(|&k| run.target[k]).collect();
         let terms = search
             .chosen

@@ -10,7 +10,8 @@ use std::sync::OnceLock;
 use cable_joint::Config;
 use host_sim::import::MrdlabZero;
 use host_sim::residual::{
-    analyse, analyse_tested, read_logs, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions,
+    analyse, analyse_tested, read_logs, report::table, Analysis, BuildOptions, ModelKind, NamedLog,
+    SelectOptions,
 };
 
 fn runs(names: &[&str], zero: MrdlabZero) -> Vec<NamedLog> {
@@ -219,6 +220,12 @@ fn test_runs_are_judged_by_the_chosen_model_and_choose_nothing() {
     assert_eq!(labels(&alone), labels(&tested));
     assert_eq!(alone.outcome.final_fit, tested.outcome.final_fit);
     assert!(alone.outcome.test_runs.is_empty() && alone.outcome.test_rmse().is_none());
+    // Without test logs the output calls the validation error what it is,
+    // a selected figure; with them it gives the test runs' error instead.
+    let (alone_text, tested_text) = (table(&alone), table(&tested));
+    assert!(alone_text.contains("selected figure"), "{alone_text}");
+    assert!(!tested_text.contains("selected figure"), "{tested_text}");
+    assert!(tested_text.contains("test (never fitted, never used to choose a term)"));
     let names: Vec<&str> = tested
         .outcome
         .test_runs

@@ -420,6 +420,22 @@ fn bad_headers_are_reported() {
     assert_eq!((e.line, e.column.as_deref()), (Some(1), Some("x1_m")));
     let e = read_err("t_s,,x1_m\n", &Schema::any());
     assert!(matches!(e.kind, LogErrorKind::BadName), "{e}");
+    // A semicolon- or tab-separated export is named as such at its header,
+    // not as a log missing every column.
+    for (sep, what) in [(';', "`;`"), ('\t', "tabs")] {
+        let text = join(&good_lines(20)).replace(',', &sep.to_string());
+        let e = read_err(&text, &Schema::project());
+        assert!(
+            matches!(e.kind, LogErrorKind::NotCommaSeparated(c) if c == sep),
+            "{e}"
+        );
+        assert_eq!(e.line, Some(1), "{e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains(what) && msg.contains("comma-separated"),
+            "{msg}"
+        );
+    }
 }
 
 #[test]

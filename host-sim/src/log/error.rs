@@ -13,6 +13,9 @@ pub enum LogErrorKind {
     EmptyFile,
     /// A header field is empty, or a name contains a comma, quote or line break.
     BadName,
+    /// The header is one field that holds another separator (`;` or a tab):
+    /// the file is not comma-separated.
+    NotCommaSeparated(char),
     /// The same column name appears twice.
     DuplicateColumn,
     /// A required column is absent.
@@ -198,6 +201,16 @@ impl fmt::Display for LogError {
             LogErrorKind::BadName => write!(
                 f,
                 "bad column name (empty, or contains a comma, quote or line break)"
+            ),
+            LogErrorKind::NotCommaSeparated(sep) => write!(
+                f,
+                "the header is one field with {} in it: the log must be comma-separated \
+                 (`,` between fields, `.` as the decimal point), as DESIGN.md's CSV format says",
+                if *sep == '\t' {
+                    "tabs".to_owned()
+                } else {
+                    format!("`{sep}`")
+                }
             ),
             LogErrorKind::DuplicateColumn => write!(f, "column name appears twice"),
             LogErrorKind::MissingColumn => write!(f, "required column is missing"),

@@ -64,6 +64,14 @@ impl Log {
         if header_line != Some(1) || blank(&rec) {
             return Err(LogError::new(name, LogErrorKind::EmptyFile).at_line(1));
         }
+        // One header field holding another separator: a semicolon- or
+        // tab-separated file (a spreadsheet's export in some locales), which
+        // would otherwise read as one column and miss every required one.
+        if rec.len() == 1 {
+            if let Some(sep) = [';', '\t'].into_iter().find(|c| rec[0].contains(*c)) {
+                return Err(LogError::new(name, LogErrorKind::NotCommaSeparated(sep)).at_line(1));
+            }
+        }
         let mut log = Self::new();
         for (i, field) in rec.iter().enumerate() {
             let field = if i == 0 {

@@ -56,6 +56,22 @@ fn simulated(dir: &Path, scenario: &str, seconds: f64, name: &str) -> PathBuf {
     path
 }
 
+/// [`simulated`] with another noise seed: another run of the scenario.
+fn simulated_seed(dir: &Path, scenario: &str, seconds: f64, name: &str, seed: u64) -> PathBuf {
+    let path = dir.join(name);
+    run_ok(
+        host_sim()
+            .args(["simulate", "--tuned-gains", "--scenario", scenario])
+            .arg("--duration")
+            .arg(seconds.to_string())
+            .arg("--seed")
+            .arg(seed.to_string())
+            .arg("--out")
+            .arg(&path),
+    );
+    path
+}
+
 #[cfg(unix)]
 fn mode(p: &Path) -> u32 {
     use std::os::unix::fs::PermissionsExt;
@@ -171,6 +187,47 @@ fn validating_on_a_fitted_log_is_refused() {
         assert!(err.contains(what) && err.contains("--test"), "{err}");
         assert!(!config.exists(), "nothing written");
     }
+    // The same run under another name (a copy) passes the path checks; its
+    // data do not, in any role.
+    let copy = d.join("copy.csv");
+    std::fs::copy(&log, &copy).unwrap();
+    let fresh = simulated_seed(d, "track-motor", 3.0, "fresh.csv", 99);
+    for (roles, what) in [
+        (
+            ["--log", "--validate", "--test"],
+            "--validate copy.csv holds the same data as run.csv",
+        ),
+        (
+            ["--log", "--test", "--validate"],
+            "--test copy.csv holds the same data as run.csv",
+        ),
+        (
+            ["--validate", "--test", "--log"],
+            "--test copy.csv holds the same data as run.csv",
+        ),
+    ] {
+        let mut cmd = host_sim();
+        cmd.args(["residual", "--model", "jae"]);
+        for (role, file) in roles.iter().zip([&log, &copy, &fresh]) {
+            cmd.arg(role).arg(file);
+        }
+        let err = run_err(cmd.arg("--config-out").arg(&config));
+        assert!(err.contains(what), "{what}: {err}");
+        assert!(!config.exists(), "nothing written");
+    }
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--model", "jae", "--log"])
+            .arg(&log)
+            .arg(&copy)
+            .arg("--validate")
+            .arg(&fresh),
+    );
+    assert!(
+        err.contains("--log copy.csv holds the same data as run.csv"),
+        "{err}"
+    );
+    assert!(err.contains("fitted twice"), "{err}");
 }
 
 /// `host-sim residual ... | head`: the reader of standard output goes away

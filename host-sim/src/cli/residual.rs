@@ -10,8 +10,8 @@ use crate::cli;
 use crate::import::MrdlabZero;
 use crate::output::Outputs;
 use crate::residual::{
-    analyse_tested, config_with, read_logs, report, BuildOptions, ModelKind, SelectOptions,
-    GENERIC_MAX_TERMS,
+    analyse_tested, config_with, read_logs, report, BuildOptions, ModelKind, NamedLog,
+    SelectOptions, GENERIC_MAX_TERMS,
 };
 
 /// Model choice on the command line.
@@ -159,6 +159,27 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         args.ticks_per_row,
     )?;
     let test = read_logs(&args.test, project, zero, args.t_max_s, args.ticks_per_row)?;
+    // The same run under two names (a copy, the `.gz` and its unpacked
+    // file) passes the path checks above; its data do not.
+    refuse_same_data(&fit, &fit, "--log", "fitted twice, it would weigh double")?;
+    refuse_same_data(
+        &fit,
+        &validate,
+        "--validate",
+        "validation needs data the fit did not see",
+    )?;
+    refuse_same_data(
+        &fit,
+        &test,
+        "--test",
+        "a test needs data the fit did not see",
+    )?;
+    refuse_same_data(
+        &validate,
+        &test,
+        "--test",
+        "a test needs data that chose no term",
+    )?;
     let options = SelectOptions {
         max_terms: args.max_terms.unwrap_or(kind.max_terms().0),
         min_gain: args.min_gain,
@@ -201,6 +222,24 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         .collect();
     if !written.is_empty() {
         crate::stdoutln!("wrote {}", written.join(", "));
+    }
+    Ok(())
+}
+
+/// Refuses a log of `given` whose data (every column, row for row) are
+/// those of a log of `used` (of another log of `given` when both are the
+/// same list): `why` says why that disqualifies it.
+fn refuse_same_data(used: &[NamedLog], given: &[NamedLog], flag: &str, why: &str) -> Result<()> {
+    let same_list = std::ptr::eq(used, given);
+    for (j, g) in given.iter().enumerate() {
+        let earlier = if same_list { &used[..j] } else { used };
+        if let Some(u) = earlier.iter().find(|u| u.log == g.log) {
+            bail!(
+                "{flag} {} holds the same data as {} (one run under two names?): {why}",
+                g.name,
+                u.name
+            );
+        }
     }
     Ok(())
 }

@@ -133,9 +133,10 @@ fn an_output_directory_that_is_a_file_is_refused_with_that_reason() {
 }
 
 /// A validation log that is also fitted (here under another spelling of
-/// its path) is refused by `residual` and `identify`: a model scored on
-/// its own data says nothing about data it has not seen (`identify` per
-/// model: a log fitted for the JAE may validate B_m). Nothing written.
+/// its path, then as a copy under another name) is refused by `residual`
+/// and `identify`: a model scored on its own data says nothing about data
+/// it has not seen (`identify` per model: a log fitted for the JAE may
+/// validate B_m). Nothing written.
 #[test]
 fn validating_on_a_fitted_log_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -228,6 +229,17 @@ fn validating_on_a_fitted_log_is_refused() {
         "{err}"
     );
     assert!(err.contains("fitted twice"), "{err}");
+    let err = run_err(
+        host_sim()
+            .args(["identify", "--procedure", "jae", "--log"])
+            .arg(&log)
+            .arg("--validate")
+            .arg(&copy)
+            .arg("--config-out")
+            .arg(&config),
+    );
+    assert!(err.contains("holds the same data as"), "{err}");
+    assert!(!config.exists(), "nothing written");
 }
 
 /// `host-sim residual ... | head`: the reader of standard output goes away

@@ -298,7 +298,25 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
         if logs.is_empty() {
             bail!("no log for the {p:?} procedure");
         }
-        read.push((p, logs, read_logs(&vals, p, args.ticks_per_row)?));
+        let val_logs = read_logs(&vals, p, args.ticks_per_row)?;
+        // One run under two names passes the path checks; its data do not.
+        fn named(v: &[(String, Log)]) -> Vec<(&str, &Log)> {
+            v.iter().map(|(n, l)| (n.as_str(), l)).collect()
+        }
+        let (fit_d, val_d) = (named(&logs), named(&val_logs));
+        super::refuse_same_data(
+            &fit_d,
+            &fit_d,
+            "--log",
+            "fitted twice, it would weigh double",
+        )?;
+        super::refuse_same_data(
+            &fit_d,
+            &val_d,
+            "--validate",
+            "validation needs data the fit did not see",
+        )?;
+        read.push((p, logs, val_logs));
     }
     let runs = |p: Procedure| {
         read.iter().find(|(q, _, _)| *q == p).map(|(_, f, v)| Runs {

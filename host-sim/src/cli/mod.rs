@@ -72,6 +72,29 @@ pub fn refuse_reused<'a>(
     Ok(())
 }
 
+/// Refuses a log of `given` whose data (every column, row for row) are
+/// those of a log of `used`, or of an earlier log of `given` when `used` is
+/// the same list: one run under two names (a copy, the `.gz` and its
+/// unpacked file), which the path checks ([`refuse_reused`]) let through.
+/// `why` says why that disqualifies it.
+pub fn refuse_same_data(
+    used: &[(&str, &crate::log::Log)],
+    given: &[(&str, &crate::log::Log)],
+    flag: &str,
+    why: &str,
+) -> anyhow::Result<()> {
+    let same_list = std::ptr::eq(used, given);
+    for (j, (name, log)) in given.iter().enumerate() {
+        let earlier = if same_list { &used[..j] } else { used };
+        if let Some((u, _)) = earlier.iter().find(|(_, l)| l == log) {
+            anyhow::bail!(
+                "{flag} {name} holds the same data as {u} (one run under two names?): {why}"
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Parses a number and checks it: finite, `>= lo` (or `> lo` when
 /// `lo_open`) and `<= hi`.
 fn parse_in<T>(text: &str, lo: T, lo_open: bool, hi: T) -> Result<T, String>

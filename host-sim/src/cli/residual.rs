@@ -161,22 +161,31 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     let test = read_logs(&args.test, project, zero, args.t_max_s, args.ticks_per_row)?;
     // The same run under two names (a copy, the `.gz` and its unpacked
     // file) passes the path checks above; its data do not.
-    refuse_same_data(&fit, &fit, "--log", "fitted twice, it would weigh double")?;
-    refuse_same_data(
-        &fit,
-        &validate,
+    fn named(logs: &[NamedLog]) -> Vec<(&str, &crate::log::Log)> {
+        logs.iter().map(|l| (l.name.as_str(), &l.log)).collect()
+    }
+    let (fit_d, val_d, test_d) = (named(&fit), named(&validate), named(&test));
+    super::refuse_same_data(
+        &fit_d,
+        &fit_d,
+        "--log",
+        "fitted twice, it would weigh double",
+    )?;
+    super::refuse_same_data(
+        &fit_d,
+        &val_d,
         "--validate",
         "validation needs data the fit did not see",
     )?;
-    refuse_same_data(
-        &fit,
-        &test,
+    super::refuse_same_data(
+        &fit_d,
+        &test_d,
         "--test",
         "a test needs data the fit did not see",
     )?;
-    refuse_same_data(
-        &validate,
-        &test,
+    super::refuse_same_data(
+        &val_d,
+        &test_d,
         "--test",
         "a test needs data that chose no term",
     )?;
@@ -222,24 +231,6 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         .collect();
     if !written.is_empty() {
         crate::stdoutln!("wrote {}", written.join(", "));
-    }
-    Ok(())
-}
-
-/// Refuses a log of `given` whose data (every column, row for row) are
-/// those of a log of `used` (of another log of `given` when both are the
-/// same list): `why` says why that disqualifies it.
-fn refuse_same_data(used: &[NamedLog], given: &[NamedLog], flag: &str, why: &str) -> Result<()> {
-    let same_list = std::ptr::eq(used, given);
-    for (j, g) in given.iter().enumerate() {
-        let earlier = if same_list { &used[..j] } else { used };
-        if let Some(u) = earlier.iter().find(|u| u.log == g.log) {
-            bail!(
-                "{flag} {} holds the same data as {} (one run under two names?): {why}",
-                g.name,
-                u.name
-            );
-        }
     }
     Ok(())
 }

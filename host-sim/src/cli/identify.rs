@@ -303,19 +303,7 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
         fn named(v: &[(String, Log)]) -> Vec<(&str, &Log)> {
             v.iter().map(|(n, l)| (n.as_str(), l)).collect()
         }
-        let (fit_d, val_d) = (named(&logs), named(&val_logs));
-        super::refuse_same_data(
-            &fit_d,
-            &fit_d,
-            "--log",
-            "fitted twice, it would weigh double",
-        )?;
-        super::refuse_same_data(
-            &fit_d,
-            &val_d,
-            "--validate",
-            "validation needs data the fit did not see",
-        )?;
+        super::refuse_copies(&named(&logs), &named(&val_logs), &[])?;
         read.push((p, logs, val_logs));
     }
     let runs = |p: Procedure| {

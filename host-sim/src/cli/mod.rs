@@ -72,12 +72,35 @@ pub fn refuse_reused<'a>(
     Ok(())
 }
 
-/// Refuses a log of `given` whose data (every column, row for row) are
-/// those of a log of `used`, or of an earlier log of `given` when `used` is
-/// the same list: one run under two names (a copy, the `.gz` and its
-/// unpacked file), which the path checks ([`refuse_reused`]) let through.
-/// `why` says why that disqualifies it.
-pub fn refuse_same_data(
+/// Refuses one run given under two names (a copy, the `.gz` and its
+/// unpacked file), which the path checks ([`refuse_reused`]) let through:
+/// a log fitted twice, a validation log holding a fitted log's data, a
+/// test log holding a fitted or validation log's. Logs are `(name, data)`;
+/// data are the same when every column is, row for row.
+pub fn refuse_copies(
+    fit: &[(&str, &crate::log::Log)],
+    validate: &[(&str, &crate::log::Log)],
+    test: &[(&str, &crate::log::Log)],
+) -> anyhow::Result<()> {
+    same_data(fit, fit, "--log", "fitted twice, it would weigh double")?;
+    same_data(
+        fit,
+        validate,
+        "--validate",
+        "validation needs data the fit did not see",
+    )?;
+    same_data(fit, test, "--test", "a test needs data the fit did not see")?;
+    same_data(
+        validate,
+        test,
+        "--test",
+        "a test needs data that chose no term",
+    )
+}
+
+/// A log of `given` whose data are those of a log of `used`, or of an
+/// earlier log of `given` when `used` is the same list, refused with `why`.
+fn same_data(
     used: &[(&str, &crate::log::Log)],
     given: &[(&str, &crate::log::Log)],
     flag: &str,

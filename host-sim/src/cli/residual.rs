@@ -164,31 +164,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     fn named(logs: &[NamedLog]) -> Vec<(&str, &crate::log::Log)> {
         logs.iter().map(|l| (l.name.as_str(), &l.log)).collect()
     }
-    let (fit_d, val_d, test_d) = (named(&fit), named(&validate), named(&test));
-    super::refuse_same_data(
-        &fit_d,
-        &fit_d,
-        "--log",
-        "fitted twice, it would weigh double",
-    )?;
-    super::refuse_same_data(
-        &fit_d,
-        &val_d,
-        "--validate",
-        "validation needs data the fit did not see",
-    )?;
-    super::refuse_same_data(
-        &fit_d,
-        &test_d,
-        "--test",
-        "a test needs data the fit did not see",
-    )?;
-    super::refuse_same_data(
-        &val_d,
-        &test_d,
-        "--test",
-        "a test needs data that chose no term",
-    )?;
+    super::refuse_copies(&named(&fit), &named(&validate), &named(&test))?;
     let options = SelectOptions {
         max_terms: args.max_terms.unwrap_or(kind.max_terms().0),
         min_gain: args.min_gain,

@@ -1056,4 +1056,8 @@ fn residual_quotes_a_huge_column_name_in_its_message() {
         &err[..err.len().min(500)]
     );
     assert!(err.len() < 10_000, "{} bytes of stderr", err.len());
+    // The long name is listed, quoted (its first characters and its size).
+    let q = host_sim::log::quoted(&huge);
+    assert!(q.ends_with(" (5000002 bytes)"), "{q}");
+    assert!(err.contains(&q), "{}", &err[..err.len().min(500)]);
 }

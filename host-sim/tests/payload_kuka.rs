@@ -192,6 +192,22 @@ fn bad_input_names_file_line_column() {
     a.dir = tmp.path().to_path_buf();
     let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
     assert!(msg.contains("2-vibrations"), "{msg}");
+
+    // A finite reading the core's f32 cannot hold (accel file restored):
+    // refused where the estimate meets it, with the wrench file's line.
+    std::fs::write(&path, text).unwrap();
+    let path = tmp.path().join("2-vibrations_wrench.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let mut cells: Vec<String> = lines[499].split(',').map(str::to_owned).collect();
+    cells[1] = "1e300".to_owned();
+    lines[499] = cells.join(",");
+    std::fs::write(&path, lines.join("\n")).unwrap();
+    let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
+    assert!(
+        msg.contains("2-vibrations_wrench.csv line 500") && msg.contains("NaN or infinity"),
+        "{msg}"
+    );
 }
 
 /// A library caller of `analyse` gets the checks of the command line's

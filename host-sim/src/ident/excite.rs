@@ -744,7 +744,7 @@ mod tests {
     };
 
     #[test]
-    fn the_design_beats_its_random_starts_and_keeps_every_limit() {
+    fn the_design_beats_random_series_at_rest_and_keeps_every_limit() {
         let opts = DesignOptions {
             restarts: 3,
             ..DesignOptions::for_run(20.0, LIMITS)

@@ -13,8 +13,8 @@ pub enum LogErrorKind {
     EmptyFile,
     /// A header field is empty, or a name contains a comma, quote or line break.
     BadName,
-    /// The header is one field that holds another separator (`;` or a tab):
-    /// the file is not comma-separated.
+    /// The header is one field that holds another separator (`;` or a tab)
+    /// and a required column is missing: the file is not comma-separated.
     NotCommaSeparated(char),
     /// The same column name appears twice.
     DuplicateColumn,
@@ -204,8 +204,8 @@ impl fmt::Display for LogError {
             ),
             LogErrorKind::NotCommaSeparated(sep) => write!(
                 f,
-                "the header is one field with {} in it: the log must be comma-separated \
-                 (`,` between fields, `.` as the decimal point), as DESIGN.md's CSV format says",
+                "the header is one field with {} in it: the file must be comma-separated \
+                 (`,` between fields, `.` as the decimal point)",
                 if *sep == '\t' {
                     "tabs".to_owned()
                 } else {

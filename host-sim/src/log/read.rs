@@ -64,14 +64,6 @@ impl Log {
         if header_line != Some(1) || blank(&rec) {
             return Err(LogError::new(name, LogErrorKind::EmptyFile).at_line(1));
         }
-        // One header field holding another separator: a semicolon- or
-        // tab-separated file (a spreadsheet's export in some locales), which
-        // would otherwise read as one column and miss every required one.
-        if rec.len() == 1 {
-            if let Some(sep) = [';', '\t'].into_iter().find(|c| rec[0].contains(*c)) {
-                return Err(LogError::new(name, LogErrorKind::NotCommaSeparated(sep)).at_line(1));
-            }
-        }
         let mut log = Self::new();
         for (i, field) in rec.iter().enumerate() {
             let field = if i == 0 {
@@ -98,8 +90,21 @@ impl Log {
         }
         // Required columns are checked before the data so that a wrong file
         // is reported at its header, not at some cell.
+        // One header field holding another separator, and a required
+        // column missing: a semicolon- or tab-separated file (a
+        // spreadsheet's export in some locales), which reads as one column.
+        // (A one-column log may be named so; only a missing column says
+        // the file is not one.)
+        let separator = (rec.len() == 1)
+            .then(|| [';', '\t'].into_iter().find(|c| rec[0].contains(*c)))
+            .flatten();
         for req in &schema.required {
             if !log.has(req) {
+                if let Some(sep) = separator {
+                    return Err(
+                        LogError::new(name, LogErrorKind::NotCommaSeparated(sep)).at_line(1)
+                    );
+                }
                 return Err(LogError::new(name, LogErrorKind::MissingColumn)
                     .at_line(1)
                     .in_column(req.as_str()));

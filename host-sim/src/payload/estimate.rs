@@ -34,7 +34,8 @@ pub fn estimate(
         tracked: Vec::with_capacity(kin.len()),
     };
     let mut prev = None;
-    for (k, (t, w)) in kin.iter().zip(run.wrench.t_s.iter().zip(&run.wrench.v)) {
+    let rows = kin.iter().zip(run.wrench.t_s.iter().zip(&run.wrench.v));
+    for (row, (k, (t, w))) in rows.enumerate() {
         let dt = prev.map_or(0.0, |p| t - p) as f32;
         prev = Some(*t);
         let k32 = Kinematics {
@@ -44,9 +45,17 @@ pub fn estimate(
             alpha_rad_s2: k.alpha_rad_s2.map(|v| v as f32),
         };
         let meas = Wrench::<f32>::from(w.map(|v| v as f32));
-        let fe = model
-            .estimate(&mut state, &k32, &meas, dt)
-            .map_err(|e| anyhow!("{}: estimate at {t:.4} s: {e}", run.name))?;
+        let fe = model.estimate(&mut state, &k32, &meas, dt).map_err(|e| {
+            // The wrench row's line (header on line 1) and its values: a
+            // reading the core's f32 cannot hold, or whose products
+            // overflow, is named where it is.
+            anyhow!(
+                "{}: estimate at {t:.4} s ({}_wrench.csv line {}, wrench {w:?}): {e}",
+                run.name,
+                run.name,
+                row + 2
+            )
+        })?;
         let tr = tracker.process(&fe, *t < tare_s);
         out.raw_model
             .push(std::array::from_fn(|i| f64::from(fe[i])));

@@ -240,10 +240,7 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
                 .collect()
         };
         let (fit_files, val_files) = (files(&fits), files(&vals));
-        super::refuse_fitted_validation(
-            fit_files.iter().map(PathBuf::as_path),
-            val_files.iter().map(PathBuf::as_path),
-        )?;
+        super::refuse_reused_files(&fit_files, &val_files, &[])?;
     }
     if args.procedure == Procedure::Weights {
         let wopts = WeightsOptions {

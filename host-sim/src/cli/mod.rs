@@ -35,67 +35,68 @@ use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-/// Refuses a validation file that is also fitted: a model scored on its
-/// own data says nothing about data it has not seen. One file under two
-/// spellings (`./a.csv`, `a.csv`, a link) is the same file; a path that
-/// cannot be resolved is compared as written (reading it fails later with
-/// its own error).
-pub fn refuse_fitted_validation<'a>(
-    fit: impl IntoIterator<Item = &'a Path>,
-    validate: impl IntoIterator<Item = &'a Path>,
+/// Why a validation log must not be a fitted one.
+const VALIDATION_UNSEEN: &str = "validation needs data the fit did not see";
+/// Why a test log must not be a fitted one.
+const TEST_UNSEEN: &str = "a test needs data the fit did not see";
+/// Why a test log must not be a validation one.
+const TEST_UNCHOSEN: &str = "a test needs data that chose no term";
+
+/// Refuses a file given to validate or test that is also fitted, and a
+/// test file that also validates: a model scored on data that fitted it
+/// or chose its terms says nothing about data it has not seen. One file
+/// under two spellings (`./a.csv`, `a.csv`, a link) is the same file; a
+/// path that cannot be resolved is compared as written (reading it fails
+/// later with its own error). A copy under another name is caught once
+/// the logs are read ([`refuse_copies`]).
+pub fn refuse_reused_files(
+    fit: &[PathBuf],
+    validate: &[PathBuf],
+    test: &[PathBuf],
 ) -> anyhow::Result<()> {
-    refuse_reused(
+    reused(
         fit,
         validate,
         "--validate",
-        "a fitted log: validation needs data the fit did not see",
-    )
+        "a fitted log",
+        VALIDATION_UNSEEN,
+    )?;
+    reused(fit, test, "--test", "a fitted log", TEST_UNSEEN)?;
+    reused(validate, test, "--test", "a --validate log", TEST_UNCHOSEN)
 }
 
-/// Refuses a file given as `flag` that is also one of `used`: `what` says
-/// what the earlier use is and why it disqualifies the file, e.g. "a
-/// fitted log: validation needs data the fit did not see". Paths are
-/// compared resolved, as in [`refuse_fitted_validation`].
-pub fn refuse_reused<'a>(
-    used: impl IntoIterator<Item = &'a Path>,
-    given: impl IntoIterator<Item = &'a Path>,
+/// A file of `given` that is also one of `used` (`what`), refused with `why`.
+fn reused(
+    used: &[PathBuf],
+    given: &[PathBuf],
     flag: &str,
     what: &str,
+    why: &str,
 ) -> anyhow::Result<()> {
     let resolved = |p: &Path| -> PathBuf { p.canonicalize().unwrap_or_else(|_| p.to_path_buf()) };
-    let used: Vec<PathBuf> = used.into_iter().map(resolved).collect();
+    let used: Vec<PathBuf> = used.iter().map(|p| resolved(p)).collect();
     for g in given {
         if used.contains(&resolved(g)) {
-            anyhow::bail!("{flag} {} is also {what}", g.display());
+            anyhow::bail!("{flag} {} is also {what}: {why}", g.display());
         }
     }
     Ok(())
 }
 
 /// Refuses one run given under two names (a copy, the `.gz` and its
-/// unpacked file), which the path checks ([`refuse_reused`]) let through:
-/// a log fitted twice, a validation log holding a fitted log's data, a
-/// test log holding a fitted or validation log's. Logs are `(name, data)`;
-/// data are the same when every column is, row for row.
+/// unpacked file), which the path checks ([`refuse_reused_files`]) let
+/// through: a log fitted twice, a validation log holding a fitted log's
+/// data, a test log holding a fitted or validation log's. Logs are `(name,
+/// data)`; data are the same when every column is, row for row.
 pub fn refuse_copies(
     fit: &[(&str, &crate::log::Log)],
     validate: &[(&str, &crate::log::Log)],
     test: &[(&str, &crate::log::Log)],
 ) -> anyhow::Result<()> {
     same_data(fit, fit, "--log", "fitted twice, it would weigh double")?;
-    same_data(
-        fit,
-        validate,
-        "--validate",
-        "validation needs data the fit did not see",
-    )?;
-    same_data(fit, test, "--test", "a test needs data the fit did not see")?;
-    same_data(
-        validate,
-        test,
-        "--test",
-        "a test needs data that chose no term",
-    )
+    same_data(fit, validate, "--validate", VALIDATION_UNSEEN)?;
+    same_data(fit, test, "--test", TEST_UNSEEN)?;
+    same_data(validate, test, "--test", TEST_UNCHOSEN)
 }
 
 /// A log of `given` whose data are those of a log of `used`, or of an

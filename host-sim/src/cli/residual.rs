@@ -132,24 +132,7 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     } else {
         MrdlabZero::Encoder
     };
-    super::refuse_fitted_validation(
-        args.logs.iter().map(PathBuf::as_path),
-        args.validate.iter().map(PathBuf::as_path),
-    )?;
-    // A test log fitted or validated would not test the chosen model.
-    let test_paths = || args.test.iter().map(PathBuf::as_path);
-    super::refuse_reused(
-        args.logs.iter().map(PathBuf::as_path),
-        test_paths(),
-        "--test",
-        "a fitted log: a test needs data the fit did not see",
-    )?;
-    super::refuse_reused(
-        args.validate.iter().map(PathBuf::as_path),
-        test_paths(),
-        "--test",
-        "a --validate log: a test needs data that chose no term",
-    )?;
+    super::refuse_reused_files(&args.logs, &args.validate, &args.test)?;
     let fit = read_logs(&args.logs, project, zero, args.t_max_s, args.ticks_per_row)?;
     let validate = read_logs(
         &args.validate,

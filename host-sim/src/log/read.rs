@@ -88,8 +88,6 @@ impl Log {
                 measured: None,
             });
         }
-        // Required columns are checked before the data so that a wrong file
-        // is reported at its header, not at some cell.
         // One header field holding another separator, and a required
         // column missing: a semicolon- or tab-separated file (a
         // spreadsheet's export in some locales), which reads as one column.
@@ -98,6 +96,8 @@ impl Log {
         let separator = (rec.len() == 1)
             .then(|| [';', '\t'].into_iter().find(|c| rec[0].contains(*c)))
             .flatten();
+        // Required columns are checked before the data so that a wrong file
+        // is reported at its header, not at some cell.
         for req in &schema.required {
             if !log.has(req) {
                 if let Some(sep) = separator {

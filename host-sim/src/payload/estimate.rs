@@ -49,10 +49,9 @@ pub fn estimate(
             // The wrench row's line (header on line 1) and its values: a
             // reading the core's f32 cannot hold, or whose products
             // overflow, is named where it is.
+            let name = &run.name;
             anyhow!(
-                "{}: estimate at {t:.4} s ({}_wrench.csv line {}, wrench {w:?}): {e}",
-                run.name,
-                run.name,
+                "{name}: estimate at {t:.4} s ({name}_wrench.csv line {}, wrench {w:?}): {e}",
                 row + 2
             )
         })?;

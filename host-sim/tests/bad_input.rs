@@ -44,28 +44,19 @@ fn run_err(cmd: &mut Command) -> String {
 /// A simulated run of `scenario` (`seconds` long, tuned gains) written by
 /// `host-sim simulate` to `dir/name`.
 fn simulated(dir: &Path, scenario: &str, seconds: f64, name: &str) -> PathBuf {
-    let path = dir.join(name);
-    run_ok(
-        host_sim()
-            .args(["simulate", "--tuned-gains", "--scenario", scenario])
-            .arg("--duration")
-            .arg(seconds.to_string())
-            .arg("--out")
-            .arg(&path),
-    );
-    path
+    simulated_with(dir, scenario, seconds, name, &[])
 }
 
-/// [`simulated`] with another noise seed: another run of the scenario.
-fn simulated_seed(dir: &Path, scenario: &str, seconds: f64, name: &str, seed: u64) -> PathBuf {
+/// [`simulated`] with more `simulate` arguments (`--seed N`: another run of
+/// the scenario).
+fn simulated_with(dir: &Path, scenario: &str, seconds: f64, name: &str, extra: &[&str]) -> PathBuf {
     let path = dir.join(name);
     run_ok(
         host_sim()
             .args(["simulate", "--tuned-gains", "--scenario", scenario])
             .arg("--duration")
             .arg(seconds.to_string())
-            .arg("--seed")
-            .arg(seed.to_string())
+            .args(extra)
             .arg("--out")
             .arg(&path),
     );
@@ -145,26 +136,23 @@ fn validating_on_a_fitted_log_is_refused() {
     let other = simulated(d, "track-motor", 3.0, "other.csv");
     let twin = d.join(".").join("run.csv");
     let config = d.join("c.toml");
-    let err = run_err(
-        host_sim()
-            .args(["residual", "--model", "jae", "--log"])
-            .arg(&log)
-            .arg(&other)
-            .arg("--validate")
-            .arg(&twin)
-            .arg("--config-out")
-            .arg(&config),
+    // `command` with each (flag, file) and `--config-out`: its error.
+    let refused = |command: &[&str], roles: &[(&str, &Path)]| -> String {
+        let mut cmd = host_sim();
+        cmd.args(command);
+        for (flag, file) in roles {
+            cmd.arg(flag).arg(file);
+        }
+        run_err(cmd.arg("--config-out").arg(&config))
+    };
+    let residual = ["residual", "--model", "jae"];
+    let identify = ["identify", "--procedure", "jae"];
+    let err = refused(
+        &residual,
+        &[("--log", &log), ("--log", &other), ("--validate", &twin)],
     );
     assert!(err.contains("is also a fitted log"), "{err}");
-    let err = run_err(
-        host_sim()
-            .args(["identify", "--procedure", "jae", "--log"])
-            .arg(&log)
-            .arg("--validate")
-            .arg(&twin)
-            .arg("--config-out")
-            .arg(&config),
-    );
+    let err = refused(&identify, &[("--log", &log), ("--validate", &twin)]);
     assert!(err.contains("is also a fitted log"), "{err}");
     assert!(!config.exists(), "nothing written");
     // A test log must have been neither fitted nor used to choose a term.
@@ -173,17 +161,14 @@ fn validating_on_a_fitted_log_is_refused() {
         (&twin, "is also a fitted log"),
         (&other, "is also a --validate log"),
     ] {
-        let err = run_err(
-            host_sim()
-                .args(["residual", "--model", "jae", "--log"])
-                .arg(&log)
-                .arg("--validate")
-                .arg(&other)
-                .arg("--test")
-                .arg(&third)
-                .arg(used)
-                .arg("--config-out")
-                .arg(&config),
+        let err = refused(
+            &residual,
+            &[
+                ("--log", &log),
+                ("--validate", &other),
+                ("--test", &third),
+                ("--test", used),
+            ],
         );
         assert!(err.contains(what) && err.contains("--test"), "{err}");
         assert!(!config.exists(), "nothing written");
@@ -192,7 +177,7 @@ fn validating_on_a_fitted_log_is_refused() {
     // data do not, in any role.
     let copy = d.join("copy.csv");
     std::fs::copy(&log, &copy).unwrap();
-    let fresh = simulated_seed(d, "track-motor", 3.0, "fresh.csv", 99);
+    let fresh = simulated_with(d, "track-motor", 3.0, "fresh.csv", &["--seed", "99"]);
     for (roles, what) in [
         (
             ["--log", "--validate", "--test"],
@@ -207,37 +192,22 @@ fn validating_on_a_fitted_log_is_refused() {
             "--test copy.csv holds the same data as run.csv",
         ),
     ] {
-        let mut cmd = host_sim();
-        cmd.args(["residual", "--model", "jae"]);
-        for (role, file) in roles.iter().zip([&log, &copy, &fresh]) {
-            cmd.arg(role).arg(file);
-        }
-        let err = run_err(cmd.arg("--config-out").arg(&config));
+        let files = [log.as_path(), copy.as_path(), fresh.as_path()];
+        let given: Vec<(&str, &Path)> = roles.into_iter().zip(files).collect();
+        let err = refused(&residual, &given);
         assert!(err.contains(what), "{what}: {err}");
         assert!(!config.exists(), "nothing written");
     }
-    let err = run_err(
-        host_sim()
-            .args(["residual", "--model", "jae", "--log"])
-            .arg(&log)
-            .arg(&copy)
-            .arg("--validate")
-            .arg(&fresh),
+    let err = refused(
+        &residual,
+        &[("--log", &log), ("--log", &copy), ("--validate", &fresh)],
     );
     assert!(
         err.contains("--log copy.csv holds the same data as run.csv"),
         "{err}"
     );
     assert!(err.contains("fitted twice"), "{err}");
-    let err = run_err(
-        host_sim()
-            .args(["identify", "--procedure", "jae", "--log"])
-            .arg(&log)
-            .arg("--validate")
-            .arg(&copy)
-            .arg("--config-out")
-            .arg(&config),
-    );
+    let err = refused(&identify, &[("--log", &log), ("--validate", &copy)]);
     assert!(err.contains("holds the same data as"), "{err}");
     assert!(!config.exists(), "nothing written");
 }

@@ -163,14 +163,19 @@ fn bad_input_names_file_line_column() {
         let f = f.unwrap();
         std::fs::copy(f.path(), tmp.path().join(f.file_name())).unwrap();
     }
-    let path = tmp.path().join("2-vibrations_wrench.csv");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
-    // Line 6 of the file (header = line 1), column fz.
-    let mut cells: Vec<String> = lines[5].split(',').map(str::to_owned).collect();
-    cells[3] = "1.2.3".to_owned();
-    lines[5] = cells.join(",");
-    std::fs::write(&path, lines.join("\n")).unwrap();
+    // `text` with the cell of file line `line` (header = line 1) and
+    // column `col` replaced by `value`.
+    let with_cell = |text: &str, line: usize, col: usize, value: &str| -> String {
+        let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+        let mut cells: Vec<&str> = lines[line - 1].split(',').collect();
+        cells[col] = value;
+        lines[line - 1] = cells.join(",");
+        lines.join("\n")
+    };
+    let wrench = tmp.path().join("2-vibrations_wrench.csv");
+    let wrench_text = std::fs::read_to_string(&wrench).unwrap();
+    // Line 6, column fz.
+    std::fs::write(&wrench, with_cell(&wrench_text, 6, 3, "1.2.3")).unwrap();
     let err = load_run(tmp.path(), "2-vibrations").unwrap_err();
     let msg = format!("{err:#}");
     assert!(msg.contains("2-vibrations_wrench.csv"), "{msg}");
@@ -178,7 +183,7 @@ fn bad_input_names_file_line_column() {
     assert!(msg.contains("fz"), "column missing: {msg}");
 
     // A missing column is reported at the header (wrench file restored).
-    std::fs::write(&path, text).unwrap();
+    std::fs::write(&wrench, &wrench_text).unwrap();
     let path = tmp.path().join("2-vibrations_accel.csv");
     let text = std::fs::read_to_string(&path).unwrap();
     std::fs::write(&path, text.replacen("t,ax,ay,az", "t,ax,ay,aq", 1)).unwrap();
@@ -196,13 +201,7 @@ fn bad_input_names_file_line_column() {
     // A finite reading the core's f32 cannot hold (accel file restored):
     // refused where the estimate meets it, with the wrench file's line.
     std::fs::write(&path, text).unwrap();
-    let path = tmp.path().join("2-vibrations_wrench.csv");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
-    let mut cells: Vec<String> = lines[499].split(',').map(str::to_owned).collect();
-    cells[1] = "1e300".to_owned();
-    lines[499] = cells.join(",");
-    std::fs::write(&path, lines.join("\n")).unwrap();
+    std::fs::write(&wrench, with_cell(&wrench_text, 500, 1, "1e300")).unwrap();
     let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
     assert!(
         msg.contains("2-vibrations_wrench.csv line 500") && msg.contains("NaN or infinity"),

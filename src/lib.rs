@@ -44,7 +44,7 @@ pub mod units;
 // `crate::lsq` is `ident::lsq`.
 pub use control::{
     cascade, controller, dob, effects, filter, fusion, grip, jae, joints, model, probe, trajectory,
-    wrist,
+    wrist, wrist_dynamics,
 };
 pub use ident::{lsq, payload};
 

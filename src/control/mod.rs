@@ -22,7 +22,8 @@
 //!
 //! Beside the tick: [`joints`] runs `N` joints' control paths side by side
 //! (one fault stops every drive), and [`wrist`] maps the joints' force
-//! estimates to the jaws' tip forces and the clamp force (seed Eq. 1-5).
+//! estimates to the jaws' tip forces and the clamp force (seed Eq. 1-5), with
+//! [`wrist_dynamics`]'s rigid-body torque of the links (Eq. 3) taken out.
 //!
 //! Each module is also re-exported at the crate root under its name
 //! (`cable_joint::dob` is `cable_joint::control::dob`), so the paths used
@@ -41,3 +42,4 @@ pub mod model;
 pub mod probe;
 pub mod trajectory;
 pub mod wrist;
+pub mod wrist_dynamics;

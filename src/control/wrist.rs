@@ -38,8 +38,10 @@
 //! * Eq. 2: each joint's torque is `r (F_M - F_S)`, the difference of its
 //!   driving cables' tensions ([`joint_torque`]).
 //! * Eq. 3: `tau_hat`, the torque the free wrist needs, is what each
-//!   joint's no-load model gives; the difference `tau - tau_hat` is each
-//!   joint's external torque, `F_ext l_e` of its single-joint estimate, with
+//!   joint's no-load model gives, plus what [`crate::wrist_dynamics`] adds
+//!   (the links' `D q'' + H + G` and the friction a joint's own model
+//!   leaves); the difference `tau - tau_hat` is each joint's external
+//!   torque, `F_ext l_e` of its single-joint estimate less that model, with
 //!   the estimate's bound.
 //! * Eq. 4: `F^i = J_i^-T (tau_i - tau_hat_i)` ([`jaw_force`]). In the
 //!   jaw's frame `J_i^T` ([`jaw_jacobian_t`]) has the rows

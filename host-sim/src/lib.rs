@@ -8,6 +8,7 @@ pub mod ident;
 pub mod import;
 pub mod ingest;
 pub mod io;
+pub mod links;
 pub mod live;
 pub mod log;
 pub mod operator;

@@ -33,10 +33,14 @@
 //! (Eq. 5) the clamp force with its bound.
 
 use anyhow::{ensure, Context, Result};
+use cable_joint::filter::{Kinematics, TrackingObserver};
 use cable_joint::joints::Joints;
 use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::{self, Geometry, Interval};
+use cable_joint::wrist_dynamics::{InverseDynamics, WristMotion};
 use cable_joint::{Command, Config, Controller, Mode, Output, RawSample};
+
+use crate::links::{self, Links};
 
 use crate::plant::{contact_push_n, Plant, PlantParams};
 pub use crate::stats::GripStats;
@@ -77,6 +81,13 @@ pub struct WristParams {
     pub jaw_open_rad: f64,
     /// Pitch angle the wrist holds, rad.
     pub pitch_rad: f64,
+    /// The links' masses under gravity (Eq. 1's `D`, `H`, `G`), or
+    /// massless links ([`crate::links`]: at the prototype's scale they put
+    /// 1.5 mN at a jaw's tip).
+    pub links: Option<Links>,
+    /// Eq. 3's model the estimates are corrected with
+    /// ([`crate::links::fit_inverse_dynamics`]), or none.
+    pub inverse_dynamics: Option<InverseDynamics>,
 }
 
 impl WristParams {
@@ -93,6 +104,8 @@ impl WristParams {
             geometry,
             jaw_open_rad: 20f64.to_radians(),
             pitch_rad: 30f64.to_radians(),
+            links: None,
+            inverse_dynamics: None,
         }
     }
 
@@ -138,6 +151,18 @@ pub struct WristTick {
     pub clamp_bound_n: Interval,
     /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N.
     pub jaws: [wrist::JawForce; 2],
+    /// The joints' motion as their estimates give it (angles from the
+    /// JAE, speeds and accelerations from tracking observers), jaws as the
+    /// core's `q_3`.
+    pub motion: WristMotion,
+    /// The links' true torque on each joint (zero for massless links), N·m.
+    pub links_true_nm: [f64; 4],
+    /// Eq. 3's torque taken out of each joint's estimate (zero without a
+    /// model), N·m.
+    pub links_hat_nm: [f32; 4],
+    /// Each joint's external torque bound after Eq. 3 was taken out (its
+    /// parameters' spread added), N·m.
+    pub torque_bound_nm: [Interval; 4],
 }
 
 /// The four plants under [`Joints`], with the object between the jaws.
@@ -150,6 +175,14 @@ pub struct WristSim {
     substeps: usize,
     tick: u64,
     contact_n: f64,
+    /// The joints' true accelerations over the last tick (the links'
+    /// coupling terms use them a tick late).
+    true_qdd: [f64; 4],
+    /// Eq. 3's model taken out of the estimates, if any.
+    rigid_body: Option<InverseDynamics>,
+    /// Differentiators of the joints' estimated angles.
+    observer: TrackingObserver,
+    kinematics: [Kinematics; 4],
 }
 
 /// The contact force of `object` at gap `gap_m` closing at `gap_rate`, N.
@@ -178,6 +211,9 @@ impl WristSim {
             "the wrist's jaw length must be each jaw configuration's gripper length"
         );
         let period_s = 1.0 / f64::from(rate);
+        if let Some(l) = &params.links {
+            links::check(l)?;
+        }
         let mut plants = Vec::with_capacity(4);
         let mut controllers = Vec::with_capacity(4);
         // One sub-step for all four plants (the contact couples the jaws at
@@ -207,6 +243,12 @@ impl WristSim {
         let mut joints = Joints::new(controllers);
         let raw: [RawSample; 4] = core::array::from_fn(|j| plants[j].sample());
         joints.set_origin(&raw);
+        // The angles' differentiators are as fast as the force estimate's
+        // low-pass, so Eq. 3's torque and the estimate it is taken from
+        // see the motion alike.
+        let cutoff_hz = params.configs[0].dob.cutoff_rad_s / (2.0 * core::f32::consts::PI);
+        let observer = TrackingObserver::new(cutoff_hz, period_s as f32);
+        let rigid_body = params.inverse_dynamics;
         Ok(Self {
             params,
             object,
@@ -216,12 +258,27 @@ impl WristSim {
             substeps,
             tick: 0,
             contact_n: 0.0,
+            true_qdd: [0.0; 4],
+            rigid_body,
+            observer,
+            kinematics: [Kinematics::default(); 4],
         })
     }
 
     /// The parameters.
     pub fn params(&self) -> &WristParams {
         &self.params
+    }
+
+    /// The control period, s.
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    /// Take Eq. 3's model (`None`: none) out of the joints' torques before
+    /// Eq. 4 ([`cable_joint::wrist_dynamics`]).
+    pub fn set_inverse_dynamics(&mut self, body: Option<InverseDynamics>) {
+        self.rigid_body = body;
     }
 
     /// The joints.
@@ -287,29 +344,77 @@ impl WristSim {
         let theta_rad: [f64; 4] = core::array::from_fn(|j| self.plants[j].state().theta_rad);
         let outputs = self.joints.step(&raw);
         let g = &self.params.geometry;
-        let torque = |o: &Output, l: f32| Interval::new(o.est.f_ext_lo_n * l, o.est.f_ext_hi_n * l);
-        let point = |o: &Output, l: f32| Interval::point(o.est.f_ext_fused_n * l);
+        let open = self.params.jaw_open_rad as f32;
+        // The wrist's motion as the joints estimate it (the JAE of each,
+        // differentiated), jaws as the core's q_3.
+        let obs = &self.observer;
+        for (k, o) in self.kinematics.iter_mut().zip(&outputs) {
+            if self.tick == 0 {
+                obs.reset(k, o.est.theta_hat_rad);
+            }
+            obs.update(k, o.est.theta_hat_rad);
+        }
+        let jaw = |j: usize, x: f32| if j >= JAW_A { x - open } else { x };
+        let motion = WristMotion {
+            q_rad: core::array::from_fn(|j| jaw(j, self.kinematics[j].pos)),
+            qd_rad_s: core::array::from_fn(|j| self.kinematics[j].vel),
+            qdd_rad_s2: core::array::from_fn(|j| self.kinematics[j].acc),
+        };
+        let (links_hat_nm, spread_nm) = self
+            .rigid_body
+            .map_or(([0.0; 4], [0.0; 4]), |b| b.torque_and_spread_nm(g, &motion));
         let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
+        // Each joint's external torque, Eq. 3 taken out. The bound: the
+        // estimate's own, shifted by the model and widened by its
+        // parameters' spread, joined with the unshifted one (the model's
+        // structure can be wrong where its parameters are not).
+        let torque_bound_nm: [Interval; 4] = core::array::from_fn(|j| {
+            let e = &outputs[j].est;
+            let (lo, hi) = (e.f_ext_lo_n * l(j), e.f_ext_hi_n * l(j));
+            let shifted_lo = lo - links_hat_nm[j] - spread_nm[j];
+            let shifted_hi = hi - links_hat_nm[j] + spread_nm[j];
+            Interval::new(lo.min(shifted_lo), hi.max(shifted_hi))
+        });
+        let point =
+            |j: usize| Interval::point(outputs[j].est.f_ext_fused_n * l(j) - links_hat_nm[j]);
         // The wrist's pose as the joints estimate it (the JAE of each).
         let q2 = outputs[PITCH].est.theta_hat_rad;
-        let open = self.params.jaw_open_rad as f32;
         let qa = outputs[JAW_A].est.theta_hat_rad - open;
         let qb = outputs[JAW_B].est.theta_hat_rad - open;
         // Jaw B is jaw A's mirror image: its roll torque enters with the
         // other sign (wrist module docs).
-        let roll = torque(&outputs[ROLL], l(ROLL));
-        let pitch = torque(&outputs[PITCH], l(PITCH));
-        let jaw_a = wrist::jaw_force(g, q2, qa, [roll, pitch, torque(&outputs[JAW_A], l(JAW_A))]);
-        let jaw_b = wrist::jaw_force(
-            g,
-            q2,
-            qb,
-            [roll.scale(-1.0), pitch, torque(&outputs[JAW_B], l(JAW_B))],
-        );
+        let [roll, pitch, tau_a, tau_b] = torque_bound_nm;
+        let jaw_a = wrist::jaw_force(g, q2, qa, [roll, pitch, tau_a]);
+        let jaw_b = wrist::jaw_force(g, q2, qb, [roll.scale(-1.0), pitch, tau_b]);
         let clamp_bound_n = wrist::clamp_force(jaw_a.force_n[1], jaw_b.force_n[1]);
-        let pa = point(&outputs[JAW_A], l(JAW_A)).scale(1.0 / g.jaw_length_m);
-        let pb = point(&outputs[JAW_B], l(JAW_B)).scale(1.0 / g.jaw_length_m);
+        let pa = point(JAW_A).scale(1.0 / g.jaw_length_m);
+        let pb = point(JAW_B).scale(1.0 / g.jaw_length_m);
         let clamp_n = f64::from(wrist::clamp_force(pa, pb).mid());
+        // The links' true torques: D_jj as each plant's own inertia, the
+        // rest (gravity, Coriolis, the other joints' accelerations a tick
+        // late) as a load at its tip.
+        let open64 = self.params.jaw_open_rad;
+        let true_q = links::motion_q(theta_rad, open64);
+        let true_qd: [f64; 4] = core::array::from_fn(|j| self.plants[j].state().theta_vel_rad_s);
+        let (links_true_nm, links_force_n) = match &self.params.links {
+            None => ([0.0; 4], [0.0; 4]),
+            Some(links) => {
+                let d = links.inertia_kg_m2(g, true_q);
+                let rest = links.torque_nm(g, true_q, true_qd, [0.0; 4]);
+                let qdd = self.true_qdd;
+                let le: [f64; 4] =
+                    core::array::from_fn(|j| self.plants[j].params().joint.gripper_length_m);
+                let mut tau = [0.0; 4];
+                let mut force = [0.0; 4];
+                for j in 0..4 {
+                    let off: f64 = (0..4).filter(|&k| k != j).map(|k| d[j][k] * qdd[k]).sum();
+                    tau[j] = rest[j] + off + d[j][j] * qdd[j];
+                    force[j] = (rest[j] + off) / le[j];
+                    self.plants[j].set_tip_mass(d[j][j] / (le[j] * le[j]));
+                }
+                (tau, force)
+            }
+        };
         let record = WristTick {
             t_s,
             outputs,
@@ -318,6 +423,10 @@ impl WristSim {
             clamp_n,
             clamp_bound_n,
             jaws: [jaw_a, jaw_b],
+            motion,
+            links_true_nm,
+            links_hat_nm,
+            torque_bound_nm,
         };
         for (p, o) in self.plants.iter_mut().zip(&outputs) {
             let i_a = if o.drive_enable {
@@ -337,10 +446,13 @@ impl WristSim {
                     + (open - b.theta_rad).cos() * b.theta_vel_rad_s);
             self.contact_n = contact(&self.object, gap, gap_rate);
             for (j, p) in self.plants.iter_mut().enumerate() {
-                p.set_external_force(if j >= JAW_A { self.contact_n } else { 0.0 });
+                let contact_n = if j >= JAW_A { self.contact_n } else { 0.0 };
+                p.set_external_force(contact_n + links_force_n[j]);
                 p.step();
             }
         }
+        let qd_now: [f64; 4] = core::array::from_fn(|j| self.plants[j].state().theta_vel_rad_s);
+        self.true_qdd = core::array::from_fn(|j| (qd_now[j] - true_qd[j]) / self.period_s);
         self.tick += 1;
         record
     }

@@ -1,0 +1,611 @@
+//! The wrist's links as rigid bodies (seed 000 Eq. 1's `D(q) q'' + H(q,
+//! q') + G(q)`): the simulator's truth, and the no-contact run that
+//! identifies the core's Eq. 3 model ([`cable_joint::wrist_dynamics`]).
+//!
+//! # The simulator's links
+//!
+//! [`Links`]: the roll body's inertia about the shaft, and three uniform
+//! slender rods: the wrist link from the pitch axis to the jaws' axis
+//! (`l_2`) and each jaw from its axis to its tip (`l_e`), under gravity `g`
+//! fixed in the shaft's frame. Their torques come from Lagrange's equations
+//! by finite differences of the bodies' positions, written with rotation
+//! matrices: an independent path from the core's Newton–Euler regressor,
+//! which a test checks against it.
+//!
+//! Each joint's plant takes the links' torque on it as part of its
+//! external tip force (`tau / l_e`, positive a load), and its own diagonal
+//! `D_jj(q)` as a tip mass, so the plant's integrator carries the links'
+//! inertia on its own joint implicitly; the other joints' accelerations
+//! enter from the previous tick (they change little in 0.5 ms, and the
+//! off-diagonal terms are small against the cables' reflected inertia).
+//!
+//! # The prototype's scale
+//!
+//! The seed gives no masses. [`Links::prototype`] assumes stainless-steel
+//! parts (7.9 g/cm³) of an 8 mm instrument: a jaw of 20 × 2 × 1 mm
+//! (0.32 g), a wrist link of 9 mm with a 5 mm section, half of it hollow
+//! (0.7 g), the roll body's inertia that of a 1 g ring of 3 mm radius. At
+//! that scale gravity puts at most `0.32 g × 9.81 × 10 mm ≈ 3e-5 N·m` on a
+//! jaw, 1.5 mN at its tip: far below what the joints' estimates resolve
+//! (their no-load error is tenths of a newton). [`Links::scaled`] makes a
+//! heavier instrument to see where Eq. 3 starts to matter.
+
+use anyhow::{ensure, Result};
+use cable_joint::lsq::{compact_row, BatchLsq, LsqConfig};
+use cable_joint::trajectory::Trajectory;
+use cable_joint::wrist::{Geometry, Interval};
+use cable_joint::wrist_dynamics::{regressor, InverseDynamics, WristMotion, N_LINKS, N_PARAMS};
+use cable_joint::{Command, Mode};
+use serde::Serialize;
+
+use crate::wrist::{SoftObject, WristParams, WristSim, WristTick, JAW_A, JAW_B, ROLL};
+
+/// Standard gravity, m/s².
+const G_M_S2: f64 = 9.81;
+
+/// The wrist's links (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Links {
+    /// The roll body's inertia about the shaft, kg·m².
+    pub roll_inertia_kg_m2: f64,
+    /// The wrist link's mass (a rod from the pitch axis to the jaws' axis), kg.
+    pub wrist_link_kg: f64,
+    /// Each jaw's mass (a rod from its axis to its tip), kg.
+    pub jaw_kg: [f64; 2],
+    /// Gravity in the shaft frame, m/s².
+    pub gravity_m_s2: [f64; 3],
+}
+
+impl Links {
+    /// The prototype's scale (module docs), held with the shaft level and
+    /// turned 30° about it: gravity `9.81 (-cos 30°, -sin 30°, 0)`, so it
+    /// loads the pitch and both jaws.
+    pub fn prototype() -> Self {
+        let steel_kg_m3 = 7900.0;
+        let jaw = steel_kg_m3 * 20e-3 * 2e-3 * 1e-3;
+        let link = steel_kg_m3 * 9e-3 * 25e-6 * 0.5;
+        let (s, c) = 30f64.to_radians().sin_cos();
+        Self {
+            roll_inertia_kg_m2: 1e-3 * 3e-3 * 3e-3,
+            wrist_link_kg: link,
+            jaw_kg: [jaw, jaw],
+            gravity_m_s2: [-G_M_S2 * c, -G_M_S2 * s, 0.0],
+        }
+    }
+
+    /// Every mass and inertia times `k` (the same shapes, a heavier
+    /// instrument).
+    pub fn scaled(self, k: f64) -> Self {
+        Self {
+            roll_inertia_kg_m2: k * self.roll_inertia_kg_m2,
+            wrist_link_kg: k * self.wrist_link_kg,
+            jaw_kg: self.jaw_kg.map(|m| k * m),
+            ..self
+        }
+    }
+
+    /// The core's base parameters of these links (the first [`N_LINKS`] of
+    /// [`cable_joint::wrist_dynamics::PARAM_NAMES`]): a uniform rod of
+    /// mass `m` and length `L` from its joint has `X = m L / 2`, `XX = m
+    /// L^2 / 3`; the jaws' masses fold into the wrist link's moments at
+    /// `l_2`.
+    pub fn base_params(&self, g: &Geometry) -> [f64; N_LINKS] {
+        let l2 = f64::from(g.pitch_to_jaw_m);
+        let le = f64::from(g.jaw_length_m);
+        let [ma, mb] = self.jaw_kg;
+        let m2 = self.wrist_link_kg;
+        [
+            self.roll_inertia_kg_m2,
+            m2 * l2 / 2.0 + (ma + mb) * l2,
+            m2 * l2 * l2 / 3.0 + (ma + mb) * l2 * l2,
+            ma * le / 2.0,
+            ma * le * le / 3.0,
+            mb * le / 2.0,
+            mb * le * le / 3.0,
+        ]
+    }
+
+    /// The rods as point masses at two-point Gauss nodes (exact for the
+    /// moments up to the second, all a rod's dynamics needs): positions in
+    /// the shaft frame at `q` (jaw angles are the core's `q_3`).
+    fn points(&self, g: &Geometry, q: [f64; 4]) -> [(f64, [f64; 3]); 6] {
+        let l2 = f64::from(g.pitch_to_jaw_m);
+        let le = f64::from(g.jaw_length_m);
+        let node = |len: f64, k: usize| {
+            let u = 1.0 / 3f64.sqrt();
+            0.5 * len * if k == 0 { 1.0 - u } else { 1.0 + u }
+        };
+        let wrist = |v: [f64; 3]| rot_z(q[0], rot_y(q[1], v));
+        let jaw = |angle: f64, s: f64| {
+            let v = rot_x(angle, [0.0, 0.0, s]);
+            wrist([v[0], v[1], v[2] + l2])
+        };
+        let [ma, mb] = self.jaw_kg;
+        let m2 = self.wrist_link_kg;
+        [
+            (m2 / 2.0, wrist([0.0, 0.0, node(l2, 0)])),
+            (m2 / 2.0, wrist([0.0, 0.0, node(l2, 1)])),
+            (ma / 2.0, jaw(-q[2], node(le, 0))),
+            (ma / 2.0, jaw(-q[2], node(le, 1))),
+            (mb / 2.0, jaw(q[3], node(le, 0))),
+            (mb / 2.0, jaw(q[3], node(le, 1))),
+        ]
+    }
+
+    /// `L = T - V` at `(q, q')`, speeds of the points by central
+    /// differences along `q'`.
+    fn lagrangian(&self, g: &Geometry, q: [f64; 4], qd: [f64; 4]) -> f64 {
+        let h = 1e-6;
+        let plus = self.points(g, core::array::from_fn(|j| q[j] + h * qd[j]));
+        let minus = self.points(g, core::array::from_fn(|j| q[j] - h * qd[j]));
+        let here = self.points(g, q);
+        let mut l = 0.5 * self.roll_inertia_kg_m2 * qd[0] * qd[0];
+        for ((m, p), ((_, pp), (_, pm))) in here.iter().zip(plus.iter().zip(&minus)) {
+            let v2: f64 = (0..3).map(|i| ((pp[i] - pm[i]) / (2.0 * h)).powi(2)).sum();
+            let height: f64 = (0..3).map(|i| self.gravity_m_s2[i] * p[i]).sum();
+            l += 0.5 * m * v2 + m * height;
+        }
+        l
+    }
+
+    /// The torque each joint must add to move the links along `q(t) = q +
+    /// q' t + q'' t^2 / 2` at `t = 0`, N·m (order roll, pitch, jaw A, jaw
+    /// B): Lagrange's `d/dt dL/dq'_j - dL/dq_j` by finite differences.
+    pub fn torque_nm(&self, g: &Geometry, q: [f64; 4], qd: [f64; 4], qdd: [f64; 4]) -> [f64; 4] {
+        // L is quadratic in the speeds: a wide step there is exact and
+        // keeps rounding out of the time derivative.
+        let dl_dqd = |t: f64, j: usize| {
+            let qt: [f64; 4] = core::array::from_fn(|i| q[i] + qd[i] * t + 0.5 * qdd[i] * t * t);
+            let vt: [f64; 4] = core::array::from_fn(|i| qd[i] + qdd[i] * t);
+            let (mut vp, mut vm) = (vt, vt);
+            vp[j] += 0.5;
+            vm[j] -= 0.5;
+            self.lagrangian(g, qt, vp) - self.lagrangian(g, qt, vm)
+        };
+        core::array::from_fn(|j| {
+            let dt = 1e-3;
+            let ddt = (dl_dqd(dt, j) - dl_dqd(-dt, j)) / (2.0 * dt);
+            let e = 1e-5;
+            let (mut qp, mut qm) = (q, q);
+            qp[j] += e;
+            qm[j] -= e;
+            let dq = (self.lagrangian(g, qp, qd) - self.lagrangian(g, qm, qd)) / (2.0 * e);
+            ddt - dq
+        })
+    }
+
+    /// The inertia matrix `D(q)`, kg·m²: `D_jk = sum m (dp/dq_j . dp/dq_k)`
+    /// plus the roll body's inertia.
+    pub fn inertia_kg_m2(&self, g: &Geometry, q: [f64; 4]) -> [[f64; 4]; 4] {
+        let e = 1e-6;
+        let cols: [[(f64, [f64; 3]); 6]; 4] = core::array::from_fn(|j| {
+            let (mut qp, mut qm) = (q, q);
+            qp[j] += e;
+            qm[j] -= e;
+            let (p, m) = (self.points(g, qp), self.points(g, qm));
+            core::array::from_fn(|k| {
+                let d: [f64; 3] = core::array::from_fn(|i| (p[k].1[i] - m[k].1[i]) / (2.0 * e));
+                (p[k].0, d)
+            })
+        });
+        let mut d = [[0.0; 4]; 4];
+        d[ROLL][ROLL] = self.roll_inertia_kg_m2;
+        for (j, row) in d.iter_mut().enumerate() {
+            for (k, x) in row.iter_mut().enumerate() {
+                *x += (0..6)
+                    .map(|p| {
+                        let (m, a) = cols[j][p];
+                        let b = cols[k][p].1;
+                        m * (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+                    })
+                    .sum::<f64>();
+            }
+        }
+        d
+    }
+}
+
+fn rot_z(a: f64, v: [f64; 3]) -> [f64; 3] {
+    let (s, c) = a.sin_cos();
+    [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]]
+}
+
+fn rot_y(a: f64, v: [f64; 3]) -> [f64; 3] {
+    let (s, c) = a.sin_cos();
+    [c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]]
+}
+
+fn rot_x(a: f64, v: [f64; 3]) -> [f64; 3] {
+    let (s, c) = a.sin_cos();
+    [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]]
+}
+
+/// A free-motion run of the wrist (no object): every joint on the seed's
+/// three-sine "complex" trajectory with its own amplitude and base
+/// frequency, incommensurate between joints so the poses, speeds and
+/// accelerations mix.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct FreeRun {
+    /// Peak amplitude per joint (roll, pitch, jaw A, jaw B), rad.
+    pub amplitude_rad: [f64; 4],
+    /// Base frequency per joint, Hz.
+    pub base_freq_hz: [f64; 4],
+    /// Settling at rest before the motion (left out of fits), s.
+    pub settle_s: f64,
+    /// Motion, s.
+    pub duration_s: f64,
+}
+
+impl FreeRun {
+    /// The identification run: 0.6 rad of roll and pitch, 0.3 rad of each
+    /// jaw (opening past the rest and closing, never onto each other), 20 s.
+    pub fn identification() -> Self {
+        Self {
+            amplitude_rad: [0.6, 0.6, 0.3, 0.3],
+            base_freq_hz: [0.23, 0.31, 0.41, 0.37],
+            settle_s: 2.0,
+            duration_s: 20.0,
+        }
+    }
+
+    /// A run the fit never saw: other amplitudes and frequencies, 10 s.
+    pub fn validation() -> Self {
+        Self {
+            amplitude_rad: [0.5, 0.7, 0.25, 0.35],
+            base_freq_hz: [0.29, 0.19, 0.33, 0.47],
+            settle_s: 2.0,
+            duration_s: 10.0,
+        }
+    }
+}
+
+/// Run the wrist free (no object) on `run`, with `body` (if any) taken out
+/// of the joints' torques; every tick after the settling.
+pub fn run_free(
+    params: &WristParams,
+    run: &FreeRun,
+    body: Option<InverseDynamics>,
+    seed: u64,
+) -> Result<Vec<WristTick>> {
+    let nothing = SoftObject {
+        width_m: 0.0,
+        stiffness_n_m: 0.0,
+        damping_n_s_m: 0.0,
+    };
+    let mut sim = WristSim::new(params.clone(), nothing, seed)?;
+    sim.set_inverse_dynamics(body);
+    let period_s = sim.period_s();
+    let hold = Command {
+        mode: Mode::JointClosedLoop,
+        trajectory: Trajectory::Hold { angle_rad: 0.0 },
+    };
+    for j in 0..4 {
+        sim.set_command(j, hold)?;
+    }
+    for _ in 0..(run.settle_s / period_s).round() as u64 {
+        sim.step();
+    }
+    for j in 0..4 {
+        sim.set_command(
+            j,
+            Command {
+                mode: Mode::JointClosedLoop,
+                trajectory: Trajectory::Complex {
+                    amplitude_rad: run.amplitude_rad[j] as f32,
+                    base_freq_hz: run.base_freq_hz[j] as f32,
+                },
+            },
+        )?;
+    }
+    let ticks: Vec<WristTick> = (0..(run.duration_s / period_s).round() as u64)
+        .map(|_| sim.step())
+        .collect();
+    if let Some((j, f)) = ticks.iter().find_map(|t| {
+        t.outputs
+            .iter()
+            .enumerate()
+            .find_map(|(j, o)| o.fault.map(|f| (j, f)))
+    }) {
+        anyhow::bail!("the free run latched a fault on joint {j}: {f}");
+    }
+    Ok(ticks)
+}
+
+/// A joint's torque as its fused estimate reads it, N·m.
+fn estimated_torque_nm(params: &WristParams, t: &WristTick, j: usize) -> f64 {
+    f64::from(t.outputs[j].est.f_ext_fused_n)
+        * f64::from(params.configs[j].machine.gripper_length_m)
+}
+
+/// What the Eq. 3 fit found.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct InverseDynamicsFit {
+    /// The model, ready for [`WristSim::set_inverse_dynamics`].
+    pub body: InverseDynamics,
+    /// Each parameter's relative standard deviation, % (NaN where left
+    /// out).
+    pub pct_sigma: [f64; N_PARAMS],
+    /// The column-equilibrated regressor's condition number.
+    pub condition: f64,
+    /// Residual RMS of the fit, N·m.
+    pub rmse_nm: f64,
+    /// Rows fitted (four per tick).
+    pub rows: u64,
+    /// Whether the links' columns fitted values real links could have
+    /// (else they are left out and the model is each joint's friction).
+    pub links_observed: bool,
+    /// The links' parameters and their `%sigma` as the fit with every
+    /// column found them (what [`Self::links_observed`] judged).
+    pub with_links: [[f64; 2]; N_LINKS],
+    /// The torques' RMS on the run's last 30 %, raw and less the model
+    /// fitted on the first 70 %, N·m.
+    pub held_out_rms_nm: [f64; 2],
+    /// Whether the model cut the held-out RMS (else it is not used).
+    pub kept: bool,
+}
+
+impl InverseDynamicsFit {
+    /// The model if it was kept.
+    pub fn model(&self) -> Option<InverseDynamics> {
+        self.kept.then_some(self.body)
+    }
+}
+
+/// Each joint's smooth-sign width for Eq. 3's friction: its JAE's
+/// sign-switch speed at slider 2 turned to the joint, rad/s.
+pub fn sign_speeds_rad_s(params: &WristParams) -> [f32; 4] {
+    params
+        .configs
+        .map(|c| c.jae.sign_switch_m_s / c.machine.pulley_radius_m)
+}
+
+/// Fit Eq. 3's parameters to a free run: every tick's four joint torques
+/// (the fused estimates times `l_e`) against the regressor at the joints'
+/// estimated motion, by the core's least squares. The links' gravity
+/// direction is `gravity_m_s2` (the holder's).
+///
+/// * The links' columns are kept only if what they fit could be links: an
+///   inertia or second moment below zero says the estimates do not see
+///   the links (their columns took other errors) and the model keeps each
+///   joint's friction alone ([`InverseDynamicsFit::links_observed`]).
+/// * The model is kept only if it helps on motion it did not see: fitted
+///   first on the run's first 70 %, it must cut the torques' RMS on the
+///   last 30 % ([`InverseDynamicsFit::kept`]); the model returned is then
+///   fitted on the whole run.
+pub fn fit_inverse_dynamics(
+    params: &WristParams,
+    ticks: &[WristTick],
+    gravity_m_s2: [f64; 3],
+) -> Result<InverseDynamicsFit> {
+    let gravity = gravity_m_s2.map(|x| x as f32);
+    let sign_speed_rad_s = sign_speeds_rad_s(params);
+    let rows = |t: &WristTick| {
+        let y = regressor(&params.geometry, gravity, sign_speed_rad_s, &t.motion);
+        core::array::from_fn::<_, 4, _>(|j| {
+            (y[j].map(f64::from), estimated_torque_nm(params, t, j))
+        })
+    };
+    // A fit on `part` with the columns `drop` left out; its parameters
+    // and deviations put back in regressor order (zero where dropped).
+    let fit_on = |part: &[WristTick], drop: &[bool; N_PARAMS]| {
+        // The condition number is reported, not a reason to refuse.
+        let config = LsqConfig {
+            max_condition: f64::INFINITY,
+        };
+        let active = drop.iter().filter(|d| !**d).count();
+        let mut lsq = BatchLsq::<N_PARAMS>::new(active, config)
+            .map_err(|e| anyhow::anyhow!("Eq. 3 fit: {e}"))?;
+        let mut phi = [0.0; N_PARAMS];
+        for t in part {
+            for (j, (row, y)) in rows(t).iter().enumerate() {
+                let n = compact_row(row, drop, &mut phi);
+                lsq.push(&phi[..n], *y)
+                    .map_err(|e| anyhow::anyhow!("Eq. 3 fit, joint {j}: {e}"))?;
+            }
+        }
+        let fit = lsq.solve().map_err(|e| anyhow::anyhow!("Eq. 3 fit: {e}"))?;
+        let mut out = ([0.0; N_PARAMS], [0.0; N_PARAMS], [f64::NAN; N_PARAMS]);
+        let kept = (0..N_PARAMS).filter(|k| !drop[*k]);
+        for (i, k) in kept.enumerate() {
+            out.0[k] = fit.params[i];
+            out.1[k] = fit.std_dev[i];
+            out.2[k] = fit.pct_sigma(i);
+        }
+        Ok::<_, anyhow::Error>((out, fit.condition, fit.rmse, fit.rows))
+    };
+    let mut drop = [false; N_PARAMS];
+    let ((whole, _, whole_pct), _, _, _) = fit_on(ticks, &drop)?;
+    let links_observed = SECOND_MOMENTS.iter().all(|&k| whole[k] >= 0.0);
+    if !links_observed {
+        drop[..N_LINKS].fill(true);
+    }
+    let split = ticks.len() * 7 / 10;
+    let ((first, _, _), _, _, _) = fit_on(&ticks[..split], &drop)?;
+    let (mut raw, mut left, mut n) = (0.0, 0.0, 0.0);
+    for t in &ticks[split..] {
+        for (phi, y) in rows(t) {
+            let pred: f64 = phi.iter().zip(&first).map(|(a, b)| a * b).sum();
+            raw += y * y;
+            left += (y - pred).powi(2);
+            n += 1.0;
+        }
+    }
+    let held_out_rms_nm = [(raw / n).sqrt(), (left / n).sqrt()];
+    let ((p, sd, pct), condition, rmse_nm, rows_fitted) = fit_on(ticks, &drop)?;
+    Ok(InverseDynamicsFit {
+        body: InverseDynamics {
+            params: p.map(|x| x as f32),
+            std_dev: sd.map(|x| x as f32),
+            gravity_m_s2: gravity,
+            sign_speed_rad_s,
+        },
+        pct_sigma: pct,
+        condition,
+        rmse_nm,
+        rows: rows_fitted,
+        links_observed,
+        with_links: core::array::from_fn(|k| [whole[k], whole_pct[k]]),
+        held_out_rms_nm,
+        kept: held_out_rms_nm[1] < held_out_rms_nm[0],
+    })
+}
+
+/// The columns of the roll inertia and the three second moments: none can
+/// be negative for real links.
+const SECOND_MOMENTS: [usize; 4] = [0, 2, 4, 6];
+
+/// Each joint's no-load error on a free run, as a force at `l_e`, N: the
+/// links' true torque (what the estimate reads unless Eq. 3 takes it out)
+/// and the estimate's error against the true zero, raw and with the run's
+/// Eq. 3 model taken out.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct NoLoad {
+    /// RMS of the links' true torque over `l_e`, N.
+    pub links_rms_n: [f64; 4],
+    /// RMS of the raw estimate (Eq. 3 left in), N.
+    pub raw_rms_n: [f64; 4],
+    /// RMS of the estimate with the run's Eq. 3 model taken out, N.
+    pub corrected_rms_n: [f64; 4],
+    /// Share of ticks whose own bound holds the true zero, per joint.
+    pub raw_coverage: [f64; 4],
+    /// Share of ticks whose bound (Eq. 3 taken out, its uncertainty added)
+    /// holds the true zero, per joint.
+    pub coverage: [f64; 4],
+}
+
+/// [`NoLoad`] of a free run.
+pub fn no_load(params: &WristParams, ticks: &[WristTick]) -> NoLoad {
+    let n = ticks.len().max(1) as f64;
+    let rms = |f: &dyn Fn(&WristTick) -> f64| {
+        (ticks.iter().map(|t| f(t).powi(2)).sum::<f64>() / n).sqrt()
+    };
+    let l = |j: usize| f64::from(params.configs[j].machine.gripper_length_m);
+    NoLoad {
+        links_rms_n: core::array::from_fn(|j| rms(&|t| t.links_true_nm[j] / l(j))),
+        raw_rms_n: core::array::from_fn(|j| rms(&|t| estimated_torque_nm(params, t, j) / l(j))),
+        corrected_rms_n: core::array::from_fn(|j| {
+            rms(&|t| (estimated_torque_nm(params, t, j) - f64::from(t.links_hat_nm[j])) / l(j))
+        }),
+        raw_coverage: core::array::from_fn(|j| {
+            let e = |t: &WristTick| {
+                Interval::new(t.outputs[j].est.f_ext_lo_n, t.outputs[j].est.f_ext_hi_n)
+            };
+            ticks.iter().filter(|t| e(t).contains(0.0)).count() as f64 / n
+        }),
+        coverage: core::array::from_fn(|j| {
+            ticks
+                .iter()
+                .filter(|t| t.torque_bound_nm[j].contains(0.0))
+                .count() as f64
+                / n
+        }),
+    }
+}
+
+/// The estimated motion's joints for [`WristMotion`]: jaw angles as the
+/// core's `q_3` (the joint angle less the jaws' opening).
+pub fn motion_q(theta_rad: [f64; 4], jaw_open_rad: f64) -> [f64; 4] {
+    let mut q = theta_rad;
+    for j in [JAW_A, JAW_B] {
+        q[j] -= jaw_open_rad;
+    }
+    q
+}
+
+/// A [`WristMotion`] from angles, speeds and accelerations.
+pub fn wrist_motion(q: [f64; 4], qd: [f64; 4], qdd: [f64; 4]) -> WristMotion {
+    WristMotion {
+        q_rad: q.map(|x| x as f32),
+        qd_rad_s: qd.map(|x| x as f32),
+        qdd_rad_s2: qdd.map(|x| x as f32),
+    }
+}
+
+/// Checked: the links' masses are finite and not negative.
+pub fn check(links: &Links) -> Result<()> {
+    let all = [
+        links.roll_inertia_kg_m2,
+        links.wrist_link_kg,
+        links.jaw_kg[0],
+        links.jaw_kg[1],
+    ];
+    ensure!(
+        all.iter().all(|x| x.is_finite() && *x >= 0.0)
+            && links.gravity_m_s2.iter().all(|x| x.is_finite()),
+        "the wrist's links need finite, non-negative masses and a finite gravity: {links:?}"
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The core's Eq. 3 regressor times these links' base parameters is
+    /// the simulator's Lagrangian torque of the rods (two independent
+    /// derivations), on random poses, speeds and accelerations, at a
+    /// heavy scale so the torques stand well above rounding.
+    #[test]
+    fn the_cores_eq3_regressor_is_the_simulated_links_lagrangian_torque() {
+        let g = Geometry::default();
+        let links = Links::prototype().scaled(1000.0);
+        let mut params = [0.0; N_PARAMS];
+        for (p, x) in params.iter_mut().zip(links.base_params(&g)) {
+            *p = x as f32;
+        }
+        let body = InverseDynamics {
+            params,
+            std_dev: [0.0; N_PARAMS],
+            gravity_m_s2: links.gravity_m_s2.map(|x| x as f32),
+            sign_speed_rad_s: [0.05; 4],
+        };
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..30 {
+            let q: [f64; 4] = core::array::from_fn(|_| 1.5 * next());
+            let qd: [f64; 4] = core::array::from_fn(|_| 5.0 * next());
+            let qdd: [f64; 4] = core::array::from_fn(|_| 50.0 * next());
+            let want = links.torque_nm(&g, q, qd, qdd);
+            let got = body.torque_nm(&g, &wrist_motion(q, qd, qdd));
+            let scale = want.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            for j in 0..4 {
+                assert!(
+                    (f64::from(got[j]) - want[j]).abs() < 1e-4 * scale,
+                    "q {q:?} qd {qd:?} qdd {qdd:?} joint {j}: {} vs {}",
+                    got[j],
+                    want[j]
+                );
+            }
+        }
+    }
+
+    /// `D(q)` is the torque's derivative in the accelerations: symmetric,
+    /// and `D q''` is the torque less its part at `q'' = 0`.
+    #[test]
+    fn the_inertia_matrix_is_the_torques_acceleration_part() {
+        let g = Geometry::default();
+        let links = Links::prototype().scaled(1000.0);
+        let q = [0.4, -0.6, 0.2, -0.3];
+        let qd = [0.5, -1.0, 2.0, 1.5];
+        let qdd = [10.0, -20.0, 30.0, 5.0];
+        let d = links.inertia_kg_m2(&g, q);
+        let t1 = links.torque_nm(&g, q, qd, qdd);
+        let t0 = links.torque_nm(&g, q, qd, [0.0; 4]);
+        for j in 0..4 {
+            for k in 0..4 {
+                assert!((d[j][k] - d[k][j]).abs() < 1e-9 * d[j][j].abs().max(1e-12));
+            }
+            let dq: f64 = (0..4).map(|k| d[j][k] * qdd[k]).sum();
+            assert!(
+                (t1[j] - t0[j] - dq).abs() < 1e-4 * dq.abs().max(1e-9),
+                "joint {j}: {} vs {dq}",
+                t1[j] - t0[j]
+            );
+        }
+    }
+}

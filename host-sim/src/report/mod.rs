@@ -43,6 +43,7 @@
 pub mod excitation;
 pub mod experiments;
 pub mod figures;
+pub mod free_motion;
 pub mod goals;
 pub mod grip;
 pub mod kalman;
@@ -188,6 +189,11 @@ pub struct Report {
     pub wrist: Result<wrist::WristSection, String>,
     /// The wrist section's figure (its stem), if drawn.
     pub wrist_figure: Option<String>,
+    /// The wrist in free motion, Eq. 3 identified and judged (`Err`: why
+    /// the section could not run).
+    pub free_motion: Result<free_motion::FreeMotionSection, String>,
+    /// Its figure (its stem), if drawn.
+    pub free_motion_figure: Option<String>,
     /// Grip-force control on the plant variants (`Err`: why the section
     /// could not run).
     pub grip: Result<grip::GripSection, String>,
@@ -383,6 +389,14 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
     let wrist_section =
         wrist::run_all(&variant_results, &weighed, s.seed).map_err(|e| format!("{e:#}"));
     let wrist_figure = wrist::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
+    progress.line(
+        "report",
+        "the wrist in free motion (Eq. 3) on plant variants",
+    );
+    let free_motion_section =
+        free_motion::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
+    let free_motion_figure =
+        free_motion::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
     progress.line("report", "grip-force control on plant variants");
     let grip_section =
         grip::run_all(&variant_results, &weighed, s.seed).map_err(|e| format!("{e:#}"));
@@ -425,6 +439,8 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         excitation,
         wrist: wrist_section,
         wrist_figure,
+        free_motion: free_motion_section,
+        free_motion_figure,
         grip: grip_section,
         grip_figure,
         staged,

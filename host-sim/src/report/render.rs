@@ -134,6 +134,10 @@ pub fn json(r: &Report, map: &BTreeMap<String, f64>, rows: &[Row]) -> Value {
             Ok(x) => serde_json::to_value(x).unwrap_or(Value::Null),
             Err(e) => json!({"error": e}),
         },
+        "free_motion": match &r.free_motion {
+            Ok(x) => serde_json::to_value(x).unwrap_or(Value::Null),
+            Err(e) => json!({"error": e}),
+        },
         "grip": match &r.grip {
             Ok(x) => serde_json::to_value(x).unwrap_or(Value::Null),
             Err(e) => json!({"error": e}),

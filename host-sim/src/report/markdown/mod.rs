@@ -44,6 +44,15 @@ pub fn markdown(r: &Report, rows: &[Row]) -> String {
             let _ = writeln!(o, "## The wrist's clamp force\n\nCould not run: {e}\n");
         }
     }
+    match &r.free_motion {
+        Ok(f) => o.push_str(&super::free_motion::markdown(
+            f,
+            r.free_motion_figure.as_deref(),
+        )),
+        Err(e) => {
+            let _ = writeln!(o, "## The wrist in free motion\n\nCould not run: {e}\n");
+        }
+    }
     match &r.grip {
         Ok(g) => o.push_str(&super::grip::markdown(g, r.grip_figure.as_deref())),
         Err(e) => {

@@ -539,6 +539,9 @@ pub fn check(links: &Links) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
     use super::*;
 
     /// The core's Eq. 3 regressor times these links' base parameters is
@@ -559,13 +562,8 @@ mod tests {
             gravity_m_s2: links.gravity_m_s2.map(|x| x as f32),
             sign_speed_rad_s: [0.05; 4],
         };
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut next = || rng.gen_range(-1.0..1.0);
         for _ in 0..30 {
             let q: [f64; 4] = core::array::from_fn(|_| 1.5 * next());
             let qd: [f64; 4] = core::array::from_fn(|_| 5.0 * next());

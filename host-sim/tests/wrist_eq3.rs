@@ -9,6 +9,8 @@ use host_sim::links::{fit_inverse_dynamics, no_load, run_free, sign_speeds_rad_s
 use host_sim::plant::PlantParams;
 use host_sim::scenario;
 use host_sim::wrist::{WristParams, WristTick};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 /// Ticks whose joints read exactly `truth`'s torque (as fused estimates at
 /// `l_e`) along random motions, plus `extra` of each motion.
@@ -17,13 +19,8 @@ fn exact_ticks(
     truth: &InverseDynamics,
     extra: &dyn Fn(&WristMotion) -> [f32; 4],
 ) -> Vec<WristTick> {
-    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
-    };
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut next = || rng.gen_range(-1.0f32..1.0);
     let open = JawForce {
         force_n: [Interval::point(0.0); 3],
         observable: [true; 3],

@@ -286,39 +286,47 @@ pub fn markdown(sec: &FreeMotionSection, figure: Option<&str>) -> String {
         &mut o,
         &sec.skipped,
         figure,
-        "jaw A's no-load estimate in free motion, raw and with Eq. 3",
+        "no-load estimates in free motion, raw and with Eq. 3",
     );
     o
 }
 
-/// The figure: the validation run on the first variant with a
-/// configuration: jaw A's estimate as a force at its tip, raw and with
-/// Eq. 3 taken out (bound included), against the true zero.
-pub fn stage_figure_for(
-    variants: &[VariantResult],
+/// The joints' names in the figure.
+const JOINT_NAMES: [&str; 4] = ["roll", "pitch", "jaw A", "jaw B"];
+
+/// One panel: variant `v`'s validation run, joint `j`'s estimate as a
+/// force at its `l_e`, raw and with Eq. 3 taken out (its bound), against
+/// the true zero.
+fn panel_of(
+    v: &VariantResult,
+    config: cable_joint::Config,
+    j: usize,
     base_seed: u64,
-    out: &mut Outputs,
-    dir: &Path,
-) -> Result<Option<String>> {
-    let Some((v, config)) = variants.iter().find_map(|v| v.config.map(|c| (v, c))) else {
-        return Ok(None);
-    };
-    let (params, _, val) = identified(v, config, base_seed)?;
-    let le = f64::from(params.geometry.jaw_length_m);
+) -> Result<Panel> {
+    let (params, fit, val) = identified(v, config, base_seed)?;
+    let le = f64::from(params.configs[j].machine.gripper_length_m);
     let t: Vec<f64> = val.iter().map(|x| x.t_s).collect();
     let col = |f: &dyn Fn(&WristTick) -> f64| -> Vec<f64> { val.iter().map(f).collect() };
-    let raw = |x: &WristTick| f64::from(x.outputs[JAW_A].est.f_ext_fused_n);
-    let bound = |x: &WristTick| -> Interval { x.torque_bound_nm[JAW_A] };
-    let panel = Panel::new(
-        format!("{}: jaw A in free motion (true force 0)", v.name),
+    let raw = |x: &WristTick| f64::from(x.outputs[j].est.f_ext_fused_n);
+    let bound = |x: &WristTick| -> Interval { x.torque_bound_nm[j] };
+    let model = if fit.kept {
+        "Eq. 3 taken out"
+    } else {
+        "Eq. 3 not kept (= raw)"
+    };
+    Ok(Panel::new(
+        format!(
+            "{}: {} in free motion (true force 0)",
+            v.name, JOINT_NAMES[j]
+        ),
         "t [s]",
-        "force at the tip [N]",
+        "force at l_e [N]",
     )
     .with(Series::line("raw estimate", t.clone(), col(&raw)))
     .with(Series::line(
-        "Eq. 3 taken out",
+        model,
         t.clone(),
-        col(&|x| raw(x) - f64::from(x.links_hat_nm[JAW_A]) / le),
+        col(&|x| raw(x) - f64::from(x.links_hat_nm[j]) / le),
     ))
     .with(Series::line(
         "bound, low",
@@ -329,8 +337,49 @@ pub fn stage_figure_for(
         "bound, high",
         t,
         col(&|x| f64::from(bound(x).hi) / le),
-    ));
+    )))
+}
+
+/// The figure: the validation run of the first variant with a
+/// configuration (jaw A), and of the variant where the kept model cut the
+/// worst joint's no-load RMS most (that joint), if another.
+pub fn stage_figure_for(
+    variants: &[VariantResult],
+    section: Option<&FreeMotionSection>,
+    base_seed: u64,
+    out: &mut Outputs,
+    dir: &Path,
+) -> Result<Option<String>> {
+    let Some((v, config)) = super::variants::first_identified(variants) else {
+        return Ok(None);
+    };
+    let mut panels = vec![panel_of(v, config, JAW_A, base_seed)?];
+    let worst = |x: &[f64; 4]| (0..4).fold(0, |b, j| if x[j] > x[b] { j } else { b });
+    let best = section.and_then(|sec| {
+        sec.rows
+            .iter()
+            .filter(|r| r.kept && r.variant != v.name)
+            .map(|r| {
+                let j = worst(&r.validation.raw_rms_n);
+                (
+                    r,
+                    j,
+                    r.validation.raw_rms_n[j] - r.validation.corrected_rms_n[j],
+                )
+            })
+            .filter(|(_, _, cut)| *cut > 0.0)
+            .max_by(|a, b| a.2.total_cmp(&b.2))
+    });
+    if let Some((r, j, _)) = best {
+        if let Some((w, c)) = variants
+            .iter()
+            .find(|w| w.name == r.variant)
+            .and_then(|w| w.config.map(|c| (w, c)))
+        {
+            panels.push(panel_of(w, c, j, base_seed)?);
+        }
+    }
     let stem = "fig_wrist_free_motion";
-    stage_figure(out, &Figure::grid(vec![panel], 1), &dir.join(stem))?;
+    stage_figure(out, &Figure::grid(panels, 1), &dir.join(stem))?;
     Ok(Some(stem.to_owned()))
 }

@@ -396,7 +396,7 @@ pub fn stage_figure_for(
     out: &mut Outputs,
     dir: &Path,
 ) -> Result<Option<String>> {
-    let Some((v, mut config)) = variants.iter().find_map(|v| v.config.map(|c| (v, c))) else {
+    let Some((v, mut config)) = super::variants::first_identified(variants) else {
         return Ok(None);
     };
     config.probe.enabled = false;

@@ -395,8 +395,13 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
     );
     let free_motion_section =
         free_motion::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
-    let free_motion_figure =
-        free_motion::stage_figure_for(&variant_results, s.seed, &mut staged, dir)?;
+    let free_motion_figure = free_motion::stage_figure_for(
+        &variant_results,
+        free_motion_section.as_ref().ok(),
+        s.seed,
+        &mut staged,
+        dir,
+    )?;
     progress.line("report", "grip-force control on plant variants");
     let grip_section =
         grip::run_all(&variant_results, &weighed, s.seed).map_err(|e| format!("{e:#}"));

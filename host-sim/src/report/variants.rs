@@ -279,6 +279,13 @@ impl VariantResult {
     }
 }
 
+/// The first variant with an identified configuration, and that
+/// configuration: the one the sections' figures show (the default plant
+/// when it identified).
+pub fn first_identified(variants: &[VariantResult]) -> Option<(&VariantResult, Config)> {
+    variants.iter().find_map(|v| v.config.map(|c| (v, c)))
+}
+
 /// A variant's directory name: its name, lower case, every run of other
 /// characters one `-`.
 pub fn dir_name(name: &str) -> String {

@@ -325,7 +325,7 @@ pub fn stage_figure_for(
     out: &mut Outputs,
     dir: &Path,
 ) -> Result<Option<String>> {
-    let Some((v, config)) = variants.iter().find_map(|v| v.config.map(|c| (v, c))) else {
+    let Some((v, config)) = super::variants::first_identified(variants) else {
         return Ok(None);
     };
     let mut panels = Vec::new();

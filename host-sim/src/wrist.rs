@@ -19,16 +19,20 @@
 //!   (frictionless contact) at the jaw's tip. Each jaw's plant takes it as
 //!   its external tip force (`F_ext > 0` opposes closing). A squeeze is an
 //!   internal force: the roll and pitch joints carry none of it.
-//! * Assumed and stated: the joints are dynamically decoupled (the wrist's
-//!   links weigh grams, so the rigid-body coupling of Eq. 1's `D(q)` and
-//!   `H` is far below the cables' friction) and gravity is left out as in
-//!   seed 000's single joint. Each joint's no-load model (its DOB and
-//!   stretch chain) is therefore Eq. 3's `tau_hat` for that joint.
+//! * The links are massless unless [`WristParams::links`] gives them
+//!   masses ([`crate::links`]: Eq. 1's `D(q)`, `H` and `G`, each joint's
+//!   plant taking its share). Massless, the joints are dynamically
+//!   decoupled and gravity is left out as in seed 000's single joint (the
+//!   prototype's links weigh grams and put millinewtons at the tips), and
+//!   each joint's no-load model (its DOB and stretch chain) is Eq. 3's
+//!   `tau_hat` for that joint; [`WristParams::inverse_dynamics`] adds
+//!   the rest of Eq. 3 ([`cable_joint::wrist_dynamics`]).
 //!
 //! # Estimate
 //!
 //! Every tick each joint's fused force estimate and its bound become an
-//! external torque `F l_e` with its bound; [`cable_joint::wrist::jaw_force`]
+//! external torque `F l_e` with its bound, less Eq. 3's model if one is
+//! set; [`cable_joint::wrist::jaw_force`]
 //! (Eq. 4) gives each jaw's force and [`cable_joint::wrist::clamp_force`]
 //! (Eq. 5) the clamp force with its bound.
 
@@ -41,7 +45,6 @@ use cable_joint::wrist_dynamics::{InverseDynamics, WristMotion};
 use cable_joint::{Command, Config, Controller, Mode, Output, RawSample};
 
 use crate::links::{self, Links};
-
 use crate::plant::{contact_push_n, Plant, PlantParams};
 pub use crate::stats::GripStats;
 use crate::stats::{grip_stats_of, GripSample};
@@ -160,8 +163,9 @@ pub struct WristTick {
     /// Eq. 3's torque taken out of each joint's estimate (zero without a
     /// model), N·m.
     pub links_hat_nm: [f32; 4],
-    /// Each joint's external torque bound after Eq. 3 was taken out (its
-    /// parameters' spread added), N·m.
+    /// Each joint's external torque bound after Eq. 3 was taken out: the
+    /// estimate's own joined with the one the model shifts and its
+    /// parameters' spread widens, N·m.
     pub torque_bound_nm: [Interval; 4],
 }
 
@@ -179,7 +183,7 @@ pub struct WristSim {
     /// coupling terms use them a tick late).
     true_qdd: [f64; 4],
     /// Eq. 3's model taken out of the estimates, if any.
-    rigid_body: Option<InverseDynamics>,
+    inverse_dynamics: Option<InverseDynamics>,
     /// Differentiators of the joints' estimated angles.
     observer: TrackingObserver,
     kinematics: [Kinematics; 4],
@@ -248,7 +252,7 @@ impl WristSim {
         // see the motion alike.
         let cutoff_hz = params.configs[0].dob.cutoff_rad_s / (2.0 * core::f32::consts::PI);
         let observer = TrackingObserver::new(cutoff_hz, period_s as f32);
-        let rigid_body = params.inverse_dynamics;
+        let inverse_dynamics = params.inverse_dynamics;
         Ok(Self {
             params,
             object,
@@ -259,7 +263,7 @@ impl WristSim {
             tick: 0,
             contact_n: 0.0,
             true_qdd: [0.0; 4],
-            rigid_body,
+            inverse_dynamics,
             observer,
             kinematics: [Kinematics::default(); 4],
         })
@@ -278,7 +282,7 @@ impl WristSim {
     /// Take Eq. 3's model (`None`: none) out of the joints' torques before
     /// Eq. 4 ([`cable_joint::wrist_dynamics`]).
     pub fn set_inverse_dynamics(&mut self, body: Option<InverseDynamics>) {
-        self.rigid_body = body;
+        self.inverse_dynamics = body;
     }
 
     /// The joints.
@@ -361,7 +365,7 @@ impl WristSim {
             qdd_rad_s2: core::array::from_fn(|j| self.kinematics[j].acc),
         };
         let (links_hat_nm, spread_nm) = self
-            .rigid_body
+            .inverse_dynamics
             .map_or(([0.0; 4], [0.0; 4]), |b| b.torque_and_spread_nm(g, &motion));
         let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
         // Each joint's external torque, Eq. 3 taken out. The bound: the

@@ -23,12 +23,14 @@
 //!
 //! The seed gives no masses. [`Links::prototype`] assumes stainless-steel
 //! parts (7.9 g/cm³) of an 8 mm instrument: a jaw of 20 × 2 × 1 mm
-//! (0.32 g), a wrist link of 9 mm with a 5 mm section, half of it hollow
-//! (0.7 g), the roll body's inertia that of a 1 g ring of 3 mm radius. At
+//! (0.32 g), a wrist link of 9 mm with a 5 × 5 mm section, half of it hollow
+//! (0.89 g), the roll body's inertia that of a 1 g ring of 3 mm radius. At
 //! that scale gravity puts at most `0.32 g × 9.81 × 10 mm ≈ 3e-5 N·m` on a
 //! jaw, 1.5 mN at its tip: far below what the joints' estimates resolve
-//! (their no-load error is tenths of a newton). [`Links::scaled`] makes a
-//! heavier instrument to see where Eq. 3 starts to matter.
+//! (their no-load error in motion is 0.05-0.5 N RMS). [`Links::scaled`]
+//! makes a heavier instrument (the tests use it where the torques must
+//! stand above rounding; under the prototype's tuning a wrist ten times
+//! heavier latched a fault in free motion).
 
 use anyhow::{ensure, Result};
 use cable_joint::lsq::{compact_row, BatchLsq, LsqConfig};

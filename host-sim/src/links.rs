@@ -36,14 +36,13 @@ use anyhow::{ensure, Result};
 use cable_joint::lsq::{compact_row, BatchLsq, LsqConfig};
 use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::{Geometry, Interval};
-use cable_joint::wrist_dynamics::{regressor, InverseDynamics, WristMotion, N_LINKS, N_PARAMS};
+use cable_joint::wrist_dynamics::{regressor, InverseDynamics, N_LINKS, N_PARAMS};
 use cable_joint::{Command, Mode};
 use serde::Serialize;
 
-use crate::wrist::{SoftObject, WristParams, WristSim, WristTick, JAW_A, JAW_B, ROLL};
-
-/// Standard gravity, m/s².
-const G_M_S2: f64 = 9.81;
+use crate::scenario::G_M_S2;
+use crate::stats::rms;
+use crate::wrist::{SoftObject, WristParams, WristSim, WristTick, ROLL};
 
 /// The wrist's links (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -261,21 +260,16 @@ impl FreeRun {
     }
 }
 
-/// Run the wrist free (no object) on `run`, with `body` (if any) taken out
-/// of the joints' torques; every tick after the settling.
-pub fn run_free(
-    params: &WristParams,
-    run: &FreeRun,
-    body: Option<InverseDynamics>,
-    seed: u64,
-) -> Result<Vec<WristTick>> {
+/// Run the wrist free (no object) on `run`, with `params`' Eq. 3 model
+/// (if any) taken out of the joints' torques; every tick after the
+/// settling.
+pub fn run_free(params: &WristParams, run: &FreeRun, seed: u64) -> Result<Vec<WristTick>> {
     let nothing = SoftObject {
         width_m: 0.0,
         stiffness_n_m: 0.0,
         damping_n_s_m: 0.0,
     };
     let mut sim = WristSim::new(params.clone(), nothing, seed)?;
-    sim.set_inverse_dynamics(body);
     let period_s = sim.period_s();
     let hold = Command {
         mode: Mode::JointClosedLoop,
@@ -322,7 +316,7 @@ fn estimated_torque_nm(params: &WristParams, t: &WristTick, j: usize) -> f64 {
 /// What the Eq. 3 fit found.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct InverseDynamicsFit {
-    /// The model, ready for [`WristSim::set_inverse_dynamics`].
+    /// The model, ready for [`WristParams::inverse_dynamics`].
     pub body: InverseDynamics,
     /// Each parameter's relative standard deviation, % (NaN where left
     /// out).
@@ -416,24 +410,29 @@ pub fn fit_inverse_dynamics(
         Ok::<_, anyhow::Error>((out, fit.condition, fit.rmse, fit.rows))
     };
     let mut drop = [false; N_PARAMS];
-    let ((whole, _, whole_pct), _, _, _) = fit_on(ticks, &drop)?;
+    let every = fit_on(ticks, &drop)?;
+    let ((whole, _, whole_pct), _, _, _) = every;
     let links_observed = SECOND_MOMENTS.iter().all(|&k| whole[k] >= 0.0);
     if !links_observed {
         drop[..N_LINKS].fill(true);
     }
     let split = ticks.len() * 7 / 10;
     let ((first, _, _), _, _, _) = fit_on(&ticks[..split], &drop)?;
-    let (mut raw, mut left, mut n) = (0.0, 0.0, 0.0);
+    let (mut raw, mut left) = (Vec::new(), Vec::new());
     for t in &ticks[split..] {
         for (phi, y) in rows(t) {
             let pred: f64 = phi.iter().zip(&first).map(|(a, b)| a * b).sum();
-            raw += y * y;
-            left += (y - pred).powi(2);
-            n += 1.0;
+            raw.push(y);
+            left.push(y - pred);
         }
     }
-    let held_out_rms_nm = [(raw / n).sqrt(), (left / n).sqrt()];
-    let ((p, sd, pct), condition, rmse_nm, rows_fitted) = fit_on(ticks, &drop)?;
+    let held_out_rms_nm = [rms(&raw), rms(&left)];
+    // With the links seen, the model is the fit with every column.
+    let ((p, sd, pct), condition, rmse_nm, rows_fitted) = if links_observed {
+        every
+    } else {
+        fit_on(ticks, &drop)?
+    };
     Ok(InverseDynamicsFit {
         body: InverseDynamics {
             params: p.map(|x| x as f32),
@@ -478,48 +477,21 @@ pub struct NoLoad {
 /// [`NoLoad`] of a free run.
 pub fn no_load(params: &WristParams, ticks: &[WristTick]) -> NoLoad {
     let n = ticks.len().max(1) as f64;
-    let rms = |f: &dyn Fn(&WristTick) -> f64| {
-        (ticks.iter().map(|t| f(t).powi(2)).sum::<f64>() / n).sqrt()
+    let rms_of = |f: &dyn Fn(&WristTick) -> f64| rms(&ticks.iter().map(f).collect::<Vec<_>>());
+    let holds_zero = |bound: &dyn Fn(&WristTick) -> Interval| {
+        ticks.iter().filter(|t| bound(t).contains(0.0)).count() as f64 / n
     };
     let l = |j: usize| f64::from(params.configs[j].machine.gripper_length_m);
     NoLoad {
-        links_rms_n: core::array::from_fn(|j| rms(&|t| t.links_true_nm[j] / l(j))),
-        raw_rms_n: core::array::from_fn(|j| rms(&|t| estimated_torque_nm(params, t, j) / l(j))),
+        links_rms_n: core::array::from_fn(|j| rms_of(&|t| t.links_true_nm[j] / l(j))),
+        raw_rms_n: core::array::from_fn(|j| rms_of(&|t| estimated_torque_nm(params, t, j) / l(j))),
         corrected_rms_n: core::array::from_fn(|j| {
-            rms(&|t| (estimated_torque_nm(params, t, j) - f64::from(t.links_hat_nm[j])) / l(j))
+            rms_of(&|t| (estimated_torque_nm(params, t, j) - f64::from(t.links_hat_nm[j])) / l(j))
         }),
         raw_coverage: core::array::from_fn(|j| {
-            let e = |t: &WristTick| {
-                Interval::new(t.outputs[j].est.f_ext_lo_n, t.outputs[j].est.f_ext_hi_n)
-            };
-            ticks.iter().filter(|t| e(t).contains(0.0)).count() as f64 / n
+            holds_zero(&|t| Interval::new(t.outputs[j].est.f_ext_lo_n, t.outputs[j].est.f_ext_hi_n))
         }),
-        coverage: core::array::from_fn(|j| {
-            ticks
-                .iter()
-                .filter(|t| t.torque_bound_nm[j].contains(0.0))
-                .count() as f64
-                / n
-        }),
-    }
-}
-
-/// The estimated motion's joints for [`WristMotion`]: jaw angles as the
-/// core's `q_3` (the joint angle less the jaws' opening).
-pub fn motion_q(theta_rad: [f64; 4], jaw_open_rad: f64) -> [f64; 4] {
-    let mut q = theta_rad;
-    for j in [JAW_A, JAW_B] {
-        q[j] -= jaw_open_rad;
-    }
-    q
-}
-
-/// A [`WristMotion`] from angles, speeds and accelerations.
-pub fn wrist_motion(q: [f64; 4], qd: [f64; 4], qdd: [f64; 4]) -> WristMotion {
-    WristMotion {
-        q_rad: q.map(|x| x as f32),
-        qd_rad_s: qd.map(|x| x as f32),
-        qdd_rad_s2: qdd.map(|x| x as f32),
+        coverage: core::array::from_fn(|j| holds_zero(&|t| t.torque_bound_nm[j])),
     }
 }
 
@@ -541,10 +513,20 @@ pub fn check(links: &Links) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
+    use cable_joint::wrist_dynamics::WristMotion;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
     use super::*;
+
+    /// A [`WristMotion`] from angles, speeds and accelerations.
+    fn wrist_motion(q: [f64; 4], qd: [f64; 4], qdd: [f64; 4]) -> WristMotion {
+        WristMotion {
+            q_rad: q.map(|x| x as f32),
+            qd_rad_s: qd.map(|x| x as f32),
+            qdd_rad_s2: qdd.map(|x| x as f32),
+        }
+    }
 
     /// The core's Eq. 3 regressor times these links' base parameters is
     /// the simulator's Lagrangian torque of the rods (two independent

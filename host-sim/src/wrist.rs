@@ -182,8 +182,6 @@ pub struct WristSim {
     /// The joints' true accelerations over the last tick (the links'
     /// coupling terms use them a tick late).
     true_qdd: [f64; 4],
-    /// Eq. 3's model taken out of the estimates, if any.
-    inverse_dynamics: Option<InverseDynamics>,
     /// Differentiators of the joints' estimated angles.
     observer: TrackingObserver,
     kinematics: [Kinematics; 4],
@@ -252,7 +250,6 @@ impl WristSim {
         // see the motion alike.
         let cutoff_hz = params.configs[0].dob.cutoff_rad_s / (2.0 * core::f32::consts::PI);
         let observer = TrackingObserver::new(cutoff_hz, period_s as f32);
-        let inverse_dynamics = params.inverse_dynamics;
         Ok(Self {
             params,
             object,
@@ -263,7 +260,6 @@ impl WristSim {
             tick: 0,
             contact_n: 0.0,
             true_qdd: [0.0; 4],
-            inverse_dynamics,
             observer,
             kinematics: [Kinematics::default(); 4],
         })
@@ -277,12 +273,6 @@ impl WristSim {
     /// The control period, s.
     pub fn period_s(&self) -> f64 {
         self.period_s
-    }
-
-    /// Take Eq. 3's model (`None`: none) out of the joints' torques before
-    /// Eq. 4 ([`cable_joint::wrist_dynamics`]).
-    pub fn set_inverse_dynamics(&mut self, body: Option<InverseDynamics>) {
-        self.inverse_dynamics = body;
     }
 
     /// The joints.
@@ -365,6 +355,7 @@ impl WristSim {
             qdd_rad_s2: core::array::from_fn(|j| self.kinematics[j].acc),
         };
         let (links_hat_nm, spread_nm) = self
+            .params
             .inverse_dynamics
             .map_or(([0.0; 4], [0.0; 4]), |b| b.torque_and_spread_nm(g, &motion));
         let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
@@ -397,8 +388,10 @@ impl WristSim {
         // The links' true torques: D_jj as each plant's own inertia, the
         // rest (gravity, Coriolis, the other joints' accelerations a tick
         // late) as a load at its tip.
-        let open64 = self.params.jaw_open_rad;
-        let true_q = links::motion_q(theta_rad, open64);
+        let mut true_q = theta_rad;
+        for j in [JAW_A, JAW_B] {
+            true_q[j] -= self.params.jaw_open_rad;
+        }
         let true_qd: [f64; 4] = core::array::from_fn(|j| self.plants[j].state().theta_vel_rad_s);
         let (links_true_nm, links_force_n) = match &self.params.links {
             None => ([0.0; 4], [0.0; 4]),

@@ -137,12 +137,16 @@ fn eq3_learned_on_one_free_run_cuts_the_no_load_error_on_another() {
         links: Some(links),
         ..WristParams::uniform(p, c)
     };
-    let id = run_free(&params, &FreeRun::identification(), None, 1).unwrap();
+    let id = run_free(&params, &FreeRun::identification(), 1).unwrap();
     let fit = fit_inverse_dynamics(&params, &id, links.gravity_m_s2).unwrap();
     eprintln!("{fit:?}");
     assert!(!fit.links_observed, "{fit:?}");
     assert!(fit.kept, "{fit:?}");
-    let val = run_free(&params, &FreeRun::validation(), fit.model(), 2).unwrap();
+    let params = WristParams {
+        inverse_dynamics: fit.model(),
+        ..params
+    };
+    let val = run_free(&params, &FreeRun::validation(), 2).unwrap();
     let n = no_load(&params, &val);
     eprintln!("{n:?}");
     let mean = |x: [f64; 4]| x.iter().sum::<f64>() / 4.0;

@@ -171,30 +171,30 @@ pub fn regressor(
     let o3 = scale(g.pitch_to_jaw_m, d2);
     let a_o3 = point_acc(al2, w2, o3);
     let gv = gravity_m_s2;
+    // The jaw axis' acceleration less gravity, shared by both jaws.
+    let a_o3_g = add(a_o3, scale(-1.0, gv));
+    // The roll and pitch rows: each axis with `u x d2`.
+    let shared = [(ROLL, u1, cross(u1, d2)), (PITCH, u2, cross(u2, d2))];
     let mut y = [[0.0f32; N_PARAMS]; 4];
     y[ROLL][0] = a1;
-    for (row, u) in [(ROLL, u1), (PITCH, u2)] {
-        let ud = cross(u, d2);
-        y[row][1] = -dot(ud, gv);
-        y[row][2] = dot(ud, a_d2);
+    for (row, _, ud2) in shared {
+        y[row][1] = -dot(ud2, gv);
+        y[row][2] = dot(ud2, a_d2);
     }
-    // Each jaw: its axis u3 (-x2 for A, +x2 for B), direction d3, column
-    // pair, joint row.
+    // Each jaw: its axis u3 (-x2 for A, +x2 for B), direction d3 (in the
+    // plane of d2 and y2 = u2), column pair, joint row.
     let l2 = g.pitch_to_jaw_m;
-    let y2 = u2;
     for (q3, v3, a3, sign, col, row) in
         [(qa, va, aa, 1.0f32, 3, JAW_A), (qb, vb, ab, -1.0, 5, JAW_B)]
     {
         let (s3, c3) = (math::sin(q3), math::cos(q3));
         let u3 = scale(-sign, x2);
-        let d3 = add(scale(sign * s3, y2), scale(c3, d2));
+        let d3 = add(scale(sign * s3, u2), scale(c3, d2));
         let w3 = add(w2, scale(v3, u3));
         let al3 = add(add(al2, scale(a3, u3)), cross(w2, scale(v3, u3)));
         let a_d3 = point_acc(al3, w3, d3);
-        let a_o3_g = add(a_o3, scale(-1.0, gv));
-        for (r, u) in [(ROLL, u1), (PITCH, u2)] {
+        for (r, u, ud2) in shared {
             // p = o3 + s d3: J = u x o3 + s (u x d3), a = a_o3 + s a_d3.
-            let ud2 = cross(u, d2);
             let ud3 = cross(u, d3);
             y[r][col] = l2 * dot(ud2, a_d3) + dot(ud3, a_o3_g);
             y[r][col + 1] = dot(ud3, a_d3);

@@ -77,8 +77,9 @@ fn wrist_of(v: &VariantResult, c: cable_joint::Config) -> WristParams {
     }
 }
 
-/// Variant `v`'s wrist with configuration `config`, Eq. 3 fitted on the
-/// identification run, and the validation run with it taken out.
+/// Variant `v`'s wrist with configuration `config` and Eq. 3 as fitted
+/// on the identification run (if kept), the fit, and the validation run
+/// with the model taken out.
 fn identified(
     v: &VariantResult,
     config: cable_joint::Config,
@@ -89,24 +90,32 @@ fn identified(
     let id = run_free(
         &params,
         &FreeRun::identification(),
-        None,
         run_seed(base_seed, &label("identification")),
     )
     .with_context(|| label("identification"))?;
     let fit = fit_inverse_dynamics(&params, &id, Links::prototype().gravity_m_s2)
         .with_context(|| label("fit"))?;
+    let params = WristParams {
+        inverse_dynamics: fit.model(),
+        ..params
+    };
     let val = run_free(
         &params,
         &FreeRun::validation(),
-        fit.model(),
         run_seed(base_seed, &label("validation")),
     )
     .with_context(|| label("validation"))?;
     Ok((params, fit, val))
 }
 
-/// Every variant with an identified configuration, passive, as identified.
-pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<FreeMotionSection> {
+/// Every variant with an identified configuration, passive, as identified;
+/// with the figure's panels from the same validation runs: the first
+/// variant's jaw A, and the variant other than it where the kept model cut
+/// the worst joint's no-load RMS most (that joint), if any.
+pub fn run_all(
+    variants: &[VariantResult],
+    base_seed: u64,
+) -> Result<(FreeMotionSection, Vec<Panel>)> {
     let links = Links::prototype();
     let mut sec = FreeMotionSection {
         links,
@@ -114,6 +123,8 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<FreeMotionS
         rows: Vec::new(),
         skipped: Vec::new(),
     };
+    let mut first: Option<Panel> = None;
+    let mut best: Option<(f64, Panel)> = None;
     for v in variants {
         let Some(config) = v.config else {
             sec.skipped.push(format!(
@@ -123,12 +134,12 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<FreeMotionS
             ));
             continue;
         };
-        let (params, fit, val) = identified(v, config, base_seed)?;
-        sec.links_params = links.base_params(&params.geometry);
+        let (with, fit, val) = identified(v, config, base_seed)?;
+        sec.links_params = links.base_params(&with.geometry);
         let label = |what: &str| format!("eq3/{}/{what}", v.name);
-        let with = WristParams {
-            inverse_dynamics: fit.model(),
-            ..params.clone()
+        let params = WristParams {
+            inverse_dynamics: None,
+            ..with.clone()
         };
         let mut grasps = Vec::new();
         for k in STIFFNESS_N_M {
@@ -155,8 +166,20 @@ pub fn run_all(variants: &[VariantResult], base_seed: u64) -> Result<FreeMotionS
             validation: no_load(&params, &val),
             grasps,
         });
+        let validation = &sec.rows[sec.rows.len() - 1].validation;
+        if first.is_none() {
+            first = Some(panel_of(&v.name, &with, fit.kept, &val, JAW_A));
+        } else if fit.kept {
+            let raw = &validation.raw_rms_n;
+            let j = (0..4).fold(0, |b, j| if raw[j] > raw[b] { j } else { b });
+            let cut = raw[j] - validation.corrected_rms_n[j];
+            if cut > 0.0 && best.as_ref().is_none_or(|(c, _)| cut >= *c) {
+                best = Some((cut, panel_of(&v.name, &with, fit.kept, &val, j)));
+            }
+        }
     }
-    Ok(sec)
+    let panels = first.into_iter().chain(best.map(|(_, p)| p)).collect();
+    Ok((sec, panels))
 }
 
 fn max4(x: &[f64; 4]) -> f64 {
@@ -294,31 +317,22 @@ pub fn markdown(sec: &FreeMotionSection, figure: Option<&str>) -> String {
 /// The joints' names in the figure.
 const JOINT_NAMES: [&str; 4] = ["roll", "pitch", "jaw A", "jaw B"];
 
-/// One panel: variant `v`'s validation run, joint `j`'s estimate as a
-/// force at its `l_e`, raw and with Eq. 3 taken out (its bound), against
-/// the true zero.
-fn panel_of(
-    v: &VariantResult,
-    config: cable_joint::Config,
-    j: usize,
-    base_seed: u64,
-) -> Result<Panel> {
-    let (params, fit, val) = identified(v, config, base_seed)?;
+/// One panel: variant `name`'s validation run `val` on `params`, joint
+/// `j`'s estimate as a force at its `l_e`, raw and with Eq. 3 taken out
+/// (its bound), against the true zero.
+fn panel_of(name: &str, params: &WristParams, kept: bool, val: &[WristTick], j: usize) -> Panel {
     let le = f64::from(params.configs[j].machine.gripper_length_m);
     let t: Vec<f64> = val.iter().map(|x| x.t_s).collect();
     let col = |f: &dyn Fn(&WristTick) -> f64| -> Vec<f64> { val.iter().map(f).collect() };
     let raw = |x: &WristTick| f64::from(x.outputs[j].est.f_ext_fused_n);
     let bound = |x: &WristTick| -> Interval { x.torque_bound_nm[j] };
-    let model = if fit.kept {
+    let model = if kept {
         "Eq. 3 taken out"
     } else {
         "Eq. 3 not kept (= raw)"
     };
-    Ok(Panel::new(
-        format!(
-            "{}: {} in free motion (true force 0)",
-            v.name, JOINT_NAMES[j]
-        ),
+    Panel::new(
+        format!("{name}: {} in free motion (true force 0)", JOINT_NAMES[j]),
         "t [s]",
         "force at l_e [N]",
     )
@@ -337,47 +351,17 @@ fn panel_of(
         "bound, high",
         t,
         col(&|x| f64::from(bound(x).hi) / le),
-    )))
+    ))
 }
 
-/// The figure: the validation run of the first variant with a
-/// configuration (jaw A), and of the variant where the kept model cut the
-/// worst joint's no-load RMS most (that joint), if another.
+/// The figure of [`run_all`]'s panels (none: no figure).
 pub fn stage_figure_for(
-    variants: &[VariantResult],
-    section: Option<&FreeMotionSection>,
-    base_seed: u64,
+    panels: Vec<Panel>,
     out: &mut Outputs,
     dir: &Path,
 ) -> Result<Option<String>> {
-    let Some((v, config)) = super::variants::first_identified(variants) else {
+    if panels.is_empty() {
         return Ok(None);
-    };
-    let mut panels = vec![panel_of(v, config, JAW_A, base_seed)?];
-    let worst = |x: &[f64; 4]| (0..4).fold(0, |b, j| if x[j] > x[b] { j } else { b });
-    let best = section.and_then(|sec| {
-        sec.rows
-            .iter()
-            .filter(|r| r.kept && r.variant != v.name)
-            .map(|r| {
-                let j = worst(&r.validation.raw_rms_n);
-                (
-                    r,
-                    j,
-                    r.validation.raw_rms_n[j] - r.validation.corrected_rms_n[j],
-                )
-            })
-            .filter(|(_, _, cut)| *cut > 0.0)
-            .max_by(|a, b| a.2.total_cmp(&b.2))
-    });
-    if let Some((r, j, _)) = best {
-        if let Some((w, c)) = variants
-            .iter()
-            .find(|w| w.name == r.variant)
-            .and_then(|w| w.config.map(|c| (w, c)))
-        {
-            panels.push(panel_of(w, c, j, base_seed)?);
-        }
     }
     let stem = "fig_wrist_free_motion";
     stage_figure(out, &Figure::grid(panels, 1), &dir.join(stem))?;

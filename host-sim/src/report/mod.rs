@@ -393,15 +393,12 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         "report",
         "the wrist in free motion (Eq. 3) on plant variants",
     );
-    let free_motion_section =
-        free_motion::run_all(&variant_results, s.seed).map_err(|e| format!("{e:#}"));
-    let free_motion_figure = free_motion::stage_figure_for(
-        &variant_results,
-        free_motion_section.as_ref().ok(),
-        s.seed,
-        &mut staged,
-        dir,
-    )?;
+    let (free_motion_section, free_motion_panels) =
+        match free_motion::run_all(&variant_results, s.seed) {
+            Ok((sec, panels)) => (Ok(sec), panels),
+            Err(e) => (Err(format!("{e:#}")), Vec::new()),
+        };
+    let free_motion_figure = free_motion::stage_figure_for(free_motion_panels, &mut staged, dir)?;
     progress.line("report", "grip-force control on plant variants");
     let grip_section =
         grip::run_all(&variant_results, &weighed, s.seed).map_err(|e| format!("{e:#}"));

@@ -40,6 +40,7 @@ use cable_joint::wrist_dynamics::{regressor, InverseDynamics, N_LINKS, N_PARAMS}
 use cable_joint::{Command, Mode};
 use serde::Serialize;
 
+use crate::ident::excite_wrist::WristDesign;
 use crate::scenario::G_M_S2;
 use crate::stats::rms;
 use crate::wrist::{SoftObject, WristParams, WristSim, WristTick, ROLL};
@@ -221,16 +222,12 @@ fn rot_x(a: f64, v: [f64; 3]) -> [f64; 3] {
     [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]]
 }
 
-/// A free-motion run of the wrist (no object): every joint on the seed's
-/// three-sine "complex" trajectory with its own amplitude and base
-/// frequency, incommensurate between joints so the poses, speeds and
-/// accelerations mix.
+/// A free-motion run of the wrist (no object): each joint on its own
+/// trajectory from rest at 0 rad.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct FreeRun {
-    /// Peak amplitude per joint (roll, pitch, jaw A, jaw B), rad.
-    pub amplitude_rad: [f64; 4],
-    /// Base frequency per joint, Hz.
-    pub base_freq_hz: [f64; 4],
+    /// Each joint's trajectory (roll, pitch, jaw A, jaw B).
+    pub trajectories: [Trajectory; 4],
     /// Settling at rest before the motion (left out of fits), s.
     pub settle_s: f64,
     /// Motion, s.
@@ -238,24 +235,39 @@ pub struct FreeRun {
 }
 
 impl FreeRun {
-    /// The identification run: 0.6 rad of roll and pitch, 0.3 rad of each
-    /// jaw (opening past the rest and closing, never onto each other), 20 s.
-    pub fn identification() -> Self {
+    /// Every joint on the seed's three-sine "complex" trajectory with its
+    /// own peak amplitude and base frequency.
+    fn complex(amplitude_rad: [f32; 4], base_freq_hz: [f32; 4], duration_s: f64) -> Self {
         Self {
-            amplitude_rad: [0.6, 0.6, 0.3, 0.3],
-            base_freq_hz: [0.23, 0.31, 0.41, 0.37],
+            trajectories: core::array::from_fn(|j| Trajectory::Complex {
+                amplitude_rad: amplitude_rad[j],
+                base_freq_hz: base_freq_hz[j],
+            }),
             settle_s: 2.0,
-            duration_s: 20.0,
+            duration_s,
         }
+    }
+
+    /// The identification run, hand-made: the seed's three-sine trajectory
+    /// at every joint, base frequencies incommensurate between joints so
+    /// the poses, speeds and accelerations mix; 0.6 rad of roll and pitch,
+    /// 0.3 rad of each jaw (opening past the rest and closing, never onto
+    /// each other), 20 s.
+    pub fn identification() -> Self {
+        Self::complex([0.6, 0.6, 0.3, 0.3], [0.23, 0.31, 0.41, 0.37], 20.0)
     }
 
     /// A run the fit never saw: other amplitudes and frequencies, 10 s.
     pub fn validation() -> Self {
+        Self::complex([0.5, 0.7, 0.25, 0.35], [0.29, 0.19, 0.33, 0.47], 10.0)
+    }
+
+    /// The designed excitation `design` after the same settling.
+    pub fn designed(design: &WristDesign) -> Self {
         Self {
-            amplitude_rad: [0.5, 0.7, 0.25, 0.35],
-            base_freq_hz: [0.29, 0.19, 0.33, 0.47],
+            trajectories: design.trajectories,
             settle_s: 2.0,
-            duration_s: 10.0,
+            duration_s: design.duration_s,
         }
     }
 }
@@ -286,10 +298,7 @@ pub fn run_free(params: &WristParams, run: &FreeRun, seed: u64) -> Result<Vec<Wr
             j,
             Command {
                 mode: Mode::JointClosedLoop,
-                trajectory: Trajectory::Complex {
-                    amplitude_rad: run.amplitude_rad[j] as f32,
-                    base_freq_hz: run.base_freq_hz[j] as f32,
-                },
+                trajectory: run.trajectories[j],
             },
         )?;
     }
@@ -321,8 +330,13 @@ pub struct InverseDynamicsFit {
     /// Each parameter's relative standard deviation, % (NaN where left
     /// out).
     pub pct_sigma: [f64; N_PARAMS],
-    /// The column-equilibrated regressor's condition number.
+    /// The column-equilibrated regressor's condition number (of the
+    /// columns kept).
     pub condition: f64,
+    /// The same with every column (the links' too).
+    pub condition_with_links: f64,
+    /// Each parameter's `%sigma` in the fit with every column.
+    pub pct_sigma_with_links: [f64; N_PARAMS],
     /// Residual RMS of the fit, N·m.
     pub rmse_nm: f64,
     /// Rows fitted (four per tick).
@@ -411,7 +425,7 @@ pub fn fit_inverse_dynamics(
     };
     let mut drop = [false; N_PARAMS];
     let every = fit_on(ticks, &drop)?;
-    let ((whole, _, whole_pct), _, _, _) = every;
+    let ((whole, _, whole_pct), condition_with_links, _, _) = every;
     let links_observed = SECOND_MOMENTS.iter().all(|&k| whole[k] >= 0.0);
     if !links_observed {
         drop[..N_LINKS].fill(true);
@@ -442,6 +456,8 @@ pub fn fit_inverse_dynamics(
         },
         pct_sigma: pct,
         condition,
+        condition_with_links,
+        pct_sigma_with_links: whole_pct,
         rmse_nm,
         rows: rows_fitted,
         links_observed,

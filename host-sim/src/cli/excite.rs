@@ -7,13 +7,22 @@
 //! host-sim simulate --scenario excite --excitation excitation.toml --out excite.csv
 //! host-sim link --port /dev/ttyACM0 --scenario excite --excitation excitation.toml --magnetic --record excite.csv
 //! ```
+//!
+//! With `--wrist` it designs the wrist's Eq. 3 excitation instead
+//! ([`crate::ident::excite_wrist`]): four series designed together for the
+//! limits and length of the hand-made free run
+//! ([`FreeRun::identification`]), written as one file and, for each joint's
+//! controller, as a file of the single joint's format
+//! (`<out stem>.<joint>.toml`, for `--scenario excite --excitation`).
 
 use std::path::PathBuf;
 
 use anyhow::{ensure, Context};
 
 use crate::cli;
-use crate::ident::excite::{self, Criterion, DesignOptions, Envelope, PREDICTION_RATE_HZ};
+use crate::ident::excite::{self, Criterion, Design, DesignOptions, Envelope, PREDICTION_RATE_HZ};
+use crate::ident::excite_wrist::{self, WristDesignOptions};
+use crate::links::FreeRun;
 use crate::output::write_atomic;
 use crate::scenario::{excitation_replacing, plan, ScenarioOptions};
 
@@ -46,12 +55,19 @@ pub struct ExciteArgs {
     /// Acceleration limit, degrees/s².
     #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_above(0.0, 1e7))]
     pub max_acc_deg_s2: Option<f64>,
-    /// Random starts of the search (per base frequency).
-    #[arg(allow_negative_numbers = true, long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=1000))]
-    pub restarts: u32,
+    /// Random starts of the search (per base frequency; default 4, with
+    /// `--wrist` 2: forty coefficients cost more per start).
+    #[arg(allow_negative_numbers = true, long, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub restarts: Option<u32>,
     /// Seed of the random starts.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Design the wrist's Eq. 3 excitation (four joints, seed 000 Eq. 3's
+    /// regressor, the condition number) for the hand-made free run's
+    /// limits and length, with the default configuration's geometry and
+    /// the prototype links' gravity.
+    #[arg(long, conflicts_with_all = ["like", "objective", "max_angle_deg", "max_vel_deg_s", "max_acc_deg_s2"])]
+    pub wrist: bool,
     /// The designed excitation (TOML).
     #[arg(long)]
     pub out: PathBuf,
@@ -77,6 +93,9 @@ fn show(e: &Envelope) -> String {
 
 /// Run the subcommand.
 pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
+    if args.wrist {
+        return run_wrist(&args);
+    }
     ensure!(
         args.like != "excite",
         "--like names the hand-made run the excitation replaces, not `excite` itself"
@@ -102,7 +121,7 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
                 .max_acc_deg_s2
                 .map_or(measured.acc_rad_s2, f64::to_radians),
         },
-        restarts: args.restarts,
+        restarts: args.restarts.unwrap_or(4),
         seed: args.seed,
         ..replacing
     };
@@ -184,6 +203,95 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     crate::stdoutln!(
         "wrote {}: `host-sim simulate --scenario excite --excitation {0} --out run.csv`, on the rig `host-sim link ... --scenario excite --excitation {0} --magnetic --record run.csv`",
         args.out.display()
+    );
+    Ok(())
+}
+
+/// The joints' names in the per-joint files.
+const JOINT_FILES: [&str; 4] = ["roll", "pitch", "jaw_a", "jaw_b"];
+
+/// `host-sim excite --wrist`.
+fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
+    let hand = FreeRun::identification();
+    let duration_s = args.duration_s.unwrap_or(hand.duration_s);
+    let defaults = WristDesignOptions::replacing_free_run();
+    let shape = defaults.shape;
+    let opts = WristDesignOptions {
+        restarts: args.restarts.unwrap_or(defaults.restarts),
+        seed: args.seed,
+        ..defaults
+    };
+    let before = shape.condition(&hand.trajectories, hand.duration_s, PREDICTION_RATE_HZ);
+    crate::stdoutln!(
+        "hand-made free run: {:.1} s; predicted condition number of Eq. 3's regressor {before:.2}",
+        hand.duration_s
+    );
+    for (name, l) in JOINT_FILES.iter().zip(&opts.limits) {
+        crate::stdoutln!("  {name}: {}", show(l));
+    }
+    eprintln!(
+        "searching: {} starts of Nelder-Mead over {} coefficients{} ...",
+        opts.restarts,
+        8 * cable_joint::trajectory::HARMONICS,
+        if args.base_freq_hz.is_none() {
+            ", at each base frequency"
+        } else {
+            ""
+        }
+    );
+    let design = match args.base_freq_hz {
+        Some(f) => excite_wrist::design(&WristDesignOptions {
+            base_freq_hz: f,
+            periods: ((duration_s * f).floor() as u32).max(1),
+            ..opts
+        })?,
+        None => excite_wrist::design_over_frequencies(&opts, duration_s)?,
+    };
+    crate::stdoutln!(
+        "designed: {:.1} s; predicted condition number {:.2} ({:.2}x the hand-made run's), {} evaluations",
+        design.duration_s,
+        design.condition,
+        design.condition / before,
+        design.evaluations
+    );
+    for (name, e) in JOINT_FILES.iter().zip(&design.envelopes) {
+        crate::stdoutln!("  {name}: {}", show(e));
+    }
+    for (what, runs, s) in [
+        ("hand-made", &hand.trajectories, hand.duration_s),
+        ("designed", &design.trajectories, design.duration_s),
+    ] {
+        let b = shape.pair_bound(runs, s, PREDICTION_RATE_HZ);
+        let names = cable_joint::wrist_dynamics::PARAM_NAMES;
+        crate::stdoutln!(
+            "{what}: most correlated columns {} and {} (|cos| {:.3}): no regressor holding both goes under a condition number of {:.2}",
+            names[b.columns.0],
+            names[b.columns.1],
+            b.correlation,
+            b.condition_at_least
+        );
+    }
+    let stem = args.out.with_extension("");
+    for (j, name) in JOINT_FILES.iter().enumerate() {
+        let path = stem.with_extension(format!("{name}.toml"));
+        let tr = design.trajectories[j];
+        let joint = Design {
+            trajectory: tr,
+            duration_s: design.duration_s,
+            condition: excite::condition(&[(tr, design.duration_s)], PREDICTION_RATE_HZ),
+            envelope: design.envelopes[j],
+            objective: design.condition.log10(),
+            evaluations: design.evaluations,
+        };
+        write_atomic(&path, excite::to_toml(&joint)?.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    write_atomic(&args.out, toml::to_string_pretty(&design)?.as_bytes())
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    crate::stdoutln!(
+        "wrote {} and one file per joint ({}.roll.toml, ...): on a joint's controller `host-sim link ... --scenario excite --excitation {1}.roll.toml --magnetic --record roll.csv`",
+        args.out.display(),
+        stem.display()
     );
     Ok(())
 }

@@ -70,7 +70,7 @@ pub struct Envelope {
 impl Envelope {
     /// The largest factor by which `self` can be scaled and stay within
     /// `limits` on all three.
-    fn room_in(&self, limits: &Envelope) -> f64 {
+    pub(crate) fn room_in(&self, limits: &Envelope) -> f64 {
         let ratio = |lim: f64, peak: f64| {
             if peak > 0.0 {
                 lim / peak
@@ -86,16 +86,16 @@ impl Envelope {
 
 /// One reference sample: angle, velocity, acceleration.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Sample {
-    angle_rad: f64,
-    vel_rad_s: f64,
-    acc_rad_s2: f64,
+pub(crate) struct Sample {
+    pub(crate) angle_rad: f64,
+    pub(crate) vel_rad_s: f64,
+    pub(crate) acc_rad_s2: f64,
 }
 
 /// The reference of consecutive `(trajectory, duration_s)` segments (each
 /// evaluated from its own start, as the firmware evaluates a command),
 /// sampled at `rate_hz`.
-fn samples(segments: &[(Trajectory, f64)], rate_hz: f64) -> Vec<Sample> {
+pub(crate) fn samples(segments: &[(Trajectory, f64)], rate_hz: f64) -> Vec<Sample> {
     let mut out = Vec::new();
     for &(tr, duration_s) in segments {
         let n = (duration_s * rate_hz).round() as usize;
@@ -122,7 +122,7 @@ pub fn envelope(segments: &[(Trajectory, f64)], rate_hz: f64) -> Envelope {
     envelope_of(&samples(segments, rate_hz))
 }
 
-fn envelope_of(samples: &[Sample]) -> Envelope {
+pub(crate) fn envelope_of(samples: &[Sample]) -> Envelope {
     let start = samples.first().map_or(0.0, |s| s.angle_rad);
     samples.iter().fold(Envelope::default(), |e, s| Envelope {
         angle_rad: e.angle_rad.max((s.angle_rad - start).abs()),
@@ -163,7 +163,7 @@ pub const COLUMN_NAMES: [&str; COLUMNS] = ["q''", "q'", "sgn(q')", "q", "1"];
 /// The two most correlated columns of the equilibrated regressor predicted
 /// from `segments`' reference, and what they alone force on the condition
 /// number.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct PairBound {
     /// The columns (indices into [`COLUMN_NAMES`]), first < second.
     pub columns: (usize, usize),
@@ -183,25 +183,32 @@ pub fn pair_bound(segments: &[(Trajectory, f64)], rate_hz: f64) -> PairBound {
 }
 
 fn pair_bound_of(samples: &[Sample]) -> PairBound {
-    let gram = gram_of(samples);
-    let mut best = PairBound {
-        columns: (0, 1),
-        correlation: f64::NAN,
-        condition_at_least: f64::NAN,
-    };
-    for i in 0..COLUMNS {
-        for j in i + 1..COLUMNS {
-            let r = (gram[(i, j)] / (gram[(i, i)] * gram[(j, j)]).sqrt()).abs();
-            if r.is_finite() && (best.correlation.is_nan() || r > best.correlation) {
-                best = PairBound {
-                    columns: (i, j),
-                    correlation: r,
-                    condition_at_least: ((1.0 + r) / (1.0 - r)).sqrt(),
-                };
+    PairBound::of_gram(&gram_of(samples))
+}
+
+impl PairBound {
+    /// The most correlated pair of columns of the regressor whose `A^T A`
+    /// is `gram`.
+    pub(crate) fn of_gram<const N: usize>(gram: &nalgebra::SMatrix<f64, N, N>) -> Self {
+        let mut best = PairBound {
+            columns: (0, 1),
+            correlation: f64::NAN,
+            condition_at_least: f64::NAN,
+        };
+        for i in 0..N {
+            for j in i + 1..N {
+                let r = (gram[(i, j)] / (gram[(i, i)] * gram[(j, j)]).sqrt()).abs();
+                if r.is_finite() && (best.correlation.is_nan() || r > best.correlation) {
+                    best = PairBound {
+                        columns: (i, j),
+                        correlation: r,
+                        condition_at_least: ((1.0 + r) / (1.0 - r)).sqrt(),
+                    };
+                }
             }
         }
+        best
     }
-    best
 }
 
 /// Standard deviation of each parameter of `[q'', q', sgn(q'), q, 1]` that
@@ -410,15 +417,15 @@ pub struct Design {
 }
 
 /// Samples per period of the design's objective.
-const SAMPLES_PER_PERIOD: f64 = 1000.0;
+pub(crate) const SAMPLES_PER_PERIOD: f64 = 1000.0;
 /// Evaluations per start of the search.
 const EVALUATIONS_PER_START: usize = 1500;
 /// Free coefficients: sine and cosine of each harmonic.
-const DIM: usize = 2 * HARMONICS;
+pub(crate) const DIM: usize = 2 * HARMONICS;
 
 /// The series of coefficients `p` (sines then cosines), projected onto the
 /// series that start at rest, centred on 0 rad.
-fn at_rest(p: &[f64; DIM], base_freq_hz: f64) -> Trajectory {
+pub(crate) fn at_rest(p: &[f64; DIM], base_freq_hz: f64) -> Trajectory {
     let mut sin_rad = [0.0f32; HARMONICS];
     let mut cos_rad = [0.0f32; HARMONICS];
     let k = |i: usize| (i + 1) as f64;
@@ -444,7 +451,7 @@ fn at_rest(p: &[f64; DIM], base_freq_hz: f64) -> Trajectory {
 }
 
 /// `tr` (a series centred on 0) with its coefficients scaled by `by`.
-fn scaled(tr: Trajectory, by: f64) -> Trajectory {
+pub(crate) fn scaled(tr: Trajectory, by: f64) -> Trajectory {
     match tr {
         Trajectory::Fourier {
             offset_rad,
@@ -490,29 +497,28 @@ fn objective(p: &[f64; DIM], opts: &DesignOptions) -> f64 {
 
 /// Nelder-Mead from `start` with initial steps `step`: the best point and
 /// its value after `budget` evaluations.
-fn nelder_mead(
-    f: &mut dyn FnMut(&[f64; DIM]) -> f64,
-    start: [f64; DIM],
+pub(crate) fn nelder_mead<const D: usize>(
+    f: &mut dyn FnMut(&[f64; D]) -> f64,
+    start: [f64; D],
     step: f64,
     budget: usize,
-) -> ([f64; DIM], f64) {
-    let mut simplex: Vec<([f64; DIM], f64)> = Vec::with_capacity(DIM + 1);
+) -> ([f64; D], f64) {
+    let mut simplex: Vec<([f64; D], f64)> = Vec::with_capacity(D + 1);
     simplex.push((start, f(&start)));
-    for i in 0..DIM {
+    for i in 0..D {
         let mut x = start;
         x[i] += step;
         simplex.push((x, f(&x)));
     }
-    let mut evaluations = DIM + 1;
-    let along = |a: &[f64; DIM], b: &[f64; DIM], t: f64| -> [f64; DIM] {
+    let mut evaluations = D + 1;
+    let along = |a: &[f64; D], b: &[f64; D], t: f64| -> [f64; D] {
         std::array::from_fn(|i| a[i] + t * (b[i] - a[i]))
     };
     while evaluations < budget {
         simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let (worst, worst_f) = simplex[DIM];
-        let centroid: [f64; DIM] = std::array::from_fn(|i| {
-            simplex[..DIM].iter().map(|v| v.0[i]).sum::<f64>() / DIM as f64
-        });
+        let (worst, worst_f) = simplex[D];
+        let centroid: [f64; D] =
+            std::array::from_fn(|i| simplex[..D].iter().map(|v| v.0[i]).sum::<f64>() / D as f64);
         let reflected = along(&worst, &centroid, 2.0);
         let fr = f(&reflected);
         evaluations += 1;
@@ -520,19 +526,19 @@ fn nelder_mead(
             let expanded = along(&worst, &centroid, 3.0);
             let fe = f(&expanded);
             evaluations += 1;
-            simplex[DIM] = if fe < fr {
+            simplex[D] = if fe < fr {
                 (expanded, fe)
             } else {
                 (reflected, fr)
             };
-        } else if fr < simplex[DIM - 1].1 {
-            simplex[DIM] = (reflected, fr);
+        } else if fr < simplex[D - 1].1 {
+            simplex[D] = (reflected, fr);
         } else {
             let contracted = along(&worst, &centroid, if fr < worst_f { 1.5 } else { 0.5 });
             let fc = f(&contracted);
             evaluations += 1;
             if fc < fr.min(worst_f) {
-                simplex[DIM] = (contracted, fc);
+                simplex[D] = (contracted, fc);
             } else {
                 // Shrink towards the best vertex.
                 let best = simplex[0].0;
@@ -540,7 +546,7 @@ fn nelder_mead(
                     v.0 = along(&best, &v.0, 0.5);
                     v.1 = f(&v.0);
                 }
-                evaluations += DIM;
+                evaluations += D;
             }
         }
     }

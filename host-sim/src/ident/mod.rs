@@ -82,6 +82,7 @@ mod bm;
 mod cable0;
 mod design;
 pub mod excite;
+pub mod excite_wrist;
 mod jae;
 mod joint;
 mod options;

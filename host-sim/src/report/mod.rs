@@ -194,6 +194,8 @@ pub struct Report {
     pub free_motion: Result<free_motion::FreeMotionSection, String>,
     /// Its figure (its stem), if drawn.
     pub free_motion_figure: Option<String>,
+    /// Stem of the figure of Eq. 3's identification runs, if staged.
+    pub free_motion_excitation_figure: Option<String>,
     /// Grip-force control on the plant variants (`Err`: why the section
     /// could not run).
     pub grip: Result<grip::GripSection, String>,
@@ -399,6 +401,8 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
             Err(e) => (Err(format!("{e:#}")), Vec::new()),
         };
     let free_motion_figure = free_motion::stage_figure_for(free_motion_panels, &mut staged, dir)?;
+    let free_motion_excitation_figure =
+        free_motion::stage_excitation_figure(free_motion_section.as_ref().ok(), &mut staged, dir)?;
     progress.line("report", "grip-force control on plant variants");
     let grip_section =
         grip::run_all(&variant_results, &weighed, s.seed).map_err(|e| format!("{e:#}"));
@@ -443,6 +447,7 @@ pub fn generate(args: &ReportOptions) -> Result<Report> {
         wrist_figure,
         free_motion: free_motion_section,
         free_motion_figure,
+        free_motion_excitation_figure,
         grip: grip_section,
         grip_figure,
         staged,

@@ -48,6 +48,7 @@ pub fn markdown(r: &Report, rows: &[Row]) -> String {
         Ok(f) => o.push_str(&super::free_motion::markdown(
             f,
             r.free_motion_figure.as_deref(),
+            r.free_motion_excitation_figure.as_deref(),
         )),
         Err(e) => {
             let _ = writeln!(o, "## The wrist in free motion\n\nCould not run: {e}\n");

@@ -7,7 +7,9 @@ use cable_joint::wrist_dynamics::{InverseDynamics, WristMotion, N_LINKS, N_PARAM
 use cable_joint::{Config, Output};
 use host_sim::ident::excite;
 use host_sim::ident::excite_wrist::{self, WristDesign, WristDesignOptions};
-use host_sim::links::{fit_inverse_dynamics, no_load, run_free, sign_speeds_rad_s, FreeRun, Links};
+use host_sim::links::{
+    fit_inverse_dynamics, no_load, run_free, sign_speeds_rad_s, FreeRun, Links, NoLoad,
+};
 use host_sim::plant::PlantParams;
 use host_sim::scenario;
 use host_sim::wrist::{WristParams, WristTick};
@@ -132,26 +134,13 @@ fn eq3_leaves_out_links_that_are_not_physical() {
 /// the estimate's own.
 #[test]
 fn eq3_learned_on_one_free_run_cuts_the_no_load_error_on_another() {
-    let p = PlantParams::default();
-    let c = scenario::oracle_config(&p, &scenario::tuned_gains(&Config::default()));
-    let links = Links::prototype();
-    let params = WristParams {
-        links: Some(links),
-        ..WristParams::uniform(p, c)
-    };
+    let (params, links) = prototype_wrist();
     let id = run_free(&params, &FreeRun::identification(), 1).unwrap();
     let fit = fit_inverse_dynamics(&params, &id, links.gravity_m_s2).unwrap();
     eprintln!("{fit:?}");
     assert!(!fit.links_observed, "{fit:?}");
     assert!(fit.kept, "{fit:?}");
-    let params = WristParams {
-        inverse_dynamics: fit.model(),
-        ..params
-    };
-    let val = run_free(&params, &FreeRun::validation(), 2).unwrap();
-    let n = no_load(&params, &val);
-    eprintln!("{n:?}");
-    let mean = |x: [f64; 4]| x.iter().sum::<f64>() / 4.0;
+    let n = unseen_no_load(&params, fit.model());
     assert!(
         mean(n.corrected_rms_n) < 0.8 * mean(n.raw_rms_n),
         "{:?} vs {:?}",
@@ -167,13 +156,9 @@ fn eq3_learned_on_one_free_run_cuts_the_no_load_error_on_another() {
     }
 }
 
-/// The designed excitation (seed 001 Sect. 2.3 for Eq. 3's regressor) runs
-/// on the simulated wrist within the limits of the hand-made run without a
-/// fault, the fit on it is better conditioned than the fit on the
-/// hand-made run (measured, on the joints' estimated motion), and the
-/// model it gives cuts the no-load error on a run neither saw.
-#[test]
-fn the_designed_wrist_excitation_conditions_eq3_better_and_its_model_cuts_the_no_load_error() {
+/// The default plant's wrist with its true parameters (the oracle
+/// configuration) and the prototype's links.
+fn prototype_wrist() -> (WristParams, Links) {
     let p = PlantParams::default();
     let c = scenario::oracle_config(&p, &scenario::tuned_gains(&Config::default()));
     let links = Links::prototype();
@@ -181,6 +166,34 @@ fn the_designed_wrist_excitation_conditions_eq3_better_and_its_model_cuts_the_no
         links: Some(links),
         ..WristParams::uniform(p, c)
     };
+    (params, links)
+}
+
+/// The no-load figures of the validation run on `params` with `model`
+/// taken out.
+fn unseen_no_load(params: &WristParams, model: Option<InverseDynamics>) -> NoLoad {
+    let params = WristParams {
+        inverse_dynamics: model,
+        ..params.clone()
+    };
+    let val = run_free(&params, &FreeRun::validation(), 2).unwrap();
+    let n = no_load(&params, &val);
+    eprintln!("{n:?}");
+    n
+}
+
+fn mean(x: [f64; 4]) -> f64 {
+    x.iter().sum::<f64>() / 4.0
+}
+
+/// The designed excitation (seed 001 Sect. 2.3 for Eq. 3's regressor) runs
+/// on the simulated wrist within the limits of the hand-made run without a
+/// fault, the fit on it is better conditioned than the fit on the
+/// hand-made run (measured, on the joints' estimated motion), and the
+/// model it gives cuts the no-load error on a run neither saw.
+#[test]
+fn the_designed_wrist_excitation_conditions_eq3_better_and_its_model_cuts_the_no_load_error() {
+    let (params, links) = prototype_wrist();
     let opts = WristDesignOptions {
         base_freq_hz: 0.25,
         periods: 5,
@@ -203,14 +216,7 @@ fn the_designed_wrist_excitation_conditions_eq3_better_and_its_model_cuts_the_no
         a.condition_with_links
     );
     assert!(b.kept, "{b:?}");
-    let params = WristParams {
-        inverse_dynamics: b.model(),
-        ..params
-    };
-    let val = run_free(&params, &FreeRun::validation(), 2).unwrap();
-    let n = no_load(&params, &val);
-    eprintln!("{n:?}");
-    let mean = |x: [f64; 4]| x.iter().sum::<f64>() / 4.0;
+    let n = unseen_no_load(&params, b.model());
     assert!(
         mean(n.corrected_rms_n) < mean(n.raw_rms_n),
         "{:?} vs {:?}",

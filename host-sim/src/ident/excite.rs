@@ -68,6 +68,27 @@ pub struct Envelope {
 }
 
 impl Envelope {
+    /// Checked as limits: each finite and > 0, the angle at most 10 rad
+    /// ([`Trajectory::validate`]); `whose` starts the message.
+    pub(crate) fn check_as_limits(&self, whose: &str) -> Result<()> {
+        for (name, v) in [
+            ("angle", self.angle_rad),
+            ("velocity", self.vel_rad_s),
+            ("acceleration", self.acc_rad_s2),
+        ] {
+            ensure!(
+                v.is_finite() && v > 0.0,
+                "{whose} {name} limit must be finite and > 0, got {v}"
+            );
+        }
+        ensure!(
+            self.angle_rad <= 10.0,
+            "{whose} angle limit must be at most 10 rad (Trajectory::validate), got {}",
+            self.angle_rad
+        );
+        Ok(())
+    }
+
     /// The largest factor by which `self` can be scaled and stay within
     /// `limits` on all three.
     pub(crate) fn room_in(&self, limits: &Envelope) -> f64 {
@@ -139,14 +160,22 @@ pub fn condition(segments: &[(Trajectory, f64)], rate_hz: f64) -> f64 {
 }
 
 fn condition_of(samples: &[Sample]) -> f64 {
+    condition_of_rows::<COLUMNS>(|push| for_each_row(samples, |row| push(&row)))
+}
+
+/// Condition number of the equilibrated regressor of `N` columns whose
+/// rows `rows` hands to its argument, by the core's least squares
+/// ([`BatchLsq::solve`]); infinite when a column is all zero or a row is
+/// refused.
+pub(crate) fn condition_of_rows<const N: usize>(rows: impl FnOnce(&mut dyn FnMut(&[f64]))) -> f64 {
     let config = LsqConfig {
         max_condition: f64::MAX,
     };
-    let Ok(mut lsq) = BatchLsq::<COLUMNS>::new(COLUMNS, config) else {
+    let Ok(mut lsq) = BatchLsq::<N>::new(N, config) else {
         return f64::INFINITY;
     };
     let mut pushed = true;
-    for_each_row(samples, |row| pushed &= lsq.push(&row, 0.0).is_ok());
+    rows(&mut |row| pushed &= lsq.push(row, 0.0).is_ok());
     if !pushed {
         return f64::INFINITY;
     }
@@ -371,22 +400,7 @@ impl DesignOptions {
             self.periods >= 1,
             "the excitation needs at least one period"
         );
-        let l = &self.limits;
-        for (name, v) in [
-            ("angle", l.angle_rad),
-            ("velocity", l.vel_rad_s),
-            ("acceleration", l.acc_rad_s2),
-        ] {
-            ensure!(
-                v.is_finite() && v > 0.0,
-                "the excitation's {name} limit must be finite and > 0, got {v}"
-            );
-        }
-        ensure!(
-            l.angle_rad <= 10.0,
-            "the excitation's angle limit must be at most 10 rad (Trajectory::validate), got {}",
-            l.angle_rad
-        );
+        self.limits.check_as_limits("the excitation's")?;
         if let Objective::Sigma { reference } = self.objective {
             ensure!(
                 reference.iter().all(|v| v.is_finite() && *v > 0.0),
@@ -554,25 +568,57 @@ pub(crate) fn nelder_mead<const D: usize>(
     simplex[0]
 }
 
+/// Nelder-Mead from `restarts` (at least one) random starts in `[-1,
+/// 1]^D` drawn from `seed`, `budget` evaluations each: the best point, its
+/// value and the evaluations made.
+pub(crate) fn search<const D: usize>(
+    f: &mut dyn FnMut(&[f64; D]) -> f64,
+    restarts: u32,
+    seed: u64,
+    budget: usize,
+) -> ([f64; D], f64, u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut evaluations = 0u64;
+    let mut counted = |p: &[f64; D]| {
+        evaluations += 1;
+        f(p)
+    };
+    let mut start = || -> [f64; D] { std::array::from_fn(|_| rng.gen_range(-1.0..1.0)) };
+    let mut best = nelder_mead(&mut counted, start(), 0.5, budget);
+    for _ in 1..restarts {
+        let found = nelder_mead(&mut counted, start(), 0.5, budget);
+        if found.1 < best.1 {
+            best = found;
+        }
+    }
+    (best.0, best.1, evaluations)
+}
+
+/// The whole numbers of periods of `duration_s` at each of
+/// [`BASE_FREQS_HZ`] (at least one, repeats dropped).
+fn periods_to_try(duration_s: f64) -> Result<Vec<u32>> {
+    ensure!(
+        duration_s.is_finite() && duration_s > 0.0,
+        "the excitation's length must be > 0 s, got {duration_s}"
+    );
+    let mut periods: Vec<u32> = BASE_FREQS_HZ
+        .iter()
+        .map(|f| ((duration_s * f).round() as u32).max(1))
+        .collect();
+    periods.dedup();
+    Ok(periods)
+}
+
 /// Design the excitation: the series of least predicted condition number,
 /// scaled to the limits.
 pub fn design(opts: &DesignOptions) -> Result<Design> {
     opts.check()?;
-    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
-    let mut evaluations = 0u64;
-    let mut objective_counted = |p: &[f64; DIM]| {
-        evaluations += 1;
-        objective(p, opts)
-    };
-    let mut best: Option<([f64; DIM], f64)> = None;
-    for _ in 0..opts.restarts {
-        let start: [f64; DIM] = std::array::from_fn(|_| rng.gen_range(-1.0..1.0));
-        let found = nelder_mead(&mut objective_counted, start, 0.5, EVALUATIONS_PER_START);
-        if best.is_none_or(|b| found.1 < b.1) {
-            best = Some(found);
-        }
-    }
-    let (p, value) = best.expect("at least one start (checked)");
+    let (p, value, evaluations) = search(
+        &mut |p: &[f64; DIM]| objective(p, opts),
+        opts.restarts,
+        opts.seed,
+        EVALUATIONS_PER_START,
+    );
     let unit = at_rest(&p, opts.base_freq_hz);
     let period_s = 1.0 / opts.base_freq_hz;
     let rate_hz = SAMPLES_PER_PERIOD * opts.base_freq_hz;
@@ -618,29 +664,36 @@ pub const BASE_FREQS_HZ: [f64; 7] = [0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.5];
 /// [`design`] at each of [`BASE_FREQS_HZ`] rounded to whole periods of
 /// `duration_s`; the design of least objective.
 pub fn design_over_frequencies(opts: &DesignOptions, duration_s: f64) -> Result<Design> {
-    ensure!(
-        duration_s.is_finite() && duration_s > 0.0,
-        "the excitation's length must be > 0 s, got {duration_s}"
-    );
-    let mut periods: Vec<u32> = BASE_FREQS_HZ
-        .iter()
-        .map(|f| ((duration_s * f).round() as u32).max(1))
-        .collect();
-    periods.dedup();
-    let mut best: Option<Design> = None;
-    let mut evaluations = 0;
-    for p in periods {
-        let d = design(&opts.at_periods(duration_s, p))?;
-        evaluations += d.evaluations;
-        if best.is_none_or(|b| d.objective < b.objective) {
-            best = Some(d);
-        }
-    }
-    let best = best.ok_or_else(|| anyhow::anyhow!("no base frequency to try"))?;
+    let (best, evaluations) = best_over_periods(
+        duration_s,
+        |p| design(&opts.at_periods(duration_s, p)),
+        |d| (d.objective, d.evaluations),
+    )?;
     Ok(Design {
         evaluations,
         ..best
     })
+}
+
+/// `design_at(n)` for each whole number `n` of periods of `duration_s` at
+/// [`BASE_FREQS_HZ`]: the design of least score, and the evaluations of
+/// all (`key` gives a design's score and evaluations).
+pub(crate) fn best_over_periods<T>(
+    duration_s: f64,
+    mut design_at: impl FnMut(u32) -> Result<T>,
+    key: impl Fn(&T) -> (f64, u64),
+) -> Result<(T, u64)> {
+    let mut best: Option<T> = None;
+    let mut evaluations = 0;
+    for n in periods_to_try(duration_s)? {
+        let d = design_at(n)?;
+        evaluations += key(&d).1;
+        if best.as_ref().is_none_or(|b| key(&d).0 < key(b).0) {
+            best = Some(d);
+        }
+    }
+    let best = best.ok_or_else(|| anyhow::anyhow!("no base frequency to try"))?;
+    Ok((best, evaluations))
 }
 
 /// The design as the TOML file `host-sim excite` writes and `--excitation`

@@ -30,12 +30,9 @@
 //! make them observable; the report measures what the fits make of it.
 
 use anyhow::{ensure, Result};
-use cable_joint::lsq::{BatchLsq, LsqConfig, LsqError};
 use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::Geometry;
 use cable_joint::wrist_dynamics::{regressor, WristMotion, N_PARAMS};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::links::{sign_speeds_rad_s, FreeRun, Links};
@@ -43,8 +40,8 @@ use crate::plant::PlantParams;
 use crate::wrist::WristParams;
 
 use super::excite::{
-    at_rest, envelope, envelope_of, nelder_mead, samples, scaled, Envelope, PairBound, Sample,
-    BASE_FREQS_HZ, DIM, PREDICTION_RATE_HZ,
+    at_rest, best_over_periods, condition_of_rows, envelope, envelope_of, samples, scaled, search,
+    Envelope, PairBound, Sample, DIM, PREDICTION_RATE_HZ,
 };
 
 /// Joints of the wrist (roll, pitch, jaw A, jaw B).
@@ -117,22 +114,9 @@ impl Eq3Shape {
     }
 
     fn condition_of(&self, per_joint: &[Vec<Sample>; JOINTS]) -> f64 {
-        let config = LsqConfig {
-            max_condition: f64::MAX,
-        };
-        let Ok(mut lsq) = BatchLsq::<N_PARAMS>::new(N_PARAMS, config) else {
-            return f64::INFINITY;
-        };
-        let mut pushed = true;
-        self.for_each_row(per_joint, |row| pushed &= lsq.push_f32(row, 0.0).is_ok());
-        if !pushed {
-            return f64::INFINITY;
-        }
-        match lsq.solve() {
-            Ok(fit) => fit.condition,
-            Err(LsqError::IllConditioned { condition, .. }) if !condition.is_nan() => condition,
-            Err(_) => f64::INFINITY,
-        }
+        condition_of_rows::<N_PARAMS>(|push| {
+            self.for_each_row(per_joint, |row| push(&row.map(f64::from)));
+        })
     }
 }
 
@@ -200,21 +184,7 @@ impl WristDesignOptions {
             "the wrist excitation needs at least one period"
         );
         for (j, l) in self.limits.iter().enumerate() {
-            for (name, v) in [
-                ("angle", l.angle_rad),
-                ("velocity", l.vel_rad_s),
-                ("acceleration", l.acc_rad_s2),
-            ] {
-                ensure!(
-                    v.is_finite() && v > 0.0,
-                    "the wrist excitation's {name} limit of joint {j} must be finite and > 0, got {v}"
-                );
-            }
-            ensure!(
-                l.angle_rad <= 10.0,
-                "the wrist excitation's angle limit of joint {j} must be at most 10 rad (Trajectory::validate), got {}",
-                l.angle_rad
-            );
+            l.check_as_limits(&format!("the wrist excitation's joint {j}:"))?;
         }
         ensure!(
             self.restarts >= 1,
@@ -290,21 +260,12 @@ fn objective(p: &[f64; WRIST_DIM], opts: &WristDesignOptions) -> f64 {
 /// series of least predicted condition number, each scaled to its limits.
 pub fn design(opts: &WristDesignOptions) -> Result<WristDesign> {
     opts.check()?;
-    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
-    let mut evaluations = 0u64;
-    let mut counted = |p: &[f64; WRIST_DIM]| {
-        evaluations += 1;
-        objective(p, opts)
-    };
-    let mut best: Option<([f64; WRIST_DIM], f64)> = None;
-    for _ in 0..opts.restarts {
-        let start: [f64; WRIST_DIM] = std::array::from_fn(|_| rng.gen_range(-1.0..1.0));
-        let found = nelder_mead(&mut counted, start, 0.5, EVALUATIONS_PER_START);
-        if best.is_none_or(|b| found.1 < b.1) {
-            best = Some(found);
-        }
-    }
-    let (p, _) = best.expect("at least one start (checked)");
+    let (p, _, evaluations) = search(
+        &mut |p: &[f64; WRIST_DIM]| objective(p, opts),
+        opts.restarts,
+        opts.seed,
+        EVALUATIONS_PER_START,
+    );
     let rate_hz = super::excite::SAMPLES_PER_PERIOD * opts.base_freq_hz;
     let (trajectories, _) = series(&p, opts, rate_hz)
         .ok_or_else(|| anyhow::anyhow!("the designed wrist series do not move"))?;
@@ -328,29 +289,17 @@ pub fn design(opts: &WristDesignOptions) -> Result<WristDesign> {
 /// [`design`] at each of [`BASE_FREQS_HZ`] rounded to whole periods of
 /// `duration_s`; the design of least predicted condition number.
 pub fn design_over_frequencies(opts: &WristDesignOptions, duration_s: f64) -> Result<WristDesign> {
-    ensure!(
-        duration_s.is_finite() && duration_s > 0.0,
-        "the wrist excitation's length must be > 0 s, got {duration_s}"
-    );
-    let mut periods: Vec<u32> = BASE_FREQS_HZ
-        .iter()
-        .map(|f| ((duration_s * f).round() as u32).max(1))
-        .collect();
-    periods.dedup();
-    let mut best: Option<WristDesign> = None;
-    let mut evaluations = 0;
-    for n in periods {
-        let d = design(&WristDesignOptions {
-            base_freq_hz: f64::from(n) / duration_s,
-            periods: n,
-            ..*opts
-        })?;
-        evaluations += d.evaluations;
-        if best.is_none_or(|b| d.condition < b.condition) {
-            best = Some(d);
-        }
-    }
-    let best = best.ok_or_else(|| anyhow::anyhow!("no base frequency to try"))?;
+    let (best, evaluations) = best_over_periods(
+        duration_s,
+        |n| {
+            design(&WristDesignOptions {
+                base_freq_hz: f64::from(n) / duration_s,
+                periods: n,
+                ..*opts
+            })
+        },
+        |d| (d.condition, d.evaluations),
+    )?;
     Ok(WristDesign {
         evaluations,
         ..best
@@ -361,6 +310,8 @@ pub fn design_over_frequencies(opts: &WristDesignOptions, duration_s: f64) -> Re
 mod tests {
     use super::*;
     use cable_joint::wrist_dynamics::N_LINKS;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     fn shape() -> Eq3Shape {
         WristDesignOptions::replacing_free_run().shape
@@ -432,6 +383,6 @@ mod tests {
         let mut opts = WristDesignOptions::replacing(shape(), &hand.trajectories, hand.duration_s);
         opts.limits[2].vel_rad_s = 0.0;
         let e = design(&opts).unwrap_err().to_string();
-        assert!(e.contains("velocity limit of joint 2"), "{e}");
+        assert!(e.contains("joint 2: velocity limit"), "{e}");
     }
 }

@@ -232,7 +232,8 @@ fn the_designed_wrist_excitation_conditions_eq3_better_and_its_model_cuts_the_no
 #[test]
 fn excite_wrist_writes_the_design_and_a_file_per_joint_the_firmware_runs() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("w.toml");
+    // A dot in the stem stays in the per-joint files' names.
+    let out = dir.path().join("w.v2.toml");
     let run = |extra: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
             .args([
@@ -256,7 +257,7 @@ fn excite_wrist_writes_the_design_and_a_file_per_joint_the_firmware_runs() {
     let design: WristDesign = toml::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert_eq!(design.duration_s, FreeRun::identification().duration_s);
     for (j, name) in ["roll", "pitch", "jaw_a", "jaw_b"].iter().enumerate() {
-        let joint = excite::load(&dir.path().join(format!("w.{name}.toml"))).unwrap();
+        let joint = excite::load(&dir.path().join(format!("w.v2.{name}.toml"))).unwrap();
         assert_eq!(joint.trajectory, design.trajectories[j], "{name}");
         assert_eq!(joint.duration_s, design.duration_s, "{name}");
     }

@@ -273,7 +273,10 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
     }
     let stem = args.out.with_extension("");
     for (j, name) in JOINT_FILES.iter().enumerate() {
-        let path = stem.with_extension(format!("{name}.toml"));
+        // `with_extension` would take a dot in the stem (`w.v2`) for one.
+        let mut path = stem.clone().into_os_string();
+        path.push(format!(".{name}.toml"));
+        let path = PathBuf::from(path);
         let tr = design.trajectories[j];
         let joint = Design {
             trajectory: tr,

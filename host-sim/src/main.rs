@@ -44,7 +44,7 @@ enum Command {
     Simulate(host_sim::cli::simulate::SimulateArgs),
     /// Tool payload identification and tool-end wrench estimation (KUKA wrist data).
     Payload(host_sim::cli::payload::PayloadArgs),
-    /// Design an identification excitation (Fourier series, least condition number) for `--scenario excite`.
+    /// Design an identification excitation (Fourier series, least condition number) for `--scenario excite`; with `--wrist`, the wrist's four joints for Eq. 3.
     Excite(host_sim::cli::excite::ExciteArgs),
     /// Identify B_m, the JAE and the tension models from logs, or the force scale from known weights; write the configuration.
     Identify(host_sim::cli::identify::IdentifyArgs),

@@ -17,9 +17,9 @@
 //! rows are computed, and the search sees the scaled runs. The columns are
 //! predicted from the references, the accelerations by the same central
 //! difference as [`super::excite`]; the condition number is the core's
-//! ([`BatchLsq::solve`], column-equilibrated). The forty coefficients are
+//! ([`BatchLsq::solve`](cable_joint::lsq::BatchLsq::solve), column-equilibrated). The forty coefficients are
 //! searched by the same Nelder–Mead from seeded random starts, at each of
-//! [`BASE_FREQS_HZ`] rounded to whole periods of the run. Deterministic
+//! [`BASE_FREQS_HZ`](super::excite::BASE_FREQS_HZ) rounded to whole periods of the run. Deterministic
 //! for a seed.
 //!
 //! # What it cannot promise
@@ -286,7 +286,7 @@ pub fn design(opts: &WristDesignOptions) -> Result<WristDesign> {
     })
 }
 
-/// [`design`] at each of [`BASE_FREQS_HZ`] rounded to whole periods of
+/// [`design`] at each of [`BASE_FREQS_HZ`](super::excite::BASE_FREQS_HZ) rounded to whole periods of
 /// `duration_s`; the design of least predicted condition number.
 pub fn design_over_frequencies(opts: &WristDesignOptions, duration_s: f64) -> Result<WristDesign> {
     let (best, evaluations) = best_over_periods(

@@ -39,25 +39,26 @@ pub struct FreeMotionRow {
     pub params: [f64; N_PARAMS],
     /// `%sigma` of each parameter.
     pub pct_sigma: [f64; N_PARAMS],
-    /// Condition number of the equilibrated regressor.
-    pub condition: f64,
     /// The torques' RMS on the identification run's last 30 %, raw and
     /// less the model fitted on the rest, as forces at the tips, N.
     pub held_out_rms_n: [f64; 2],
-    /// Whether the model was kept (it cut that RMS).
-    pub kept: bool,
-    /// Whether the links' columns fitted values real links could have.
-    pub links_observed: bool,
     /// The links' parameters and `%sigma` as the fit with every column
     /// found them.
     pub with_links: [[f64; 2]; N_LINKS],
-    /// The validation run's no-load errors.
-    pub validation: NoLoad,
     /// Grasps without Eq. 3 and with it (one per object stiffness).
     pub grasps: Vec<(GraspStats, GraspStats)>,
-    /// Eq. 3 identified on the hand-made run (the figures above) and on
-    /// the designed excitation, judged alike.
+    /// Eq. 3 identified on the hand-made run (the figures above: its
+    /// condition number, whether it was kept, whether the links were
+    /// seen, the validation run's no-load errors) and on the designed
+    /// excitation, judged alike.
     pub excitations: [ExcitationFit; 2],
+}
+
+impl FreeMotionRow {
+    /// The fit on the hand-made run.
+    fn hand_made(&self) -> &ExcitationFit {
+        &self.excitations[0]
+    }
 }
 
 /// Eq. 3 identified on one excitation and validated on the run it never
@@ -240,18 +241,14 @@ pub fn run_all(
             rate_hz: v.rate_hz,
             params: core::array::from_fn(|k| f64::from(fit.body.params[k])),
             pct_sigma: fit.pct_sigma,
-            condition: fit.condition,
             held_out_rms_n: fit
                 .held_out_rms_nm
                 .map(|x| x / f64::from(params.geometry.jaw_length_m)),
-            kept: fit.kept,
-            links_observed: fit.links_observed,
             with_links: fit.with_links,
-            validation: no_load(&params, &val),
             grasps,
             excitations,
         });
-        let validation = &sec.rows[sec.rows.len() - 1].validation;
+        let validation = &excitations[0].validation;
         if first.is_none() {
             first = Some(panel_of(&v.name, &with, fit.kept, &val, JAW_A));
         } else if fit.kept {
@@ -312,7 +309,8 @@ pub fn markdown(
     );
     let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|");
     for r in &sec.rows {
-        let v = &r.validation;
+        let h = r.hand_made();
+        let v = &h.validation;
         let mean = |x: &[f64; 4]| x.iter().sum::<f64>() / 4.0;
         let acc = |f: &dyn Fn(&(GraspStats, GraspStats)) -> f64| {
             r.grasps
@@ -330,12 +328,12 @@ pub fn markdown(
             r.variant,
             r.rate_hz,
             max4(&v.links_rms_n),
-            if r.links_observed {
+            if h.links_observed {
                 "fitted"
             } else {
                 "left out (not physical)"
             },
-            if r.kept { "kept" } else { "**not kept**" },
+            if h.kept { "kept" } else { "**not kept**" },
             r.held_out_rms_n[0],
             r.held_out_rms_n[1],
             max4(&v.raw_rms_n),
@@ -381,7 +379,7 @@ pub fn markdown(
                 .map_or("-".to_owned(), |[x, p]| format!("{x:.3e} ({p:.1})"));
             let _ = writeln!(o, "| {name} | {truth} | {every} | {fitted} | {pct} |");
         }
-        let _ = writeln!(o, "\nCondition number {:.1}.", first.condition);
+        let _ = writeln!(o, "\nCondition number {:.1}.", first.hand_made().condition);
     }
     let _ = writeln!(
         o,

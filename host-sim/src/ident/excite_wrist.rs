@@ -281,7 +281,7 @@ pub fn design(opts: &WristDesignOptions) -> Result<WristDesign> {
         condition: opts
             .shape
             .condition(&trajectories, duration_s, PREDICTION_RATE_HZ),
-        envelopes: trajectories.map(|tr| envelope_of(&samples(&[(tr, duration_s)], rate_hz))),
+        envelopes: trajectories.map(|tr| envelope(&[(tr, duration_s)], rate_hz)),
         evaluations,
     })
 }

@@ -24,3 +24,4 @@ pub mod sim;
 pub mod stats;
 pub mod trace;
 pub mod wrist;
+pub mod wrist_log;

@@ -36,14 +36,14 @@ use anyhow::{ensure, Result};
 use cable_joint::lsq::{compact_row, BatchLsq, LsqConfig};
 use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::{Geometry, Interval};
-use cable_joint::wrist_dynamics::{regressor, InverseDynamics, N_LINKS, N_PARAMS};
-use cable_joint::{Command, Mode};
+use cable_joint::wrist_dynamics::{regressor, InverseDynamics, WristMotion, N_LINKS, N_PARAMS};
+use cable_joint::{Command, Config, Mode};
 use serde::Serialize;
 
 use crate::ident::excite_wrist::WristDesign;
 use crate::scenario::G_M_S2;
 use crate::stats::rms;
-use crate::wrist::{SoftObject, WristParams, WristSim, WristTick, ROLL};
+use crate::wrist::{torque_bound_nm, SoftObject, WristParams, WristSim, WristTick, ROLL};
 
 /// The wrist's links (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -276,6 +276,17 @@ impl FreeRun {
 /// (if any) taken out of the joints' torques; every tick after the
 /// settling.
 pub fn run_free(params: &WristParams, run: &FreeRun, seed: u64) -> Result<Vec<WristTick>> {
+    let (mut ticks, start) = run_free_settled(params, run, seed)?;
+    Ok(ticks.split_off(start))
+}
+
+/// [`run_free`] with the settling's ticks kept: every tick from the
+/// controllers' start, and the index of the first tick of the motion.
+pub fn run_free_settled(
+    params: &WristParams,
+    run: &FreeRun,
+    seed: u64,
+) -> Result<(Vec<WristTick>, usize)> {
     let nothing = SoftObject {
         width_m: 0.0,
         stiffness_n_m: 0.0,
@@ -290,9 +301,10 @@ pub fn run_free(params: &WristParams, run: &FreeRun, seed: u64) -> Result<Vec<Wr
     for j in 0..4 {
         sim.set_command(j, hold)?;
     }
-    for _ in 0..(run.settle_s / period_s).round() as u64 {
-        sim.step();
-    }
+    let mut ticks: Vec<WristTick> = (0..(run.settle_s / period_s).round() as u64)
+        .map(|_| sim.step())
+        .collect();
+    let start = ticks.len();
     for j in 0..4 {
         sim.set_command(
             j,
@@ -302,9 +314,7 @@ pub fn run_free(params: &WristParams, run: &FreeRun, seed: u64) -> Result<Vec<Wr
             },
         )?;
     }
-    let ticks: Vec<WristTick> = (0..(run.duration_s / period_s).round() as u64)
-        .map(|_| sim.step())
-        .collect();
+    ticks.extend((0..(run.duration_s / period_s).round() as u64).map(|_| sim.step()));
     if let Some((j, f)) = ticks.iter().find_map(|t| {
         t.outputs
             .iter()
@@ -313,13 +323,56 @@ pub fn run_free(params: &WristParams, run: &FreeRun, seed: u64) -> Result<Vec<Wr
     }) {
         anyhow::bail!("the free run latched a fault on joint {j}: {f}");
     }
-    Ok(ticks)
+    Ok((ticks, start))
 }
 
 /// A joint's torque as its fused estimate reads it, N·m.
 fn estimated_torque_nm(params: &WristParams, t: &WristTick, j: usize) -> f64 {
     f64::from(t.outputs[j].est.f_ext_fused_n)
         * f64::from(params.configs[j].machine.gripper_length_m)
+}
+
+/// One tick of a free run as Eq. 3's fit reads it: the wrist's motion as
+/// the joints estimate it and each joint's torque as its fused estimate
+/// reads it (the estimate times `l_e`), from the simulated wrist or a
+/// rig's logs ([`crate::wrist_log`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Eq3Sample {
+    /// The estimated motion ([`crate::wrist::MotionEstimator`]).
+    pub motion: WristMotion,
+    /// Each joint's estimated torque, N·m.
+    pub torque_nm: [f64; 4],
+    /// Each joint's bound on it, `[lo, hi]`, N·m (the estimate's own,
+    /// times `l_e`).
+    pub bound_nm: [[f32; 2]; 4],
+}
+
+impl Eq3Sample {
+    /// A simulated wrist's tick.
+    pub fn of_tick(params: &WristParams, t: &WristTick) -> Self {
+        let l = |j: usize| params.configs[j].machine.gripper_length_m;
+        Self {
+            motion: t.motion,
+            torque_nm: core::array::from_fn(|j| estimated_torque_nm(params, t, j)),
+            bound_nm: core::array::from_fn(|j| {
+                let e = &t.outputs[j].est;
+                [e.f_ext_lo_n * l(j), e.f_ext_hi_n * l(j)]
+            }),
+        }
+    }
+}
+
+/// What Eq. 3's fit needs besides the samples: the wrist's dimensions,
+/// each joint's smooth-sign width ([`sign_speeds_rad_s`]) and gravity in
+/// the shaft frame (the holder's), m/s².
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Eq3Setting {
+    /// The wrist's dimensions.
+    pub geometry: Geometry,
+    /// Each joint's smooth-sign width, rad/s.
+    pub sign_speed_rad_s: [f32; 4],
+    /// Gravity in the shaft frame, m/s².
+    pub gravity_m_s2: [f64; 3],
 }
 
 /// What the Eq. 3 fit found.
@@ -363,16 +416,32 @@ impl InverseDynamicsFit {
 
 /// Each joint's smooth-sign width for Eq. 3's friction: its JAE's
 /// sign-switch speed at slider 2 turned to the joint, rad/s.
-pub fn sign_speeds_rad_s(params: &WristParams) -> [f32; 4] {
-    params
-        .configs
-        .map(|c| c.jae.sign_switch_m_s / c.machine.pulley_radius_m)
+pub fn sign_speeds_rad_s(configs: &[Config; 4]) -> [f32; 4] {
+    configs.map(|c| c.jae.sign_switch_m_s / c.machine.pulley_radius_m)
 }
 
-/// Fit Eq. 3's parameters to a free run: every tick's four joint torques
-/// (the fused estimates times `l_e`) against the regressor at the joints'
-/// estimated motion, by the core's least squares. The links' gravity
-/// direction is `gravity_m_s2` (the holder's).
+/// Fit Eq. 3's parameters to a simulated free run ([`fit_eq3`] on its
+/// ticks), gravity `gravity_m_s2` (the holder's).
+pub fn fit_inverse_dynamics(
+    params: &WristParams,
+    ticks: &[WristTick],
+    gravity_m_s2: [f64; 3],
+) -> Result<InverseDynamicsFit> {
+    let samples: Vec<Eq3Sample> = ticks
+        .iter()
+        .map(|t| Eq3Sample::of_tick(params, t))
+        .collect();
+    let setting = Eq3Setting {
+        geometry: params.geometry,
+        sign_speed_rad_s: sign_speeds_rad_s(&params.configs),
+        gravity_m_s2,
+    };
+    fit_eq3(&setting, &samples)
+}
+
+/// Fit Eq. 3's parameters to a free run: every sample's four joint
+/// torques against the regressor at the joints' estimated motion, by the
+/// core's least squares.
 ///
 /// * The links' columns are kept only if what they fit could be links: an
 ///   inertia or second moment below zero says the estimates do not see
@@ -382,22 +451,16 @@ pub fn sign_speeds_rad_s(params: &WristParams) -> [f32; 4] {
 ///   first on the run's first 70 %, it must cut the torques' RMS on the
 ///   last 30 % ([`InverseDynamicsFit::kept`]); the model returned is then
 ///   fitted on the whole run.
-pub fn fit_inverse_dynamics(
-    params: &WristParams,
-    ticks: &[WristTick],
-    gravity_m_s2: [f64; 3],
-) -> Result<InverseDynamicsFit> {
-    let gravity = gravity_m_s2.map(|x| x as f32);
-    let sign_speed_rad_s = sign_speeds_rad_s(params);
-    let rows = |t: &WristTick| {
-        let y = regressor(&params.geometry, gravity, sign_speed_rad_s, &t.motion);
-        core::array::from_fn::<_, 4, _>(|j| {
-            (y[j].map(f64::from), estimated_torque_nm(params, t, j))
-        })
+pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDynamicsFit> {
+    let gravity = setting.gravity_m_s2.map(|x| x as f32);
+    let sign_speed_rad_s = setting.sign_speed_rad_s;
+    let rows = |t: &Eq3Sample| {
+        let y = regressor(&setting.geometry, gravity, sign_speed_rad_s, &t.motion);
+        core::array::from_fn::<_, 4, _>(|j| (y[j].map(f64::from), t.torque_nm[j]))
     };
     // A fit on `part` with the columns `drop` left out; its parameters
     // and deviations put back in regressor order (zero where dropped).
-    let fit_on = |part: &[WristTick], drop: &[bool; N_PARAMS]| {
+    let fit_on = |part: &[Eq3Sample], drop: &[bool; N_PARAMS]| {
         // The condition number is reported, not a reason to refuse.
         let config = LsqConfig {
             max_condition: f64::INFINITY,
@@ -424,16 +487,16 @@ pub fn fit_inverse_dynamics(
         Ok::<_, anyhow::Error>((out, fit.condition, fit.rmse, fit.rows))
     };
     let mut drop = [false; N_PARAMS];
-    let every = fit_on(ticks, &drop)?;
+    let every = fit_on(samples, &drop)?;
     let ((whole, _, whole_pct), condition_with_links, _, _) = every;
     let links_observed = SECOND_MOMENTS.iter().all(|&k| whole[k] >= 0.0);
     if !links_observed {
         drop[..N_LINKS].fill(true);
     }
-    let split = ticks.len() * 7 / 10;
-    let ((first, _, _), _, _, _) = fit_on(&ticks[..split], &drop)?;
+    let split = samples.len() * 7 / 10;
+    let ((first, _, _), _, _, _) = fit_on(&samples[..split], &drop)?;
     let (mut raw, mut left) = (Vec::new(), Vec::new());
-    for t in &ticks[split..] {
+    for t in &samples[split..] {
         for (phi, y) in rows(t) {
             let pred: f64 = phi.iter().zip(&first).map(|(a, b)| a * b).sum();
             raw.push(y);
@@ -445,7 +508,7 @@ pub fn fit_inverse_dynamics(
     let ((p, sd, pct), condition, rmse_nm, rows_fitted) = if links_observed {
         every
     } else {
-        fit_on(ticks, &drop)?
+        fit_on(samples, &drop)?
     };
     Ok(InverseDynamicsFit {
         body: InverseDynamics {
@@ -469,7 +532,7 @@ pub fn fit_inverse_dynamics(
 
 /// The columns of the roll inertia and the three second moments: none can
 /// be negative for real links.
-const SECOND_MOMENTS: [usize; 4] = [0, 2, 4, 6];
+pub const SECOND_MOMENTS: [usize; 4] = [0, 2, 4, 6];
 
 /// Each joint's no-load error on a free run, as a force at `l_e`, N: the
 /// links' true torque (what the estimate reads unless Eq. 3 takes it out)
@@ -490,24 +553,73 @@ pub struct NoLoad {
     pub coverage: [f64; 4],
 }
 
-/// [`NoLoad`] of a free run.
+/// [`NoLoad`] of a simulated free run, the model its wrist ran with.
 pub fn no_load(params: &WristParams, ticks: &[WristTick]) -> NoLoad {
-    let n = ticks.len().max(1) as f64;
-    let rms_of = |f: &dyn Fn(&WristTick) -> f64| rms(&ticks.iter().map(f).collect::<Vec<_>>());
-    let holds_zero = |bound: &dyn Fn(&WristTick) -> Interval| {
-        ticks.iter().filter(|t| bound(t).contains(0.0)).count() as f64 / n
-    };
-    let l = |j: usize| f64::from(params.configs[j].machine.gripper_length_m);
+    let samples: Vec<Eq3Sample> = ticks
+        .iter()
+        .map(|t| Eq3Sample::of_tick(params, t))
+        .collect();
+    let l = params
+        .configs
+        .map(|c| f64::from(c.machine.gripper_length_m));
+    let links_rms_n = core::array::from_fn(|j| {
+        rms(&ticks
+            .iter()
+            .map(|t| t.links_true_nm[j] / l[j])
+            .collect::<Vec<_>>())
+    });
     NoLoad {
-        links_rms_n: core::array::from_fn(|j| rms_of(&|t| t.links_true_nm[j] / l(j))),
-        raw_rms_n: core::array::from_fn(|j| rms_of(&|t| estimated_torque_nm(params, t, j) / l(j))),
+        links_rms_n,
+        ..no_load_of(
+            &params.geometry,
+            params.inverse_dynamics.as_ref(),
+            &samples,
+            l,
+        )
+    }
+}
+
+/// [`NoLoad`] of a free run's samples (a simulated or a rig's, where
+/// nothing touches the tips) with `model` taken out, at tip distances
+/// `gripper_length_m`; the links' true torque is not known from samples
+/// (zero).
+pub fn no_load_of(
+    geometry: &Geometry,
+    model: Option<&InverseDynamics>,
+    samples: &[Eq3Sample],
+    gripper_length_m: [f64; 4],
+) -> NoLoad {
+    let n = samples.len().max(1) as f64;
+    let hat: Vec<([f32; 4], [f32; 4])> = samples
+        .iter()
+        .map(|s| {
+            model.map_or(([0.0; 4], [0.0; 4]), |m| {
+                m.torque_and_spread_nm(geometry, &s.motion)
+            })
+        })
+        .collect();
+    let l = gripper_length_m;
+    let rms_of = |f: &dyn Fn(usize) -> f64| rms(&(0..samples.len()).map(f).collect::<Vec<_>>());
+    let holds_zero = |j: usize, corrected: bool| {
+        let held = samples.iter().zip(&hat).filter(|(s, (tau, spread))| {
+            let [lo, hi] = s.bound_nm[j];
+            let bound = if corrected {
+                torque_bound_nm(lo, hi, tau[j], spread[j])
+            } else {
+                Interval::new(lo, hi)
+            };
+            bound.contains(0.0)
+        });
+        held.count() as f64 / n
+    };
+    NoLoad {
+        links_rms_n: [0.0; 4],
+        raw_rms_n: core::array::from_fn(|j| rms_of(&|k| samples[k].torque_nm[j] / l[j])),
         corrected_rms_n: core::array::from_fn(|j| {
-            rms_of(&|t| (estimated_torque_nm(params, t, j) - f64::from(t.links_hat_nm[j])) / l(j))
+            rms_of(&|k| (samples[k].torque_nm[j] - f64::from(hat[k].0[j])) / l[j])
         }),
-        raw_coverage: core::array::from_fn(|j| {
-            holds_zero(&|t| Interval::new(t.outputs[j].est.f_ext_lo_n, t.outputs[j].est.f_ext_hi_n))
-        }),
-        coverage: core::array::from_fn(|j| holds_zero(&|t| t.torque_bound_nm[j])),
+        raw_coverage: core::array::from_fn(|j| holds_zero(j, false)),
+        coverage: core::array::from_fn(|j| holds_zero(j, true)),
     }
 }
 
@@ -529,7 +641,6 @@ pub fn check(links: &Links) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use cable_joint::wrist_dynamics::WristMotion;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

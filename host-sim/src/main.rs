@@ -11,6 +11,8 @@
 //! * `ingest`: decoded defmt telemetry → CSV log.
 //! * `estimate`: replay any log through the core, write every estimate and
 //!   the fused force's bound.
+//! * `simulate-wrist`, `identify-wrist`: the wrist's free run as one log
+//!   per joint, and Eq. 3 identified on such a run.
 
 use std::process::ExitCode;
 
@@ -46,6 +48,10 @@ enum Command {
     Payload(host_sim::cli::payload::PayloadArgs),
     /// Design an identification excitation (Fourier series, least condition number) for `--scenario excite`; with `--wrist`, the wrist's four joints for Eq. 3.
     Excite(host_sim::cli::excite::ExciteArgs),
+    /// Identify Eq. 3 (the free wrist's inverse dynamics) on a run recorded as one log per joint.
+    IdentifyWrist(host_sim::cli::wrist::IdentifyWristArgs),
+    /// Run the simulated wrist free and write one log per joint (the input of identify-wrist).
+    SimulateWrist(host_sim::cli::wrist::SimulateWristArgs),
     /// Identify B_m, the JAE and the tension models from logs, or the force scale from known weights; write the configuration.
     Identify(host_sim::cli::identify::IdentifyArgs),
     /// Replay a log (any rate) through the core; write every estimate and the force bound.
@@ -71,6 +77,8 @@ fn main() -> ExitCode {
         Some(Command::Payload(a)) => host_sim::cli::payload::run(a),
         Some(Command::Excite(a)) => host_sim::cli::excite::run(a),
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
+        Some(Command::IdentifyWrist(a)) => host_sim::cli::wrist::run_identify(a),
+        Some(Command::SimulateWrist(a)) => host_sim::cli::wrist::run_simulate(a),
         Some(Command::Residual(a)) => host_sim::cli::residual::run(a),
         Some(Command::Undeclared(a)) => host_sim::cli::undeclared::run(a),
         Some(Command::Estimate(a)) => host_sim::cli::estimate::run(a),

@@ -182,9 +182,71 @@ pub struct WristSim {
     /// The joints' true accelerations over the last tick (the links'
     /// coupling terms use them a tick late).
     true_qdd: [f64; 4],
-    /// Differentiators of the joints' estimated angles.
+    /// The wrist's motion as the joints estimate it.
+    motion: MotionEstimator,
+}
+
+/// The wrist's motion as the joints estimate it: each joint's JAE angle
+/// differentiated by a tracking observer as fast as the force estimate's
+/// low-pass (so Eq. 3's torque and the estimate it is taken from see the
+/// motion alike), the jaws as the core's `q_3` (`theta - jaw_open`). The
+/// simulated wrist and a rig's recorded run ([`crate::wrist_log`]) both
+/// read their motion through it.
+#[derive(Clone, Debug)]
+pub struct MotionEstimator {
     observer: TrackingObserver,
     kinematics: [Kinematics; 4],
+    jaw_open_rad: f32,
+    started: bool,
+}
+
+impl MotionEstimator {
+    /// At the control period `period_s` of joints configured as `config`
+    /// (its DOB cutoff sets the observer's bandwidth), jaws open by
+    /// `jaw_open_rad` at `theta = 0`.
+    pub fn new(config: &Config, period_s: f64, jaw_open_rad: f64) -> Self {
+        let cutoff_hz = config.dob.cutoff_rad_s / (2.0 * core::f32::consts::PI);
+        Self {
+            observer: TrackingObserver::new(cutoff_hz, period_s as f32),
+            kinematics: [Kinematics::default(); 4],
+            jaw_open_rad: jaw_open_rad as f32,
+            started: false,
+        }
+    }
+
+    /// The motion after a tick whose JAE angles are `theta_hat_rad` (the
+    /// first tick starts the observers there, at rest).
+    pub fn update(&mut self, theta_hat_rad: [f32; 4]) -> WristMotion {
+        for (k, theta) in self.kinematics.iter_mut().zip(theta_hat_rad) {
+            if !self.started {
+                self.observer.reset(k, theta);
+            }
+            self.observer.update(k, theta);
+        }
+        self.started = true;
+        let open = self.jaw_open_rad;
+        let k = &self.kinematics;
+        WristMotion {
+            q_rad: core::array::from_fn(|j| {
+                if j >= JAW_A {
+                    k[j].pos - open
+                } else {
+                    k[j].pos
+                }
+            }),
+            qd_rad_s: core::array::from_fn(|j| k[j].vel),
+            qdd_rad_s2: core::array::from_fn(|j| k[j].acc),
+        }
+    }
+}
+
+/// A joint's external torque with Eq. 3 taken out, as a bound: the
+/// estimate's own `[lo, hi]` (N·m), shifted by the model's torque `hat`
+/// and widened by its parameters' `spread`, joined with the unshifted one
+/// (the model's structure can be wrong where its parameters are not).
+pub fn torque_bound_nm(lo: f32, hi: f32, hat: f32, spread: f32) -> Interval {
+    let (shifted_lo, shifted_hi) = (lo - hat - spread, hi - hat + spread);
+    Interval::new(lo.min(shifted_lo), hi.max(shifted_hi))
 }
 
 /// The contact force of `object` at gap `gap_m` closing at `gap_rate`, N.
@@ -213,6 +275,7 @@ impl WristSim {
             "the wrist's jaw length must be each jaw configuration's gripper length"
         );
         let period_s = 1.0 / f64::from(rate);
+        let motion = MotionEstimator::new(&params.configs[0], period_s, params.jaw_open_rad);
         if let Some(l) = &params.links {
             links::check(l)?;
         }
@@ -245,11 +308,6 @@ impl WristSim {
         let mut joints = Joints::new(controllers);
         let raw: [RawSample; 4] = core::array::from_fn(|j| plants[j].sample());
         joints.set_origin(&raw);
-        // The angles' differentiators are as fast as the force estimate's
-        // low-pass, so Eq. 3's torque and the estimate it is taken from
-        // see the motion alike.
-        let cutoff_hz = params.configs[0].dob.cutoff_rad_s / (2.0 * core::f32::consts::PI);
-        let observer = TrackingObserver::new(cutoff_hz, period_s as f32);
         Ok(Self {
             params,
             object,
@@ -260,8 +318,7 @@ impl WristSim {
             tick: 0,
             contact_n: 0.0,
             true_qdd: [0.0; 4],
-            observer,
-            kinematics: [Kinematics::default(); 4],
+            motion,
         })
     }
 
@@ -339,36 +396,23 @@ impl WristSim {
         let outputs = self.joints.step(&raw);
         let g = &self.params.geometry;
         let open = self.params.jaw_open_rad as f32;
-        // The wrist's motion as the joints estimate it (the JAE of each,
-        // differentiated), jaws as the core's q_3.
-        let obs = &self.observer;
-        for (k, o) in self.kinematics.iter_mut().zip(&outputs) {
-            if self.tick == 0 {
-                obs.reset(k, o.est.theta_hat_rad);
-            }
-            obs.update(k, o.est.theta_hat_rad);
-        }
-        let jaw = |j: usize, x: f32| if j >= JAW_A { x - open } else { x };
-        let motion = WristMotion {
-            q_rad: core::array::from_fn(|j| jaw(j, self.kinematics[j].pos)),
-            qd_rad_s: core::array::from_fn(|j| self.kinematics[j].vel),
-            qdd_rad_s2: core::array::from_fn(|j| self.kinematics[j].acc),
-        };
+        let motion = self
+            .motion
+            .update(core::array::from_fn(|j| outputs[j].est.theta_hat_rad));
         let (links_hat_nm, spread_nm) = self
             .params
             .inverse_dynamics
             .map_or(([0.0; 4], [0.0; 4]), |b| b.torque_and_spread_nm(g, &motion));
         let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
-        // Each joint's external torque, Eq. 3 taken out. The bound: the
-        // estimate's own, shifted by the model and widened by its
-        // parameters' spread, joined with the unshifted one (the model's
-        // structure can be wrong where its parameters are not).
+        // Each joint's external torque, Eq. 3 taken out.
         let torque_bound_nm: [Interval; 4] = core::array::from_fn(|j| {
             let e = &outputs[j].est;
-            let (lo, hi) = (e.f_ext_lo_n * l(j), e.f_ext_hi_n * l(j));
-            let shifted_lo = lo - links_hat_nm[j] - spread_nm[j];
-            let shifted_hi = hi - links_hat_nm[j] + spread_nm[j];
-            Interval::new(lo.min(shifted_lo), hi.max(shifted_hi))
+            torque_bound_nm(
+                e.f_ext_lo_n * l(j),
+                e.f_ext_hi_n * l(j),
+                links_hat_nm[j],
+                spread_nm[j],
+            )
         });
         let point =
             |j: usize| Interval::point(outputs[j].est.f_ext_fused_n * l(j) - links_hat_nm[j]);

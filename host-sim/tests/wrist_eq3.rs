@@ -78,7 +78,7 @@ fn heavy(params: &WristParams) -> InverseDynamics {
         params: p,
         std_dev: [0.0; N_PARAMS],
         gravity_m_s2: links.gravity_m_s2.map(|x| x as f32),
-        sign_speed_rad_s: sign_speeds_rad_s(params),
+        sign_speed_rad_s: sign_speeds_rad_s(&params.configs),
     }
 }
 

@@ -30,6 +30,7 @@ pub mod residual;
 pub mod simulate;
 pub mod trace;
 pub mod undeclared;
+pub mod wrist;
 
 use std::fmt::Display;
 use std::path::{Path, PathBuf};

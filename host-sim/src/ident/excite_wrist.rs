@@ -162,7 +162,7 @@ impl WristDesignOptions {
         let shape = Eq3Shape {
             geometry: params.geometry,
             gravity_m_s2: Links::prototype().gravity_m_s2.map(|x| x as f32),
-            sign_speed_rad_s: sign_speeds_rad_s(&params),
+            sign_speed_rad_s: sign_speeds_rad_s(&params.configs),
         };
         let hand = FreeRun::identification();
         Self::replacing(shape, &hand.trajectories, hand.duration_s)

@@ -1,0 +1,412 @@
+//! `host-sim identify-wrist` (Eq. 3 on a rig's free run, recorded as one
+//! log per joint) and `host-sim simulate-wrist` (the simulated wrist's free
+//! run written the same way): their arguments, runs and printing.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{ensure, Context, Result};
+use cable_joint::wrist_dynamics::{N_PARAMS, PARAM_NAMES};
+use cable_joint::Config;
+use serde::Serialize;
+
+use crate::cli;
+use crate::ident::excite_wrist::WristDesign;
+use crate::links::{self, fit_eq3, FreeRun, InverseDynamicsFit, Links, NoLoad};
+use crate::output::{write_atomic, Outputs};
+use crate::plant::PlantParams;
+use crate::scenario::{oracle_config, tuned_gains};
+use crate::wrist::WristParams;
+use crate::wrist_log::{self, Holding, WristRun, JOINT_NAMES};
+
+/// Arguments of `host-sim identify-wrist`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct IdentifyWristArgs {
+    /// Directory of the free run (nothing touching the jaws) to fit:
+    /// `roll.csv`, `pitch.csv`, `jaw_a.csv`, `jaw_b.csv`, each joint's log
+    /// in the project's CSV schema, recorded together (`host-sim link ...
+    /// --record roll.csv` on each joint's controller, or `host-sim
+    /// simulate-wrist`).
+    #[arg(long, value_name = "DIR")]
+    pub run: PathBuf,
+    /// Directory of another free run, the same four files, that the fit
+    /// does not see: each joint's no-load error is reported on it, with
+    /// and without the model.
+    #[arg(long, value_name = "DIR")]
+    pub validate: Option<PathBuf>,
+    /// Every joint's configuration (TOML). Without it each joint's is the
+    /// file beside its log (`roll.toml`, ...: its controller's own, as
+    /// `host-sim identify` wrote it), else the datasheet values; which one
+    /// each joint used is printed.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Gravity in the shaft frame, m/s², `GX,GY,GZ`: how the instrument was
+    /// held (`cable_joint::wrist`'s frame: `z_0` along the shaft; the
+    /// simulated prototype's `-8.496,-4.905,0`, shaft level and turned
+    /// 30° about it). The logs cannot say it.
+    #[arg(allow_negative_numbers = true, long, value_delimiter = ',', required = true,
+          value_parser = cli::f64_in(-100.0, 100.0), value_name = "GX,GY,GZ")]
+    pub gravity: Vec<f64>,
+    /// Each jaw's angle from the wrist's axis where its controller homed
+    /// (its `theta = 0`), degrees (the simulated wrist's: 20).
+    #[arg(allow_negative_numbers = true, long, value_parser = cli::f64_in(-90.0, 90.0))]
+    pub jaw_open_deg: f64,
+    /// The logs have a row every N control ticks but no `tick` column (as
+    /// `estimate --ticks-per-row`).
+    #[arg(long, value_name = "N")]
+    pub ticks_per_row: Option<u32>,
+    /// Output: the fitted model, its `%sigma`, condition numbers, the
+    /// held-out check and the validation (TOML).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Arguments of `host-sim simulate-wrist`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SimulateWristArgs {
+    /// Directory for `roll.csv`, `pitch.csv`, `jaw_a.csv`, `jaw_b.csv`
+    /// (created if missing; the four written together or none).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// The run: the hand-made identification run (20 s), the validation
+    /// run (10 s, other amplitudes and frequencies), or `--excitation`'s.
+    #[arg(long, value_enum, default_value_t = FreeRunArg::Identification)]
+    pub free_run: FreeRunArg,
+    /// A design of `host-sim excite --wrist --out w.toml` (the run it
+    /// names; `--free-run` is then ignored).
+    #[arg(long, value_name = "W.TOML")]
+    pub excitation: Option<PathBuf>,
+    /// The configuration every joint's controller runs (TOML; default:
+    /// the simulated plant's true values with gains that work on it, as
+    /// `simulate --oracle --tuned-gains`). Written beside each log.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Noise seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// `simulate-wrist --free-run`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FreeRunArg {
+    /// [`FreeRun::identification`].
+    Identification,
+    /// [`FreeRun::validation`].
+    Validation,
+}
+
+/// The simulated wrist `simulate-wrist` runs: the default plant at every
+/// joint with `config` (default: [`oracle_config`] of it with
+/// [`tuned_gains`]), the prototype's links held as [`Links::prototype`]
+/// says.
+pub fn simulated_wrist(config: Option<Config>) -> WristParams {
+    let plant = PlantParams::default();
+    let config = config.unwrap_or_else(|| oracle_config(&plant, &tuned_gains(&Config::default())));
+    WristParams {
+        links: Some(Links::prototype()),
+        ..WristParams::uniform(plant, config)
+    }
+}
+
+/// `host-sim simulate-wrist`.
+pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
+    let run = match &args.excitation {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            let design: WristDesign = toml::from_str(&text).map_err(|e| {
+                anyhow::anyhow!(
+                    "{}: not a wrist design of `host-sim excite --wrist`: {}",
+                    path.display(),
+                    crate::log::toml_error(&text, &e)
+                )
+            })?;
+            FreeRun::designed(&design)
+        }
+        None => match args.free_run {
+            FreeRunArg::Identification => FreeRun::identification(),
+            FreeRunArg::Validation => FreeRun::validation(),
+        },
+    };
+    let config = match &args.config {
+        Some(p) => Some(crate::io::config::load_config(p)?),
+        None => None,
+    };
+    let params = simulated_wrist(config);
+    eprintln!(
+        "simulate-wrist: {:.1} s at rest, then {:.1} s of motion ...",
+        run.settle_s, run.duration_s
+    );
+    let (ticks, _) = links::run_free_settled(&params, &run, args.seed)?;
+    let logs = wrist_log::joint_logs(&params, &ticks)?;
+    let mut out = Outputs::new();
+    out.create_dir(&args.out)?;
+    let paths = wrist_log::stage_joint_logs(&mut out, &args.out, &logs)?;
+    for (name, config) in JOINT_NAMES.iter().zip(&params.configs) {
+        crate::io::config::stage_config(&mut out, args.out.join(format!("{name}.toml")), config)?;
+    }
+    out.commit()?;
+    let g = Links::prototype().gravity_m_s2;
+    crate::stdoutln!(
+        "wrote {} ({} ticks each) and each joint's configuration beside its log: fit Eq. 3 with `host-sim identify-wrist --run {} --gravity {:.3},{:.3},{:.3} --jaw-open-deg {} --out eq3.toml`",
+        paths
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        ticks.len(),
+        args.out.display(),
+        g[0],
+        g[1],
+        g[2],
+        params.jaw_open_rad.to_degrees().round()
+    );
+    Ok(())
+}
+
+/// What `identify-wrist --out` writes.
+#[derive(Serialize)]
+struct Eq3File<'a> {
+    /// The command and its run.
+    written_by: String,
+    /// The parameters' names, in the model's order.
+    parameter_names: [&'static str; N_PARAMS],
+    /// The fit.
+    fit: &'a InverseDynamicsFit,
+    /// The validation run's no-load errors, if one was given.
+    validation: Option<Validation>,
+}
+
+/// `identify-wrist --validate`'s figures.
+#[derive(Serialize)]
+struct Validation {
+    /// The directory.
+    run: String,
+    /// Each joint's RMS estimate (true force zero) and bound coverage,
+    /// raw and with the model (`links_rms_n` is not known on a log: 0).
+    no_load: NoLoad,
+}
+
+/// The four logs of `dir`, read.
+fn read_run(dir: &Path, ticks_per_row: Option<u32>) -> Result<[(String, crate::log::Log); 4]> {
+    ensure!(
+        dir.is_dir(),
+        "{} is not a directory: a wrist's run is a directory of {}",
+        dir.display(),
+        JOINT_NAMES.map(|n| format!("{n}.csv")).join(", ")
+    );
+    let mut logs = Vec::with_capacity(4);
+    for name in JOINT_NAMES {
+        let path = dir.join(format!("{name}.csv"));
+        ensure!(
+            path.is_file(),
+            "{}: no log of joint {name} (the run needs {})",
+            path.display(),
+            JOINT_NAMES.map(|n| format!("{n}.csv")).join(", ")
+        );
+        logs.push(wrist_log::read(&path, ticks_per_row, "identify-wrist")?);
+    }
+    logs.try_into()
+        .map_err(|_| anyhow::anyhow!("four joints' logs"))
+}
+
+/// The four joints' configurations for the run in `dir`: `config` for
+/// all, else the file beside each joint's log, else the datasheet
+/// values; with what each one is.
+fn configs(config: Option<&Path>, dir: &Path) -> Result<[(Config, String); 4]> {
+    if let Some(p) = config {
+        let c = crate::io::config::load_config(p)?;
+        return Ok([0; 4].map(|_| (c, p.display().to_string())));
+    }
+    let mut out = Vec::with_capacity(4);
+    for name in JOINT_NAMES {
+        let path = dir.join(format!("{name}.toml"));
+        out.push(if path.is_file() {
+            (
+                crate::io::config::load_config(&path)?,
+                path.display().to_string(),
+            )
+        } else {
+            (
+                Config::default(),
+                "the datasheet values (no --config, no file beside the log)".to_owned(),
+            )
+        });
+    }
+    out.try_into()
+        .map_err(|_| anyhow::anyhow!("four joints' configurations"))
+}
+
+/// Read and replay the run in `dir`, its configurations as [`configs`]
+/// finds them.
+fn replay_run(
+    dir: &Path,
+    args: &IdentifyWristArgs,
+    holding: &Holding,
+) -> Result<([(String, crate::log::Log); 4], WristRun)> {
+    let configs = configs(args.config.as_deref(), dir)?;
+    for (name, (_, what)) in JOINT_NAMES.iter().zip(&configs) {
+        eprintln!(
+            "identify-wrist: {}: {name}'s configuration: {what}",
+            dir.display()
+        );
+    }
+    let logs = read_run(dir, args.ticks_per_row)?;
+    let run = wrist_log::replay(&logs, &configs.map(|c| c.0), holding)
+        .with_context(|| format!("the run in {}", dir.display()))?;
+    report_run(dir, &run);
+    Ok((logs, run))
+}
+
+/// `host-sim identify-wrist`.
+pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
+    let gravity_m_s2: [f64; 3] = args.gravity.as_slice().try_into().map_err(|_| {
+        anyhow::anyhow!(
+            "--gravity: expected three components GX,GY,GZ (m/s²), got {}",
+            args.gravity.len()
+        )
+    })?;
+    let g = gravity_m_s2.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if (g - crate::scenario::G_M_S2).abs() > 0.05 * crate::scenario::G_M_S2 {
+        eprintln!(
+            "identify-wrist: note: --gravity is {g:.2} m/s² long, not 9.81: the links' moments are fitted in its scale"
+        );
+    }
+    let holding = Holding {
+        gravity_m_s2,
+        jaw_open_rad: args.jaw_open_deg.to_radians(),
+    };
+    if let Some(v) = &args.validate {
+        cli::refuse_reused_files(
+            std::slice::from_ref(&args.run),
+            std::slice::from_ref(v),
+            &[],
+        )?;
+    }
+    let (logs, run) = replay_run(&args.run, &args, &holding)?;
+    ensure!(
+        run.samples.len() >= 100,
+        "{}: {} ticks in common: too few to fit Eq. 3's {N_PARAMS} parameters",
+        args.run.display(),
+        run.samples.len()
+    );
+    let fit = fit_eq3(&run.setting, &run.samples)
+        .with_context(|| format!("fitting Eq. 3 on {}", args.run.display()))?;
+    report_fit(&fit);
+    let validation = match &args.validate {
+        Some(dir) => {
+            let (vlogs, vrun) = replay_run(dir, &args, &holding)?;
+            let fitted: Vec<(&str, &crate::log::Log)> =
+                logs.iter().map(|(n, l)| (n.as_str(), l)).collect();
+            let unseen: Vec<(&str, &crate::log::Log)> =
+                vlogs.iter().map(|(n, l)| (n.as_str(), l)).collect();
+            cli::refuse_copies(&fitted, &unseen, &[])?;
+            let no_load = links::no_load_of(
+                &vrun.setting.geometry,
+                Some(&fit.body),
+                &vrun.samples,
+                vrun.gripper_length_m,
+            );
+            report_validation(dir, &no_load, fit.kept);
+            Some(Validation {
+                run: dir.display().to_string(),
+                no_load,
+            })
+        }
+        None => None,
+    };
+    let file = Eq3File {
+        written_by: format!(
+            "host-sim {} identify-wrist on {} ({} ticks at {} Hz)",
+            env!("CARGO_PKG_VERSION"),
+            args.run.display(),
+            run.samples.len(),
+            run.rate_hz
+        ),
+        parameter_names: PARAM_NAMES,
+        fit: &fit,
+        validation,
+    };
+    write_atomic(&args.out, toml::to_string_pretty(&file)?.as_bytes())
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    crate::stdoutln!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// Print what reading `dir` did.
+fn report_run(dir: &Path, run: &WristRun) {
+    for n in &run.notes {
+        eprintln!("identify-wrist: {n}");
+    }
+    crate::stdoutln!(
+        "{}: {} ticks at {} Hz ({:.1} s), four joints",
+        dir.display(),
+        run.samples.len(),
+        run.rate_hz,
+        run.samples.len() as f64 / run.rate_hz
+    );
+}
+
+/// Print the fit.
+fn report_fit(fit: &InverseDynamicsFit) {
+    crate::stdoutln!(
+        "Eq. 3 fit: {} rows; condition number of the equilibrated regressor {:.2} (every column {:.2}); residual RMS {:.3e} N·m",
+        fit.rows,
+        fit.condition,
+        fit.condition_with_links,
+        fit.rmse_nm
+    );
+    if fit.links_observed {
+        crate::stdoutln!(
+            "links: observed (their inertia and second moments fitted at or above zero)"
+        );
+    } else {
+        let negative: Vec<String> = links::SECOND_MOMENTS
+            .into_iter()
+            .filter(|&k| fit.with_links[k][0] < 0.0)
+            .map(|k| format!("{} = {:.3e}", PARAM_NAMES[k], fit.with_links[k][0]))
+            .collect();
+        crate::stdoutln!(
+            "links: not observed ({} below zero with every column: the estimates do not resolve the links; the model is each joint's friction alone)",
+            negative.join(", ")
+        );
+    }
+    crate::stdoutln!("  {:<28} {:>12} {:>9}", "parameter", "value", "%sigma");
+    for ((name, value), pct) in PARAM_NAMES.iter().zip(fit.body.params).zip(fit.pct_sigma) {
+        if pct.is_nan() {
+            crate::stdoutln!("  {name:<28} {:>12} {:>9}", "left out", "");
+        } else {
+            crate::stdoutln!("  {name:<28} {value:>12.4e} {pct:>9.1}");
+        }
+    }
+    let [raw, left] = fit.held_out_rms_nm;
+    crate::stdoutln!(
+        "held out (fitted on the first 70 %, judged on the last 30 %): torque RMS {raw:.3e} -> {left:.3e} N·m: {}",
+        if fit.kept {
+            "the model helps on motion it did not see (kept = true)"
+        } else {
+            "the model does not cut it (kept = false): run the wrist without it"
+        }
+    );
+}
+
+/// Print the validation's no-load errors.
+fn report_validation(dir: &Path, n: &NoLoad, kept: bool) {
+    crate::stdoutln!(
+        "validation on {} (unseen; true tip force zero){}:",
+        dir.display(),
+        if kept {
+            ""
+        } else {
+            " (the model was not kept: shown for the record)"
+        }
+    );
+    for (j, name) in JOINT_NAMES.iter().enumerate() {
+        crate::stdoutln!(
+            "  {name:<6} no-load RMS {:.3} -> {:.3} N; bound holds zero {:.1} % -> {:.1} %",
+            n.raw_rms_n[j],
+            n.corrected_rms_n[j],
+            100.0 * n.raw_coverage[j],
+            100.0 * n.coverage[j]
+        );
+    }
+}

@@ -1,0 +1,258 @@
+//! Eq. 3 identified on a wrist's run recorded as one log per joint
+//! (`host_sim::wrist_log`, `host-sim simulate-wrist` and `identify-wrist`):
+//! the logs replayed through the core give the fit the simulated wrist
+//! gives in memory, and logs that cannot be one run are refused by name.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use host_sim::cli::wrist::simulated_wrist;
+use host_sim::links::{fit_eq3, fit_inverse_dynamics, run_free_settled, Eq3Sample, FreeRun, Links};
+use host_sim::log::Log;
+use host_sim::wrist::WristParams;
+use host_sim::wrist_log::{self, Holding, JOINT_NAMES};
+
+/// A short free run (the identification run's motion for `seconds`), its
+/// ticks from the controllers' start, and the four joints' logs of it.
+fn short_run(params: &WristParams, seconds: f64) -> (Vec<host_sim::wrist::WristTick>, [Log; 4]) {
+    let run = FreeRun {
+        duration_s: seconds,
+        ..FreeRun::identification()
+    };
+    let (ticks, _) = run_free_settled(params, &run, 7).unwrap();
+    let logs = wrist_log::joint_logs(params, &ticks).unwrap();
+    (ticks, logs)
+}
+
+/// The logs as a reader hands them over: written as CSV and read back.
+fn round_trip(logs: &[Log; 4], dir: &Path) -> [(String, Log); 4] {
+    core::array::from_fn(|j| {
+        let path = dir.join(format!("{}.csv", JOINT_NAMES[j]));
+        logs[j].write(&path).unwrap();
+        wrist_log::read(&path, None, "test").unwrap()
+    })
+}
+
+/// How the simulated wrist is held.
+fn holding(params: &WristParams) -> Holding {
+    Holding {
+        gravity_m_s2: params.links.unwrap().gravity_m_s2,
+        jaw_open_rad: params.jaw_open_rad,
+    }
+}
+
+/// The four joints' logs, written as CSV, read back and replayed through
+/// the core, are the simulated wrist's run bit for bit: every tick's
+/// estimated motion, torque and bound, so Eq. 3's fit on them is the fit
+/// on the wrist's own ticks (the replay is the controllers' arithmetic on
+/// the same sensor values; the CSV keeps every digit).
+#[test]
+fn eq3_fitted_on_the_joints_logs_is_eq3_fitted_on_the_simulated_wrist() {
+    let params = simulated_wrist(None);
+    let (ticks, logs) = short_run(&params, 10.0);
+    let dir = tempfile::tempdir().unwrap();
+    let read = round_trip(&logs, dir.path());
+    let run = wrist_log::replay(&read, &params.configs, &holding(&params)).unwrap();
+    assert_eq!(run.samples.len(), ticks.len());
+    for (k, (s, t)) in run.samples.iter().zip(&ticks).enumerate() {
+        assert_eq!(*s, Eq3Sample::of_tick(&params, t), "tick {k}");
+    }
+    let from_logs = fit_eq3(&run.setting, &run.samples).unwrap();
+    let in_memory = fit_inverse_dynamics(&params, &ticks, Links::prototype().gravity_m_s2).unwrap();
+    assert!(in_memory.kept, "the model helps on the simulated run");
+    assert_eq!(from_logs.body, in_memory.body);
+    assert_eq!(
+        (from_logs.condition, from_logs.condition_with_links),
+        (in_memory.condition, in_memory.condition_with_links)
+    );
+    assert_eq!(
+        (
+            from_logs.links_observed,
+            from_logs.kept,
+            from_logs.held_out_rms_nm
+        ),
+        (
+            in_memory.links_observed,
+            in_memory.kept,
+            in_memory.held_out_rms_nm
+        )
+    );
+}
+
+/// Logs that did not start together are refused, naming the joints and
+/// their lengths; a shift shorter than the force estimate's time constant
+/// (16 ms at the default 10 Hz cutoff) is cut off with a note; logs as
+/// long as each other whose commanded motions start apart are warned of.
+#[test]
+fn logs_recorded_apart_are_refused_and_a_small_shift_is_cut() {
+    let params = simulated_wrist(None);
+    let (ticks, mut logs) = short_run(&params, 1.0);
+    let n = logs[1].len();
+    // 10 ticks (5 ms) short: within the time constant.
+    let mut near = logs.clone();
+    near[1] = near[1].rows(0..n - 10);
+    let dir = tempfile::tempdir().unwrap();
+    let read = round_trip(&near, dir.path());
+    let run = wrist_log::replay(&read, &params.configs, &holding(&params)).unwrap();
+    assert_eq!(run.samples.len(), ticks.len() - 10);
+    assert!(
+        run.notes.iter().any(|n| n.contains("cut to the shortest")),
+        "{:?}",
+        run.notes
+    );
+    // The pitch's log starting 100 ticks (50 ms) late and the others
+    // ending as early: the lengths agree, the motions' starts do not.
+    let mut apart = logs.clone();
+    for (j, log) in apart.iter_mut().enumerate() {
+        *log = if j == 1 {
+            log.rows(100..n)
+        } else {
+            log.rows(0..n - 100)
+        };
+    }
+    let read = round_trip(&apart, dir.path());
+    let run = wrist_log::replay(&read, &params.configs, &holding(&params)).unwrap();
+    let note = run
+        .notes
+        .iter()
+        .find(|n| n.contains("first moves"))
+        .unwrap();
+    assert!(
+        note.contains("0.050 s apart") && note.contains("not aligned"),
+        "{note}"
+    );
+    // 100 ticks (50 ms) late: refused (2 s of settling and 1 s of motion).
+    logs[1] = logs[1].rows(100..n);
+    let read = round_trip(&logs, dir.path());
+    let e = wrist_log::replay(&read, &params.configs, &holding(&params))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("recorded") && e.contains("together"), "{e}");
+    assert!(
+        e.contains("pitch 2.950 s") && e.contains("roll 3.000 s"),
+        "{e}"
+    );
+}
+
+/// Jaws configured with different lengths cannot be the wrist's two jaws:
+/// refused, naming both.
+#[test]
+fn jaws_of_different_lengths_are_refused() {
+    let params = simulated_wrist(None);
+    let (_, logs) = short_run(&params, 0.2);
+    let dir = tempfile::tempdir().unwrap();
+    let read = round_trip(&logs, dir.path());
+    let mut configs = params.configs;
+    configs[3].machine.gripper_length_m *= 1.1;
+    let e = wrist_log::replay(&read, &configs, &holding(&params))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("jaw A") && e.contains("jaw B"), "{e}");
+}
+
+/// `host-sim` run with `args`.
+fn host_sim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// The command line end to end: `simulate-wrist` writes a run's four logs
+/// with each joint's configuration beside them; `identify-wrist` fits
+/// Eq. 3 on one run, validates it on another, writes the model and its
+/// figures, and the model cuts the unseen run's no-load error on every
+/// joint. The same run given as its own validation, a run missing a joint
+/// and a bad cell are refused, each by name, and nothing is written.
+#[test]
+fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p).display().to_string();
+    for (out, run, seed) in [("id", "identification", "1"), ("val", "validation", "2")] {
+        let o = host_sim(&[
+            "simulate-wrist",
+            "--out",
+            &d(out),
+            "--free-run",
+            run,
+            "--seed",
+            seed,
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for name in JOINT_NAMES {
+            assert!(dir.path().join(out).join(format!("{name}.csv")).is_file());
+            assert!(dir.path().join(out).join(format!("{name}.toml")).is_file());
+        }
+    }
+    let g = Links::prototype().gravity_m_s2;
+    let gravity = format!("--gravity={},{},{}", g[0], g[1], g[2]);
+    let fit = |run: &str, validate: &str, out: &str| {
+        host_sim(&[
+            "identify-wrist",
+            "--run",
+            &d(run),
+            "--validate",
+            &d(validate),
+            &gravity,
+            "--jaw-open-deg",
+            "20",
+            "--out",
+            &d(out),
+        ])
+    };
+    let o = fit("id", "val", "eq3.toml");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("kept = true"), "{stdout}");
+    let text = std::fs::read_to_string(dir.path().join("eq3.toml")).unwrap();
+    let file: toml::Value = toml::from_str(&text).unwrap();
+    assert_eq!(file["fit"]["kept"].as_bool(), Some(true), "{text}");
+    let no_load = &file["validation"]["no_load"];
+    let values = |k: &str| -> Vec<f64> {
+        no_load[k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_float().unwrap())
+            .collect()
+    };
+    let (raw, corrected) = (values("raw_rms_n"), values("corrected_rms_n"));
+    for j in 0..4 {
+        assert!(
+            corrected[j] < raw[j],
+            "{}: {} -> {} N",
+            JOINT_NAMES[j],
+            raw[j],
+            corrected[j]
+        );
+    }
+    // The fitted run as its own validation.
+    let o = fit("id", "id", "same.toml");
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("--validate") && e.contains("fitted"), "{e}");
+    assert!(!dir.path().join("same.toml").exists());
+    // A run without jaw B's log.
+    std::fs::remove_file(dir.path().join("val").join("jaw_b.csv")).unwrap();
+    let o = fit("id", "val", "missing.toml");
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("jaw_b.csv") && e.contains("no log of joint jaw_b"),
+        "{e}"
+    );
+    assert!(!dir.path().join("missing.toml").exists());
+    // A cell that is not a number, in the pitch's log at line 5.
+    let pitch = dir.path().join("id").join("pitch.csv");
+    let text = std::fs::read_to_string(&pitch).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let mut cells: Vec<&str> = lines[4].split(',').collect();
+    cells[1] = "oops";
+    lines[4] = cells.join(",");
+    std::fs::write(&pitch, lines.join("\n") + "\n").unwrap();
+    let o = fit("id", "val", "bad.toml");
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("pitch.csv:5") && e.contains("x1_m"), "{e}");
+    assert!(!dir.path().join("bad.toml").exists());
+}

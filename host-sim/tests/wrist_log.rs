@@ -162,8 +162,9 @@ fn host_sim(args: &[&str]) -> Output {
 /// with each joint's configuration beside them; `identify-wrist` fits
 /// Eq. 3 on one run, validates it on another, writes the model and its
 /// figures, and the model cuts the unseen run's no-load error on every
-/// joint. The same run given as its own validation, a run missing a joint
-/// and a bad cell are refused, each by name, and nothing is written.
+/// joint; `--links-scale` makes the links heavier. The same run given as
+/// its own validation, a run missing a joint and a bad cell are refused,
+/// each by name, and nothing is written.
 #[test]
 fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
     let dir = tempfile::tempdir().unwrap();
@@ -184,6 +185,31 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
             assert!(dir.path().join(out).join(format!("{name}.toml")).is_file());
         }
     }
+    // Links three times heavier put about three times their torque in the
+    // logs' truth column (the motion differs a little between the runs).
+    let o = host_sim(&[
+        "simulate-wrist",
+        "--out",
+        &d("heavy"),
+        "--free-run",
+        "validation",
+        "--seed",
+        "2",
+        "--links-scale",
+        "3",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let links_rms = |run: &str| {
+        let (_, log) =
+            wrist_log::read(&dir.path().join(run).join("pitch.csv"), None, "test").unwrap();
+        let f = log.col("f_links_true_n").unwrap();
+        (f.iter().map(|x| x * x).sum::<f64>() / f.len() as f64).sqrt()
+    };
+    let ratio = links_rms("heavy") / links_rms("val");
+    assert!(
+        (2.5..3.5).contains(&ratio),
+        "links' torque {ratio}x with --links-scale 3"
+    );
     let g = Links::prototype().gravity_m_s2;
     let gravity = format!("--gravity={},{},{}", g[0], g[1], g[2]);
     let fit = |run: &str, validate: &str, out: &str| {

@@ -80,6 +80,12 @@ pub struct SimulateWristArgs {
     /// `simulate --oracle --tuned-gains`). Written beside each log.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Every link's mass and inertia times K (a heavier instrument of the
+    /// same shapes, [`Links::scaled`]; the prototype's links put about
+    /// 1.5 mN at a jaw's tip).
+    #[arg(allow_negative_numbers = true, long, value_name = "K", default_value_t = 1.0,
+          value_parser = cli::f64_in(0.0, 1e4))]
+    pub links_scale: f64,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -131,7 +137,8 @@ pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
         Some(p) => Some(crate::io::config::load_config(p)?),
         None => None,
     };
-    let params = simulated_wrist(config);
+    let mut params = simulated_wrist(config);
+    params.links = params.links.map(|l| l.scaled(args.links_scale));
     eprintln!(
         "simulate-wrist: {:.1} s at rest, then {:.1} s of motion ...",
         run.settle_s, run.duration_s

@@ -33,17 +33,21 @@
 //! heavier latched a fault in free motion).
 
 use anyhow::{ensure, Result};
+use cable_joint::filter::LowPass1;
 use cable_joint::lsq::{compact_row, BatchLsq, LsqConfig};
 use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::{Geometry, Interval};
-use cable_joint::wrist_dynamics::{regressor, InverseDynamics, WristMotion, N_LINKS, N_PARAMS};
+use cable_joint::wrist_dynamics::{regressor, InverseDynamics, N_LINKS, N_PARAMS};
 use cable_joint::{Command, Config, Mode};
 use serde::Serialize;
 
 use crate::ident::excite_wrist::WristDesign;
 use crate::scenario::G_M_S2;
 use crate::stats::rms;
-use crate::wrist::{torque_bound_nm, SoftObject, WristParams, WristSim, WristTick, ROLL};
+use crate::wrist::{
+    torque_bound_nm, Eq3Filter, Eq3Model, Eq3Timing, MotionEstimator, SoftObject, WristParams,
+    WristSim, WristTick, ROLL,
+};
 
 /// The wrist's links (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -332,14 +336,14 @@ fn estimated_torque_nm(params: &WristParams, t: &WristTick, j: usize) -> f64 {
         * f64::from(params.configs[j].machine.gripper_length_m)
 }
 
-/// One tick of a free run as Eq. 3's fit reads it: the wrist's motion as
-/// the joints estimate it and each joint's torque as its fused estimate
-/// reads it (the estimate times `l_e`), from the simulated wrist or a
-/// rig's logs ([`crate::wrist_log`]).
+/// One tick of a free run as Eq. 3's fit reads it: the joints' JAE angles
+/// (the motion is differentiated from them by the fit's observer) and
+/// each joint's torque as its fused estimate reads it (the estimate times
+/// `l_e`), from the simulated wrist or a rig's logs ([`crate::wrist_log`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Eq3Sample {
-    /// The estimated motion ([`crate::wrist::MotionEstimator`]).
-    pub motion: WristMotion,
+    /// Each joint's JAE angle, rad.
+    pub theta_hat_rad: [f32; 4],
     /// Each joint's estimated torque, N·m.
     pub torque_nm: [f64; 4],
     /// Each joint's bound on it, `[lo, hi]`, N·m (the estimate's own,
@@ -352,7 +356,7 @@ impl Eq3Sample {
     pub fn of_tick(params: &WristParams, t: &WristTick) -> Self {
         let l = |j: usize| params.configs[j].machine.gripper_length_m;
         Self {
-            motion: t.motion,
+            theta_hat_rad: core::array::from_fn(|j| t.outputs[j].est.theta_hat_rad),
             torque_nm: core::array::from_fn(|j| estimated_torque_nm(params, t, j)),
             bound_nm: core::array::from_fn(|j| {
                 let e = &t.outputs[j].est;
@@ -363,8 +367,9 @@ impl Eq3Sample {
 }
 
 /// What Eq. 3's fit needs besides the samples: the wrist's dimensions,
-/// each joint's smooth-sign width ([`sign_speeds_rad_s`]) and gravity in
-/// the shaft frame (the holder's), m/s².
+/// each joint's smooth-sign width ([`sign_speeds_rad_s`]), gravity in the
+/// shaft frame (the holder's) and how the model is read against the
+/// estimates ([`Eq3Timing`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Eq3Setting {
     /// The wrist's dimensions.
@@ -373,13 +378,29 @@ pub struct Eq3Setting {
     pub sign_speed_rad_s: [f32; 4],
     /// Gravity in the shaft frame, m/s².
     pub gravity_m_s2: [f64; 3],
+    /// The period, the estimates' low-pass and the jaws' opening.
+    pub timing: Eq3Timing,
 }
+
+/// The motion observer's bandwidths the fit tries, as multiples of `Q`'s:
+/// at `Q`'s own the observer's third-order lag is not `Q`'s first-order
+/// one, and the friction and the links' columns soak up the difference;
+/// faster, the observer lags less and lets more of the JAE's noise into
+/// the accelerations. Which is best depends on the run's noise, so the
+/// fit chooses on held-out data ([`fit_eq3`]).
+pub const MOTION_BANDWIDTH_MULTIPLES: [f32; 7] = [1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0];
 
 /// What the Eq. 3 fit found.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct InverseDynamicsFit {
     /// The model, ready for [`WristParams::inverse_dynamics`].
     pub body: InverseDynamics,
+    /// The motion observer's bandwidth the fit chose, Hz.
+    pub motion_bandwidth_hz: f32,
+    /// For each of [`MOTION_BANDWIDTH_MULTIPLES`]: the bandwidth (Hz) and
+    /// the held-out torque RMS of its model (N·m, the raw RMS where its
+    /// model was not kept), which chose it.
+    pub bandwidth_held_out_nm: [[f64; 2]; MOTION_BANDWIDTH_MULTIPLES.len()],
     /// Each parameter's relative standard deviation, % (NaN where left
     /// out).
     pub pct_sigma: [f64; N_PARAMS],
@@ -409,8 +430,11 @@ pub struct InverseDynamicsFit {
 
 impl InverseDynamicsFit {
     /// The model if it was kept.
-    pub fn model(&self) -> Option<InverseDynamics> {
-        self.kept.then_some(self.body)
+    pub fn model(&self) -> Option<Eq3Model> {
+        self.kept.then_some(Eq3Model {
+            body: self.body,
+            motion_bandwidth_hz: self.motion_bandwidth_hz,
+        })
     }
 }
 
@@ -435,13 +459,79 @@ pub fn fit_inverse_dynamics(
         geometry: params.geometry,
         sign_speed_rad_s: sign_speeds_rad_s(&params.configs),
         gravity_m_s2,
+        timing: params.eq3_timing(),
     };
     fit_eq3(&setting, &samples)
 }
 
+/// One sample's four rows of Eq. 3's regressor, one per joint.
+pub type Eq3Rows = [[f64; N_PARAMS]; 4];
+
+/// The regressor's rows of `samples` as the estimates see the torque: the
+/// motion from an observer of `bandwidth_hz`, every column through `Q`
+/// ([`Eq3Timing`]; started at its first value).
+pub fn filtered_rows(
+    setting: &Eq3Setting,
+    samples: &[Eq3Sample],
+    bandwidth_hz: f32,
+) -> Vec<Eq3Rows> {
+    let t = &setting.timing;
+    let mut motion = MotionEstimator::new(bandwidth_hz, t.period_s, t.jaw_open_rad);
+    let q = LowPass1::new(t.q_cutoff_rad_s, t.period_s as f32);
+    let gravity = setting.gravity_m_s2.map(|x| x as f32);
+    let mut state: Option<[[f32; N_PARAMS]; 4]> = None;
+    samples
+        .iter()
+        .map(|s| {
+            let m = motion.update(s.theta_hat_rad);
+            let y = regressor(&setting.geometry, gravity, setting.sign_speed_rad_s, &m);
+            let z = state.get_or_insert(y);
+            for (zr, yr) in z.iter_mut().zip(&y) {
+                for (zc, yc) in zr.iter_mut().zip(yr) {
+                    q.update(zc, *yc);
+                }
+            }
+            z.map(|r| r.map(f64::from))
+        })
+        .collect()
+}
+
 /// Fit Eq. 3's parameters to a free run: every sample's four joint
-/// torques against the regressor at the joints' estimated motion, by the
-/// core's least squares.
+/// torques against the regressor's rows as the estimates see them
+/// ([`filtered_rows`]), by the core's least squares ([`fit_rows`]), at each
+/// of [`MOTION_BANDWIDTH_MULTIPLES`] of `Q`'s bandwidth; the one whose
+/// model leaves the least torque on the run's held-out last 30 % is
+/// chosen (the raw torque counts where a model is not kept).
+pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDynamicsFit> {
+    let torques: Vec<[f64; 4]> = samples.iter().map(|s| s.torque_nm).collect();
+    let base_hz = setting.timing.q_bandwidth_hz();
+    let mut best: Option<InverseDynamicsFit> = None;
+    let mut tried = [[0.0; 2]; MOTION_BANDWIDTH_MULTIPLES.len()];
+    for (k, m) in MOTION_BANDWIDTH_MULTIPLES.iter().enumerate() {
+        let bandwidth_hz = m * base_hz;
+        let rows = filtered_rows(setting, samples, bandwidth_hz);
+        let fit = fit_rows(setting, &rows, &torques)?;
+        let left = fit.held_out_rms_nm[usize::from(fit.kept)];
+        tried[k] = [f64::from(bandwidth_hz), left];
+        let better = best
+            .as_ref()
+            .is_none_or(|b| left < b.held_out_rms_nm[usize::from(b.kept)]);
+        if better {
+            best = Some(InverseDynamicsFit {
+                motion_bandwidth_hz: bandwidth_hz,
+                ..fit
+            });
+        }
+    }
+    let best = best.ok_or_else(|| anyhow::anyhow!("Eq. 3 fit: no bandwidth tried"))?;
+    Ok(InverseDynamicsFit {
+        bandwidth_held_out_nm: tried,
+        ..best
+    })
+}
+
+/// Fit Eq. 3's parameters to `torques` against `rows` (one of each per
+/// sample, in time order), by the core's least squares.
 ///
 /// * The links' columns are kept only if what they fit could be links: an
 ///   inertia or second moment below zero says the estimates do not see
@@ -451,16 +541,23 @@ pub fn fit_inverse_dynamics(
 ///   first on the run's first 70 %, it must cut the torques' RMS on the
 ///   last 30 % ([`InverseDynamicsFit::kept`]); the model returned is then
 ///   fitted on the whole run.
-pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDynamicsFit> {
-    let gravity = setting.gravity_m_s2.map(|x| x as f32);
-    let sign_speed_rad_s = setting.sign_speed_rad_s;
-    let rows = |t: &Eq3Sample| {
-        let y = regressor(&setting.geometry, gravity, sign_speed_rad_s, &t.motion);
-        core::array::from_fn::<_, 4, _>(|j| (y[j].map(f64::from), t.torque_nm[j]))
-    };
-    // A fit on `part` with the columns `drop` left out; its parameters
-    // and deviations put back in regressor order (zero where dropped).
-    let fit_on = |part: &[Eq3Sample], drop: &[bool; N_PARAMS]| {
+///
+/// The bandwidth fields are left for the caller ([`fit_eq3`]).
+pub fn fit_rows(
+    setting: &Eq3Setting,
+    rows: &[Eq3Rows],
+    torques: &[[f64; 4]],
+) -> Result<InverseDynamicsFit> {
+    ensure!(
+        rows.len() == torques.len(),
+        "Eq. 3 fit: {} samples of rows against {} of torques",
+        rows.len(),
+        torques.len()
+    );
+    // A fit on samples `part` with the columns `drop` left out; its
+    // parameters and deviations put back in regressor order (zero where
+    // dropped).
+    let fit_on = |part: std::ops::Range<usize>, drop: &[bool; N_PARAMS]| {
         // The condition number is reported, not a reason to refuse.
         let config = LsqConfig {
             max_condition: f64::INFINITY,
@@ -469,8 +566,8 @@ pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDyn
         let mut lsq = BatchLsq::<N_PARAMS>::new(active, config)
             .map_err(|e| anyhow::anyhow!("Eq. 3 fit: {e}"))?;
         let mut phi = [0.0; N_PARAMS];
-        for t in part {
-            for (j, (row, y)) in rows(t).iter().enumerate() {
+        for (r, y) in rows[part.clone()].iter().zip(&torques[part]) {
+            for (j, (row, y)) in r.iter().zip(y).enumerate() {
                 let n = compact_row(row, drop, &mut phi);
                 lsq.push(&phi[..n], *y)
                     .map_err(|e| anyhow::anyhow!("Eq. 3 fit, joint {j}: {e}"))?;
@@ -486,20 +583,21 @@ pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDyn
         }
         Ok::<_, anyhow::Error>((out, fit.condition, fit.rmse, fit.rows))
     };
+    let n = rows.len();
     let mut drop = [false; N_PARAMS];
-    let every = fit_on(samples, &drop)?;
+    let every = fit_on(0..n, &drop)?;
     let ((whole, _, whole_pct), condition_with_links, _, _) = every;
     let links_observed = SECOND_MOMENTS.iter().all(|&k| whole[k] >= 0.0);
     if !links_observed {
         drop[..N_LINKS].fill(true);
     }
-    let split = samples.len() * 7 / 10;
-    let ((first, _, _), _, _, _) = fit_on(&samples[..split], &drop)?;
+    let split = n * 7 / 10;
+    let ((first, _, _), _, _, _) = fit_on(0..split, &drop)?;
     let (mut raw, mut left) = (Vec::new(), Vec::new());
-    for t in &samples[split..] {
-        for (phi, y) in rows(t) {
+    for (r, y) in rows[split..].iter().zip(&torques[split..]) {
+        for (phi, y) in r.iter().zip(y) {
             let pred: f64 = phi.iter().zip(&first).map(|(a, b)| a * b).sum();
-            raw.push(y);
+            raw.push(*y);
             left.push(y - pred);
         }
     }
@@ -508,15 +606,18 @@ pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDyn
     let ((p, sd, pct), condition, rmse_nm, rows_fitted) = if links_observed {
         every
     } else {
-        fit_on(samples, &drop)?
+        fit_on(0..n, &drop)?
     };
+    let gravity = setting.gravity_m_s2.map(|x| x as f32);
     Ok(InverseDynamicsFit {
         body: InverseDynamics {
             params: p.map(|x| x as f32),
             std_dev: sd.map(|x| x as f32),
             gravity_m_s2: gravity,
-            sign_speed_rad_s,
+            sign_speed_rad_s: setting.sign_speed_rad_s,
         },
+        motion_bandwidth_hz: setting.timing.q_bandwidth_hz(),
+        bandwidth_held_out_nm: [[f64::NAN; 2]; MOTION_BANDWIDTH_MULTIPLES.len()],
         pct_sigma: pct,
         condition,
         condition_with_links,
@@ -553,12 +654,9 @@ pub struct NoLoad {
     pub coverage: [f64; 4],
 }
 
-/// [`NoLoad`] of a simulated free run, the model its wrist ran with.
+/// [`NoLoad`] of a simulated free run, the model its wrist ran with (as
+/// it applied it, tick by tick).
 pub fn no_load(params: &WristParams, ticks: &[WristTick]) -> NoLoad {
-    let samples: Vec<Eq3Sample> = ticks
-        .iter()
-        .map(|t| Eq3Sample::of_tick(params, t))
-        .collect();
     let l = params
         .configs
         .map(|c| f64::from(c.machine.gripper_length_m));
@@ -568,58 +666,69 @@ pub fn no_load(params: &WristParams, ticks: &[WristTick]) -> NoLoad {
             .map(|t| t.links_true_nm[j] / l[j])
             .collect::<Vec<_>>())
     });
+    let per_tick = ticks.iter().map(|t| {
+        let s = Eq3Sample::of_tick(params, t);
+        (s, t.links_hat_nm, t.torque_bound_nm)
+    });
     NoLoad {
         links_rms_n,
-        ..no_load_of(
-            &params.geometry,
-            params.inverse_dynamics.as_ref(),
-            &samples,
-            l,
-        )
+        ..no_load_stats(per_tick, l)
     }
 }
 
 /// [`NoLoad`] of a free run's samples (a simulated or a rig's, where
-/// nothing touches the tips) with `model` taken out, at tip distances
-/// `gripper_length_m`; the links' true torque is not known from samples
-/// (zero).
+/// nothing touches the tips) with `model` applied to them as the wrist
+/// applies it ([`Eq3Filter`]), at tip distances `gripper_length_m`; the
+/// links' true torque is not known from samples (zero).
 pub fn no_load_of(
-    geometry: &Geometry,
-    model: Option<&InverseDynamics>,
+    setting: &Eq3Setting,
+    model: Option<&Eq3Model>,
     samples: &[Eq3Sample],
     gripper_length_m: [f64; 4],
 ) -> NoLoad {
-    let n = samples.len().max(1) as f64;
-    let hat: Vec<([f32; 4], [f32; 4])> = samples
-        .iter()
-        .map(|s| {
-            model.map_or(([0.0; 4], [0.0; 4]), |m| {
-                m.torque_and_spread_nm(geometry, &s.motion)
-            })
-        })
-        .collect();
-    let l = gripper_length_m;
-    let rms_of = |f: &dyn Fn(usize) -> f64| rms(&(0..samples.len()).map(f).collect::<Vec<_>>());
-    let holds_zero = |j: usize, corrected: bool| {
-        let held = samples.iter().zip(&hat).filter(|(s, (tau, spread))| {
+    let mut filter = model.map(|m| Eq3Filter::new(m, &setting.timing));
+    let per_tick = samples.iter().map(|s| {
+        let (hat, spread) = match (&mut filter, model) {
+            (Some(f), Some(m)) => {
+                let (_, hat, spread) = f.update(m, &setting.geometry, s.theta_hat_rad);
+                (hat, spread)
+            }
+            _ => ([0.0; 4], [0.0; 4]),
+        };
+        let bound = core::array::from_fn(|j| {
             let [lo, hi] = s.bound_nm[j];
-            let bound = if corrected {
-                torque_bound_nm(lo, hi, tau[j], spread[j])
-            } else {
-                Interval::new(lo, hi)
-            };
-            bound.contains(0.0)
+            torque_bound_nm(lo, hi, hat[j], spread[j])
         });
-        held.count() as f64 / n
-    };
+        (*s, hat, bound)
+    });
+    no_load_stats(per_tick, gripper_length_m)
+}
+
+/// [`NoLoad`]'s error figures from each tick's sample, the model's torque
+/// taken out and the bound with it taken out.
+fn no_load_stats(
+    per_tick: impl Iterator<Item = (Eq3Sample, [f32; 4], [Interval; 4])>,
+    l: [f64; 4],
+) -> NoLoad {
+    let (mut raw, mut corrected) = (vec![Vec::new(); 4], vec![Vec::new(); 4]);
+    let (mut raw_held, mut held, mut n) = ([0usize; 4], [0usize; 4], 0usize);
+    for (s, hat, bound) in per_tick {
+        n += 1;
+        for j in 0..4 {
+            raw[j].push(s.torque_nm[j] / l[j]);
+            corrected[j].push((s.torque_nm[j] - f64::from(hat[j])) / l[j]);
+            let [lo, hi] = s.bound_nm[j];
+            raw_held[j] += usize::from(Interval::new(lo, hi).contains(0.0));
+            held[j] += usize::from(bound[j].contains(0.0));
+        }
+    }
+    let share = |c: usize| c as f64 / n.max(1) as f64;
     NoLoad {
         links_rms_n: [0.0; 4],
-        raw_rms_n: core::array::from_fn(|j| rms_of(&|k| samples[k].torque_nm[j] / l[j])),
-        corrected_rms_n: core::array::from_fn(|j| {
-            rms_of(&|k| (samples[k].torque_nm[j] - f64::from(hat[k].0[j])) / l[j])
-        }),
-        raw_coverage: core::array::from_fn(|j| holds_zero(j, false)),
-        coverage: core::array::from_fn(|j| holds_zero(j, true)),
+        raw_rms_n: core::array::from_fn(|j| rms(&raw[j])),
+        corrected_rms_n: core::array::from_fn(|j| rms(&corrected[j])),
+        raw_coverage: raw_held.map(share),
+        coverage: held.map(share),
     }
 }
 
@@ -641,6 +750,7 @@ pub fn check(links: &Links) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
+    use cable_joint::wrist_dynamics::WristMotion;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

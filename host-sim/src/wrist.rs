@@ -37,12 +37,14 @@
 //! (Eq. 5) the clamp force with its bound.
 
 use anyhow::{ensure, Context, Result};
-use cable_joint::filter::{Kinematics, TrackingObserver};
+use cable_joint::filter::{Kinematics, LowPass1, TrackingObserver};
 use cable_joint::joints::Joints;
 use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::{self, Geometry, Interval};
 use cable_joint::wrist_dynamics::{InverseDynamics, WristMotion};
 use cable_joint::{Command, Config, Controller, Mode, Output, RawSample};
+
+use serde::Serialize;
 
 use crate::links::{self, Links};
 use crate::plant::{contact_push_n, Plant, PlantParams};
@@ -90,7 +92,7 @@ pub struct WristParams {
     pub links: Option<Links>,
     /// Eq. 3's model the estimates are corrected with
     /// ([`crate::links::fit_inverse_dynamics`]), or none.
-    pub inverse_dynamics: Option<InverseDynamics>,
+    pub inverse_dynamics: Option<Eq3Model>,
 }
 
 impl WristParams {
@@ -109,6 +111,15 @@ impl WristParams {
             pitch_rad: 30f64.to_radians(),
             links: None,
             inverse_dynamics: None,
+        }
+    }
+
+    /// How Eq. 3 is read against the joints' estimates ([`Eq3Timing`]).
+    pub fn eq3_timing(&self) -> Eq3Timing {
+        Eq3Timing {
+            period_s: 1.0 / f64::from(self.configs[0].control_rate_hz),
+            q_cutoff_rad_s: self.configs[0].dob.cutoff_rad_s,
+            jaw_open_rad: self.jaw_open_rad,
         }
     }
 
@@ -182,16 +193,17 @@ pub struct WristSim {
     /// The joints' true accelerations over the last tick (the links'
     /// coupling terms use them a tick late).
     true_qdd: [f64; 4],
-    /// The wrist's motion as the joints estimate it.
+    /// The wrist's motion as the joints estimate it, at `Q`'s bandwidth
+    /// (without a model).
     motion: MotionEstimator,
+    /// The model applied (with one).
+    eq3: Option<Eq3Filter>,
 }
 
 /// The wrist's motion as the joints estimate it: each joint's JAE angle
-/// differentiated by a tracking observer as fast as the force estimate's
-/// low-pass (so Eq. 3's torque and the estimate it is taken from see the
-/// motion alike), the jaws as the core's `q_3` (`theta - jaw_open`). The
-/// simulated wrist and a rig's recorded run ([`crate::wrist_log`]) both
-/// read their motion through it.
+/// differentiated by a tracking observer, the jaws as the core's `q_3`
+/// (`theta - jaw_open`). The simulated wrist and a rig's recorded run
+/// ([`crate::wrist_log`]) both read their motion through it.
 #[derive(Clone, Debug)]
 pub struct MotionEstimator {
     observer: TrackingObserver,
@@ -201,13 +213,11 @@ pub struct MotionEstimator {
 }
 
 impl MotionEstimator {
-    /// At the control period `period_s` of joints configured as `config`
-    /// (its DOB cutoff sets the observer's bandwidth), jaws open by
-    /// `jaw_open_rad` at `theta = 0`.
-    pub fn new(config: &Config, period_s: f64, jaw_open_rad: f64) -> Self {
-        let cutoff_hz = config.dob.cutoff_rad_s / (2.0 * core::f32::consts::PI);
+    /// An observer of bandwidth `bandwidth_hz` at the control period
+    /// `period_s`, jaws open by `jaw_open_rad` at `theta = 0`.
+    pub fn new(bandwidth_hz: f32, period_s: f64, jaw_open_rad: f64) -> Self {
         Self {
-            observer: TrackingObserver::new(cutoff_hz, period_s as f32),
+            observer: TrackingObserver::new(bandwidth_hz, period_s as f32),
             kinematics: [Kinematics::default(); 4],
             jaw_open_rad: jaw_open_rad as f32,
             started: false,
@@ -237,6 +247,83 @@ impl MotionEstimator {
             qd_rad_s: core::array::from_fn(|j| k[j].vel),
             qdd_rad_s2: core::array::from_fn(|j| k[j].acc),
         }
+    }
+}
+
+/// How the wrist reads Eq. 3 against its joints' estimates: each joint's
+/// estimate is its torque through the force estimate's low-pass `Q =
+/// g/(s+g)` (the DOB's, `dob.cutoff_rad_s`), so the model's torque goes
+/// through the same `Q` (the core's [`LowPass1`]) before it is compared or
+/// taken out, computed on the motion of an observer of its own bandwidth
+/// (fast enough that its lag is not `Q`'s; [`Eq3Model::motion_bandwidth_hz`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Eq3Timing {
+    /// The control period, s.
+    pub period_s: f64,
+    /// `Q`'s cutoff `g`, rad/s.
+    pub q_cutoff_rad_s: f32,
+    /// Each jaw's angle from the wrist axis at `theta = 0`, rad.
+    pub jaw_open_rad: f64,
+}
+
+impl Eq3Timing {
+    /// `Q`'s bandwidth, Hz.
+    pub fn q_bandwidth_hz(&self) -> f32 {
+        self.q_cutoff_rad_s / (2.0 * core::f32::consts::PI)
+    }
+}
+
+/// Eq. 3's model as the wrist applies it: the core's parameters and the
+/// bandwidth of the observer its motion comes from ([`Eq3Timing`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Eq3Model {
+    /// The parameters.
+    pub body: InverseDynamics,
+    /// The motion observer's bandwidth, Hz.
+    pub motion_bandwidth_hz: f32,
+}
+
+/// A model of Eq. 3 applied tick by tick ([`Eq3Timing`]): the motion, and
+/// the model's torque and its parameters' spread through `Q`.
+#[derive(Clone, Debug)]
+pub struct Eq3Filter {
+    motion: MotionEstimator,
+    q: LowPass1,
+    /// `Q`'s states of the torque and the spread (none before the first
+    /// tick, which starts them at their value).
+    state: Option<([f32; 4], [f32; 4])>,
+}
+
+impl Eq3Filter {
+    /// For `model` at `timing`.
+    pub fn new(model: &Eq3Model, timing: &Eq3Timing) -> Self {
+        Self {
+            motion: MotionEstimator::new(
+                model.motion_bandwidth_hz,
+                timing.period_s,
+                timing.jaw_open_rad,
+            ),
+            q: LowPass1::new(timing.q_cutoff_rad_s, timing.period_s as f32),
+            state: None,
+        }
+    }
+
+    /// One tick: the motion from the JAE angles `theta_hat_rad`, and the
+    /// model's torque and spread through `Q`, N·m.
+    pub fn update(
+        &mut self,
+        model: &Eq3Model,
+        g: &Geometry,
+        theta_hat_rad: [f32; 4],
+    ) -> (WristMotion, [f32; 4], [f32; 4]) {
+        let motion = self.motion.update(theta_hat_rad);
+        let (tau, spread) = model.body.torque_and_spread_nm(g, &motion);
+        let (y_tau, y_spread) = self.state.get_or_insert((tau, spread));
+        for j in 0..4 {
+            self.q.update(&mut y_tau[j], tau[j]);
+            self.q.update(&mut y_spread[j], spread[j]);
+        }
+        (motion, *y_tau, *y_spread)
     }
 }
 
@@ -274,8 +361,17 @@ impl WristSim {
                 .all(|c| c.machine.gripper_length_m == params.geometry.jaw_length_m),
             "the wrist's jaw length must be each jaw configuration's gripper length"
         );
+        ensure!(
+            params
+                .configs
+                .iter()
+                .all(|c| c.dob.cutoff_rad_s == params.configs[0].dob.cutoff_rad_s),
+            "every joint of the wrist must low-pass its force estimate alike (one dob.cutoff_rad_s: Eq. 3 is read through it)"
+        );
         let period_s = 1.0 / f64::from(rate);
-        let motion = MotionEstimator::new(&params.configs[0], period_s, params.jaw_open_rad);
+        let timing = params.eq3_timing();
+        let motion = MotionEstimator::new(timing.q_bandwidth_hz(), period_s, params.jaw_open_rad);
+        let eq3 = params.inverse_dynamics.map(|m| Eq3Filter::new(&m, &timing));
         if let Some(l) = &params.links {
             links::check(l)?;
         }
@@ -319,6 +415,7 @@ impl WristSim {
             contact_n: 0.0,
             true_qdd: [0.0; 4],
             motion,
+            eq3,
         })
     }
 
@@ -396,13 +493,12 @@ impl WristSim {
         let outputs = self.joints.step(&raw);
         let g = &self.params.geometry;
         let open = self.params.jaw_open_rad as f32;
-        let motion = self
-            .motion
-            .update(core::array::from_fn(|j| outputs[j].est.theta_hat_rad));
-        let (links_hat_nm, spread_nm) = self
-            .params
-            .inverse_dynamics
-            .map_or(([0.0; 4], [0.0; 4]), |b| b.torque_and_spread_nm(g, &motion));
+        let theta_hat: [f32; 4] = core::array::from_fn(|j| outputs[j].est.theta_hat_rad);
+        let (motion, links_hat_nm, spread_nm) = match (&mut self.eq3, &self.params.inverse_dynamics)
+        {
+            (Some(f), Some(m)) => f.update(m, g, theta_hat),
+            _ => (self.motion.update(theta_hat), [0.0; 4], [0.0; 4]),
+        };
         let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
         // Each joint's external torque, Eq. 3 taken out.
         let torque_bound_nm: [Interval; 4] = core::array::from_fn(|j| {

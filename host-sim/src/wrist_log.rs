@@ -37,7 +37,7 @@ use crate::ingest::{fault_words, ReplayEnd};
 use crate::links::{sign_speeds_rad_s, Eq3Sample, Eq3Setting};
 use crate::log::{line_of_row, Log};
 use crate::output::Outputs;
-use crate::wrist::{MotionEstimator, WristParams, WristTick, JAW_A, JAW_B};
+use crate::wrist::{Eq3Timing, WristParams, WristTick, JAW_A, JAW_B};
 
 /// The joints' names, in the wrist's order (roll, pitch, jaw A, jaw B), as
 /// options, file names and messages spell them.
@@ -103,6 +103,19 @@ pub fn replay(
             JOINT_NAMES[j],
             logs[j].0,
             r.config.control_rate_hz,
+            JOINT_NAMES[0],
+            logs[0].0
+        );
+    }
+    let cutoff_rad_s = replays[0].config.dob.cutoff_rad_s;
+    for (j, r) in replays.iter().enumerate() {
+        ensure!(
+            r.config.dob.cutoff_rad_s == cutoff_rad_s,
+            "{} ({})'s force estimate low-passes at {} rad/s, {} ({})'s at {cutoff_rad_s} rad/s: \
+             Eq. 3 is read through one low-pass (dob.cutoff_rad_s)",
+            JOINT_NAMES[j],
+            logs[j].0,
+            r.config.dob.cutoff_rad_s,
             JOINT_NAMES[0],
             logs[0].0
         );
@@ -175,13 +188,12 @@ pub fn replay(
         ..Geometry::default()
     };
     let l = replayed.map(|c| f64::from(c.machine.gripper_length_m));
-    let mut motion = MotionEstimator::new(&replayed[0], 1.0 / rate_hz, holding.jaw_open_rad);
     let samples = (0..shortest)
         .map(|k| {
             let [theta, fused, lo, hi] =
                 core::array::from_fn(|c| core::array::from_fn::<f64, 4, _>(|j| columns[j][c][k]));
             Eq3Sample {
-                motion: motion.update(theta.map(|x| x as f32)),
+                theta_hat_rad: theta.map(|x| x as f32),
                 torque_nm: core::array::from_fn(|j| fused[j] * l[j]),
                 bound_nm: core::array::from_fn(|j| [(lo[j] * l[j]) as f32, (hi[j] * l[j]) as f32]),
             }
@@ -193,6 +205,11 @@ pub fn replay(
             geometry,
             sign_speed_rad_s: sign_speeds_rad_s(&replayed),
             gravity_m_s2: holding.gravity_m_s2,
+            timing: Eq3Timing {
+                period_s: 1.0 / rate_hz,
+                q_cutoff_rad_s: cutoff_rad_s,
+                jaw_open_rad: holding.jaw_open_rad,
+            },
         },
         gripper_length_m: l,
         rate_hz,

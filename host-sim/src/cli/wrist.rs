@@ -15,7 +15,7 @@ use crate::links::{self, fit_eq3, FreeRun, InverseDynamicsFit, Links, NoLoad};
 use crate::output::{write_atomic, Outputs};
 use crate::plant::PlantParams;
 use crate::scenario::{oracle_config, tuned_gains};
-use crate::wrist::WristParams;
+use crate::wrist::{Eq3Model, WristParams};
 use crate::wrist_log::{self, Holding, WristRun, JOINT_NAMES};
 
 /// Arguments of `host-sim identify-wrist`.
@@ -307,9 +307,13 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
             let unseen: Vec<(&str, &crate::log::Log)> =
                 vlogs.iter().map(|(n, l)| (n.as_str(), l)).collect();
             cli::refuse_copies(&fitted, &unseen, &[])?;
+            let model = Eq3Model {
+                body: fit.body,
+                motion_bandwidth_hz: fit.motion_bandwidth_hz,
+            };
             let no_load = links::no_load_of(
-                &vrun.setting.geometry,
-                Some(&fit.body),
+                &vrun.setting,
+                Some(&model),
                 &vrun.samples,
                 vrun.gripper_length_m,
             );
@@ -361,6 +365,16 @@ fn report_fit(fit: &InverseDynamicsFit) {
         fit.condition,
         fit.condition_with_links,
         fit.rmse_nm
+    );
+    let tried: Vec<String> = fit
+        .bandwidth_held_out_nm
+        .iter()
+        .map(|[hz, nm]| format!("{hz:.0} Hz {nm:.3e}"))
+        .collect();
+    crate::stdoutln!(
+        "motion observer: {:.0} Hz, of {} (held-out torque RMS, N·m, each model fitted on the first 70 %)",
+        fit.motion_bandwidth_hz,
+        tried.join(", ")
     );
     if fit.links_observed {
         crate::stdoutln!(

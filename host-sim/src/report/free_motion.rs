@@ -81,6 +81,8 @@ pub struct ExcitationFit {
     pub links_observed: bool,
     /// Whether the model was kept.
     pub kept: bool,
+    /// The motion observer's bandwidth the fit chose, Hz.
+    pub motion_bandwidth_hz: f32,
     /// The validation run's no-load errors with this fit's model.
     pub validation: NoLoad,
 }
@@ -101,6 +103,7 @@ impl ExcitationFit {
         };
         let (every, kept) = (worst(&fit.pct_sigma_with_links), worst(&fit.pct_sigma));
         Self {
+            motion_bandwidth_hz: fit.motion_bandwidth_hz,
             condition_with_links: fit.condition_with_links,
             condition: fit.condition,
             worst_pct_sigma_with_links: every.0,
@@ -290,7 +293,9 @@ pub fn markdown(
          0.3 rad jaws, 20 s); Eq. 3's model (`cable_joint::wrist_dynamics`: the links' seven \
          base parameters and each joint's Coulomb and viscous friction that its own model \
          leaves) is fitted to the four joints' fused estimates by the core's least squares, \
-         then judged on a 10 s run with other amplitudes and frequencies that it never saw \
+         its regressor read as the estimates read the torque: through their own low-pass `Q` \
+         (the DOB's), on the motion of an observer whose bandwidth (1 to 12 times \
+         `Q`'s) the fit chooses by the held-out check below; then judged on a 10 s run with other amplitudes and frequencies that it never saw \
          (the true external force is zero throughout: every newton is error), and on the \
          grasps of 2 N at 1000 and 10 000 N/m without and with it. The links' columns are left out when \
          they fit a negative inertia or second moment (what they took is not links), the \
@@ -305,7 +310,7 @@ pub fn markdown(
     );
     let _ = writeln!(
         o,
-        "| variant | rate | links' torque at the tips, RMS (largest joint) | links' columns | Eq. 3 kept? (identification run's last 30 %: raw → model) | no-load RMS, worst joint: raw → Eq. 3 | mean of joints: raw → Eq. 3 | least bound coverage: raw → Eq. 3 | hold accuracy, 1000 / 10 000 N/m: without → with | largest \\|estimate\\| jaws open: without → with |"
+        "| variant | rate | links' torque at the tips, RMS (largest joint) | links' columns | Eq. 3 kept? observer (identification run's last 30 %: raw → model) | no-load RMS, worst joint: raw → Eq. 3 | mean of joints: raw → Eq. 3 | least bound coverage: raw → Eq. 3 | hold accuracy, 1000 / 10 000 N/m: without → with | largest \\|estimate\\| jaws open: without → with |"
     );
     let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|");
     for r in &sec.rows {
@@ -324,7 +329,7 @@ pub fn markdown(
         };
         let _ = writeln!(
             o,
-            "| {} | {:.0} Hz | {:.4} N | {} | {} ({:.3} → {:.3} N) | {:.3} → {:.3} N | {:.3} → {:.3} N | {:.1} → {:.1} % | {} → {} % | {:.3} → {:.3} N |",
+            "| {} | {:.0} Hz | {:.4} N | {} | {} at {:.0} Hz ({:.3} → {:.3} N) | {:.3} → {:.3} N | {:.3} → {:.3} N | {:.1} → {:.1} % | {} → {} % | {:.3} → {:.3} N |",
             r.variant,
             r.rate_hz,
             max4(&v.links_rms_n),
@@ -334,6 +339,7 @@ pub fn markdown(
                 "left out (not physical)"
             },
             if h.kept { "kept" } else { "**not kept**" },
+            h.motion_bandwidth_hz,
             r.held_out_rms_n[0],
             r.held_out_rms_n[1],
             max4(&v.raw_rms_n),

@@ -166,7 +166,8 @@ pub struct WristTick {
     /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N.
     pub jaws: [wrist::JawForce; 2],
     /// The joints' motion as their estimates give it (angles from the
-    /// JAE, speeds and accelerations from tracking observers), jaws as the
+    /// JAE, speeds and accelerations from tracking observers: at the
+    /// model's bandwidth with an Eq. 3 model, else at `Q`'s), jaws as the
     /// core's `q_3`.
     pub motion: WristMotion,
     /// The links' true torque on each joint (zero for massless links), N·m.

@@ -42,8 +42,8 @@ fn holding(params: &WristParams) -> Holding {
 }
 
 /// The four joints' logs, written as CSV, read back and replayed through
-/// the core, are the simulated wrist's run bit for bit: every tick's
-/// estimated motion, torque and bound, so Eq. 3's fit on them is the fit
+/// the core, are the simulated wrist's run bit for bit: every tick's JAE
+/// angles, estimated torques and bounds, so Eq. 3's fit on them is the fit
 /// on the wrist's own ticks (the replay is the controllers' arithmetic on
 /// the same sensor values; the CSV keeps every digit).
 #[test]

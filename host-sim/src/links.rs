@@ -688,12 +688,12 @@ pub fn no_load_of(
 ) -> NoLoad {
     let mut filter = model.map(|m| Eq3Filter::new(m, &setting.timing));
     let per_tick = samples.iter().map(|s| {
-        let (hat, spread) = match (&mut filter, model) {
-            (Some(f), Some(m)) => {
-                let (_, hat, spread) = f.update(m, &setting.geometry, s.theta_hat_rad);
+        let (hat, spread) = match &mut filter {
+            Some(f) => {
+                let (_, hat, spread) = f.update(&setting.geometry, s.theta_hat_rad);
                 (hat, spread)
             }
-            _ => ([0.0; 4], [0.0; 4]),
+            None => ([0.0; 4], [0.0; 4]),
         };
         let bound = core::array::from_fn(|j| {
             let [lo, hi] = s.bound_nm[j];

@@ -288,6 +288,7 @@ pub struct Eq3Model {
 /// the model's torque and its parameters' spread through `Q`.
 #[derive(Clone, Debug)]
 pub struct Eq3Filter {
+    model: Eq3Model,
     motion: MotionEstimator,
     q: LowPass1,
     /// `Q`'s states of the torque and the spread (none before the first
@@ -299,6 +300,7 @@ impl Eq3Filter {
     /// For `model` at `timing`.
     pub fn new(model: &Eq3Model, timing: &Eq3Timing) -> Self {
         Self {
+            model: *model,
             motion: MotionEstimator::new(
                 model.motion_bandwidth_hz,
                 timing.period_s,
@@ -313,12 +315,11 @@ impl Eq3Filter {
     /// model's torque and spread through `Q`, N·m.
     pub fn update(
         &mut self,
-        model: &Eq3Model,
         g: &Geometry,
         theta_hat_rad: [f32; 4],
     ) -> (WristMotion, [f32; 4], [f32; 4]) {
         let motion = self.motion.update(theta_hat_rad);
-        let (tau, spread) = model.body.torque_and_spread_nm(g, &motion);
+        let (tau, spread) = self.model.body.torque_and_spread_nm(g, &motion);
         let (y_tau, y_spread) = self.state.get_or_insert((tau, spread));
         for j in 0..4 {
             self.q.update(&mut y_tau[j], tau[j]);
@@ -495,10 +496,9 @@ impl WristSim {
         let g = &self.params.geometry;
         let open = self.params.jaw_open_rad as f32;
         let theta_hat: [f32; 4] = core::array::from_fn(|j| outputs[j].est.theta_hat_rad);
-        let (motion, links_hat_nm, spread_nm) = match (&mut self.eq3, &self.params.inverse_dynamics)
-        {
-            (Some(f), Some(m)) => f.update(m, g, theta_hat),
-            _ => (self.motion.update(theta_hat), [0.0; 4], [0.0; 4]),
+        let (motion, links_hat_nm, spread_nm) = match &mut self.eq3 {
+            Some(f) => f.update(g, theta_hat),
+            None => (self.motion.update(theta_hat), [0.0; 4], [0.0; 4]),
         };
         let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
         // Each joint's external torque, Eq. 3 taken out.

@@ -25,6 +25,7 @@ use crate::ident::excite_wrist::{self, WristDesignOptions};
 use crate::links::FreeRun;
 use crate::output::write_atomic;
 use crate::scenario::{excitation_replacing, plan, ScenarioOptions};
+use crate::wrist_log::JOINT_NAMES;
 
 /// Arguments of `host-sim excite`.
 #[derive(clap::Args, Debug, Clone)]
@@ -207,9 +208,6 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The joints' names in the per-joint files.
-const JOINT_FILES: [&str; 4] = ["roll", "pitch", "jaw_a", "jaw_b"];
-
 /// `host-sim excite --wrist`.
 fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
     let hand = FreeRun::identification();
@@ -226,7 +224,7 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
         "hand-made free run: {:.1} s; predicted condition number of Eq. 3's regressor {before:.2}",
         hand.duration_s
     );
-    for (name, l) in JOINT_FILES.iter().zip(&opts.limits) {
+    for (name, l) in JOINT_NAMES.iter().zip(&opts.limits) {
         crate::stdoutln!("  {name}: {}", show(l));
     }
     eprintln!(
@@ -254,7 +252,7 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
         design.condition / before,
         design.evaluations
     );
-    for (name, e) in JOINT_FILES.iter().zip(&design.envelopes) {
+    for (name, e) in JOINT_NAMES.iter().zip(&design.envelopes) {
         crate::stdoutln!("  {name}: {}", show(e));
     }
     for (what, runs, s) in [
@@ -272,7 +270,7 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
         );
     }
     let stem = args.out.with_extension("");
-    for (j, name) in JOINT_FILES.iter().enumerate() {
+    for (j, name) in JOINT_NAMES.iter().enumerate() {
         // `with_extension` would take a dot in the stem (`w.v2`) for one.
         let mut path = stem.clone().into_os_string();
         path.push(format!(".{name}.toml"));

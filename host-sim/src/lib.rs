@@ -24,4 +24,5 @@ pub mod sim;
 pub mod stats;
 pub mod trace;
 pub mod wrist;
+pub mod wrist_estimate;
 pub mod wrist_log;

@@ -50,8 +50,10 @@ enum Command {
     Excite(host_sim::cli::excite::ExciteArgs),
     /// Identify Eq. 3 (the free wrist's inverse dynamics) on a run recorded as one log per joint.
     IdentifyWrist(host_sim::cli::wrist::IdentifyWristArgs),
-    /// Run the simulated wrist free and write one log per joint (the input of identify-wrist).
+    /// Run the simulated wrist free (or grasping, --grasp) and write one log per joint (the input of identify-wrist, estimate-wrist).
     SimulateWrist(host_sim::cli::wrist::SimulateWristArgs),
+    /// The wrist's forces (Eq. 4-5: each jaw's force, the clamp force, their bounds) from a run recorded as one log per joint.
+    EstimateWrist(host_sim::cli::wrist::EstimateWristArgs),
     /// Identify B_m, the JAE and the tension models from logs, or the force scale from known weights; write the configuration.
     Identify(host_sim::cli::identify::IdentifyArgs),
     /// Replay a log (any rate) through the core; write every estimate and the force bound.
@@ -79,6 +81,7 @@ fn main() -> ExitCode {
         Some(Command::Identify(a)) => host_sim::cli::identify::run(a),
         Some(Command::IdentifyWrist(a)) => host_sim::cli::wrist::run_identify(a),
         Some(Command::SimulateWrist(a)) => host_sim::cli::wrist::run_simulate(a),
+        Some(Command::EstimateWrist(a)) => host_sim::cli::wrist::run_estimate(a),
         Some(Command::Residual(a)) => host_sim::cli::residual::run(a),
         Some(Command::Undeclared(a)) => host_sim::cli::undeclared::run(a),
         Some(Command::Estimate(a)) => host_sim::cli::estimate::run(a),

@@ -329,6 +329,92 @@ impl Eq3Filter {
     }
 }
 
+/// One joint's force estimate at its tip, as its controller gives it
+/// (`f_ext_fused_n`, `f_ext_lo_n`, `f_ext_hi_n`), N.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TipForce {
+    /// The fused point estimate.
+    pub point_n: f32,
+    /// Its bound's lower end.
+    pub lo_n: f32,
+    /// Its bound's upper end.
+    pub hi_n: f32,
+}
+
+impl TipForce {
+    /// The estimate of a controller's tick.
+    pub fn of(e: &cable_joint::Estimates) -> Self {
+        Self {
+            point_n: e.f_ext_fused_n,
+            lo_n: e.f_ext_lo_n,
+            hi_n: e.f_ext_hi_n,
+        }
+    }
+}
+
+/// The wrist's forces of one tick (Eq. 4–5), from the joints' estimates.
+#[derive(Clone, Copy, Debug)]
+pub struct WristForce {
+    /// Each joint's external torque from its point estimate, Eq. 3 taken
+    /// out, N·m.
+    pub torque_nm: [f32; 4],
+    /// Each joint's external torque bound, Eq. 3 taken out ([`torque_bound_nm`]), N·m.
+    pub torque_bound_nm: [Interval; 4],
+    /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N.
+    pub jaws: [wrist::JawForce; 2],
+    /// Eq. 5's clamp force bound, N.
+    pub clamp_bound_n: Interval,
+    /// Eq. 5's clamp force from the joints' point estimates, N.
+    pub clamp_n: f64,
+}
+
+/// Eq. 4–5 on one tick: each joint's estimate at its tip `tip[j]` times
+/// its tip distance `l_m[j]` is its external torque, less Eq. 3's
+/// `links_hat_nm` (its bound widened by `spread_nm`, [`torque_bound_nm`]);
+/// the pose is the joints' estimated angles `theta_hat_rad` (the jaws'
+/// zero `jaw_open_rad` from the wrist's axis). The simulated wrist and a
+/// recorded wrist's replay (`host-sim estimate-wrist`) both compute it
+/// here.
+pub fn wrist_force(
+    g: &Geometry,
+    jaw_open_rad: f32,
+    theta_hat_rad: [f32; 4],
+    tip: [TipForce; 4],
+    l_m: [f32; 4],
+    links_hat_nm: [f32; 4],
+    spread_nm: [f32; 4],
+) -> WristForce {
+    // Each joint's external torque, Eq. 3 taken out.
+    let torque_bound_nm: [Interval; 4] = core::array::from_fn(|j| {
+        torque_bound_nm(
+            tip[j].lo_n * l_m[j],
+            tip[j].hi_n * l_m[j],
+            links_hat_nm[j],
+            spread_nm[j],
+        )
+    });
+    let torque_nm: [f32; 4] = core::array::from_fn(|j| tip[j].point_n * l_m[j] - links_hat_nm[j]);
+    // The wrist's pose as the joints estimate it (the JAE of each).
+    let q2 = theta_hat_rad[PITCH];
+    let qa = theta_hat_rad[JAW_A] - jaw_open_rad;
+    let qb = theta_hat_rad[JAW_B] - jaw_open_rad;
+    // Jaw B is jaw A's mirror image: its roll torque enters with the
+    // other sign (wrist module docs).
+    let [roll, pitch, tau_a, tau_b] = torque_bound_nm;
+    let jaw_a = wrist::jaw_force(g, q2, qa, [roll, pitch, tau_a]);
+    let jaw_b = wrist::jaw_force(g, q2, qb, [roll.scale(-1.0), pitch, tau_b]);
+    let clamp_bound_n = wrist::clamp_force(jaw_a.force_n[1], jaw_b.force_n[1]);
+    let pa = Interval::point(torque_nm[JAW_A]).scale(1.0 / g.jaw_length_m);
+    let pb = Interval::point(torque_nm[JAW_B]).scale(1.0 / g.jaw_length_m);
+    WristForce {
+        torque_nm,
+        torque_bound_nm,
+        jaws: [jaw_a, jaw_b],
+        clamp_bound_n,
+        clamp_n: f64::from(wrist::clamp_force(pa, pb).mid()),
+    }
+}
+
 /// A joint's external torque with Eq. 3 taken out, as a bound: the
 /// estimate's own `[lo, hi]` (N·m), shifted by the model's torque `hat`
 /// and widened by its parameters' `spread`, joined with the unshifted one
@@ -500,32 +586,15 @@ impl WristSim {
             Some(f) => f.update(g, theta_hat),
             None => (self.motion.update(theta_hat), [0.0; 4], [0.0; 4]),
         };
-        let l = |j: usize| self.params.configs[j].machine.gripper_length_m;
-        // Each joint's external torque, Eq. 3 taken out.
-        let torque_bound_nm: [Interval; 4] = core::array::from_fn(|j| {
-            let e = &outputs[j].est;
-            torque_bound_nm(
-                e.f_ext_lo_n * l(j),
-                e.f_ext_hi_n * l(j),
-                links_hat_nm[j],
-                spread_nm[j],
-            )
-        });
-        let point =
-            |j: usize| Interval::point(outputs[j].est.f_ext_fused_n * l(j) - links_hat_nm[j]);
-        // The wrist's pose as the joints estimate it (the JAE of each).
-        let q2 = outputs[PITCH].est.theta_hat_rad;
-        let qa = outputs[JAW_A].est.theta_hat_rad - open;
-        let qb = outputs[JAW_B].est.theta_hat_rad - open;
-        // Jaw B is jaw A's mirror image: its roll torque enters with the
-        // other sign (wrist module docs).
-        let [roll, pitch, tau_a, tau_b] = torque_bound_nm;
-        let jaw_a = wrist::jaw_force(g, q2, qa, [roll, pitch, tau_a]);
-        let jaw_b = wrist::jaw_force(g, q2, qb, [roll.scale(-1.0), pitch, tau_b]);
-        let clamp_bound_n = wrist::clamp_force(jaw_a.force_n[1], jaw_b.force_n[1]);
-        let pa = point(JAW_A).scale(1.0 / g.jaw_length_m);
-        let pb = point(JAW_B).scale(1.0 / g.jaw_length_m);
-        let clamp_n = f64::from(wrist::clamp_force(pa, pb).mid());
+        let forces = wrist_force(
+            g,
+            open,
+            theta_hat,
+            core::array::from_fn(|j| TipForce::of(&outputs[j].est)),
+            core::array::from_fn(|j| self.params.configs[j].machine.gripper_length_m),
+            links_hat_nm,
+            spread_nm,
+        );
         // The links' true torques: D_jj as each plant's own inertia, the
         // rest (gravity, Coriolis, the other joints' accelerations a tick
         // late) as a load at its tip.
@@ -558,13 +627,13 @@ impl WristSim {
             outputs,
             theta_rad,
             contact_n: self.contact_n,
-            clamp_n,
-            clamp_bound_n,
-            jaws: [jaw_a, jaw_b],
+            clamp_n: forces.clamp_n,
+            clamp_bound_n: forces.clamp_bound_n,
+            jaws: forces.jaws,
             motion,
             links_true_nm,
             links_hat_nm,
-            torque_bound_nm,
+            torque_bound_nm: forces.torque_bound_nm,
         };
         for (p, o) in self.plants.iter_mut().zip(&outputs) {
             let i_a = if o.drive_enable {

@@ -37,7 +37,7 @@ use crate::ingest::{fault_words, ReplayEnd};
 use crate::links::{sign_speeds_rad_s, Eq3Sample, Eq3Setting};
 use crate::log::{line_of_row, Log};
 use crate::output::Outputs;
-use crate::wrist::{Eq3Timing, WristParams, WristTick, JAW_A, JAW_B};
+use crate::wrist::{Eq3Timing, TipForce, WristParams, WristTick, JAW_A, JAW_B};
 
 /// The joints' names, in the wrist's order (roll, pitch, jaw A, jaw B), as
 /// options, file names and messages spell them.
@@ -54,11 +54,28 @@ pub struct Holding {
     pub jaw_open_rad: f64,
 }
 
+/// What [`replay`] does with a fault a joint's replay latches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnFault {
+    /// Refuse the run (Eq. 3's fit needs every joint under control).
+    Refuse,
+    /// Cut the four logs at the first faulted tick, with a note (an
+    /// estimate is good up to it; the drive was off from it on).
+    Cut,
+}
+
 /// Four joints' logs replayed as one run.
 #[derive(Clone, Debug)]
 pub struct WristRun {
     /// One sample per control tick.
     pub samples: Vec<Eq3Sample>,
+    /// Each joint's force estimate at its tip, per tick (what the samples'
+    /// torques were made of, as the core gave it: Eq. 4's input).
+    pub tip_n: Vec<[TipForce; 4]>,
+    /// The jaws' reference tip force (`f_ext_n` of jaw A's and jaw B's
+    /// logs: a reference sensor's, or the simulator's truth), per tick,
+    /// where both logs have the column.
+    pub reference_n: Option<Vec<[f64; 2]>>,
     /// What Eq. 3's fit needs besides the samples.
     pub setting: Eq3Setting,
     /// Each joint's tip distance `l_e` (its configuration's gripper
@@ -77,11 +94,13 @@ pub struct WristRun {
 /// # Errors
 /// A log the core cannot replay, control rates that differ, lengths that
 /// differ by more than the estimate's time constant, jaws of different
-/// lengths, a fault latched in the replay: each naming the joint.
+/// lengths, a fault latched in the replay (with [`OnFault::Refuse`], or on
+/// the first tick): each naming the joint.
 pub fn replay(
     logs: &[(String, Log); 4],
     configs: &[Config; 4],
     holding: &Holding,
+    on_fault: OnFault,
 ) -> Result<WristRun> {
     let mut notes = Vec::new();
     let mut replays = Vec::with_capacity(4);
@@ -150,6 +169,7 @@ pub fn replay(
         notes.push(note);
     }
     let mut columns = Vec::with_capacity(4);
+    let mut first_fault: Option<(usize, usize, String)> = None;
     for (j, r) in replays.iter().enumerate() {
         let col = |n: &str| {
             r.log
@@ -158,14 +178,16 @@ pub fn replay(
         };
         let fault = col("fault_code")?;
         if let Some(k) = fault[..shortest].iter().position(|c| *c != 0.0) {
-            bail!(
-                "{} ({}): the replay latched {} at line {}: a free run for Eq. 3 needs every joint \
-                 under control throughout",
+            let what = format!(
+                "{} ({}): the replay latched {} at line {}",
                 JOINT_NAMES[j],
                 logs[j].0,
                 fault_words(fault[k].clamp(0.0, 255.0) as u8),
                 line_of_row(r.log_row(k))
             );
+            if first_fault.as_ref().is_none_or(|(_, at, _)| k < *at) {
+                first_fault = Some((j, k, what));
+            }
         }
         columns.push([
             col("theta_hat_rad")?,
@@ -174,6 +196,31 @@ pub fn replay(
             col("f_ext_hi_n")?,
         ]);
     }
+    let mut shortest = shortest;
+    if let Some((_, k, what)) = first_fault {
+        match on_fault {
+            OnFault::Refuse => {
+                bail!("{what}: a free run for Eq. 3 needs every joint under control throughout")
+            }
+            OnFault::Cut if k == 0 => {
+                bail!("{what}, on its first replayed tick: nothing to estimate")
+            }
+            OnFault::Cut => {
+                notes.push(format!(
+                    "{what}: the run is cut there ({k} ticks, {:.3} s; its drive was off from then on)",
+                    k as f64 / rate_hz
+                ));
+                shortest = k;
+            }
+        }
+    }
+    let reference: Option<[Vec<f64>; 2]> = match (
+        replays[JAW_A].log.col("f_ext_n"),
+        replays[JAW_B].log.col("f_ext_n"),
+    ) {
+        (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
+        _ => None,
+    };
     let jaw_length_m = [JAW_A, JAW_B].map(|j| replays[j].config.machine.gripper_length_m);
     ensure!(
         jaw_length_m[0] == jaw_length_m[1],
@@ -188,19 +235,27 @@ pub fn replay(
         ..Geometry::default()
     };
     let l = replayed.map(|c| f64::from(c.machine.gripper_length_m));
-    let samples = (0..shortest)
+    let (samples, tip_n) = (0..shortest)
         .map(|k| {
             let [theta, fused, lo, hi] =
                 core::array::from_fn(|c| core::array::from_fn::<f64, 4, _>(|j| columns[j][c][k]));
-            Eq3Sample {
+            let sample = Eq3Sample {
                 theta_hat_rad: theta.map(|x| x as f32),
                 torque_nm: core::array::from_fn(|j| fused[j] * l[j]),
                 bound_nm: core::array::from_fn(|j| [(lo[j] * l[j]) as f32, (hi[j] * l[j]) as f32]),
-            }
+            };
+            let tip = core::array::from_fn(|j| TipForce {
+                point_n: fused[j] as f32,
+                lo_n: lo[j] as f32,
+                hi_n: hi[j] as f32,
+            });
+            (sample, tip)
         })
-        .collect();
+        .unzip();
     Ok(WristRun {
         samples,
+        tip_n,
+        reference_n: reference.map(|[a, b]| (0..shortest).map(|k| [a[k], b[k]]).collect()),
         setting: Eq3Setting {
             geometry,
             sign_speed_rad_s: sign_speeds_rad_s(&replayed),

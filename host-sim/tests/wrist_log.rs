@@ -6,11 +6,15 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+use cable_joint::wrist_dynamics::{InverseDynamics, N_PARAMS};
 use host_sim::cli::wrist::simulated_wrist;
+use host_sim::links::sign_speeds_rad_s;
 use host_sim::links::{fit_eq3, fit_inverse_dynamics, run_free_settled, Eq3Sample, FreeRun, Links};
-use host_sim::log::Log;
-use host_sim::wrist::WristParams;
-use host_sim::wrist_log::{self, Holding, JOINT_NAMES};
+use host_sim::log::{Log, Schema};
+use host_sim::report::wrist::object;
+use host_sim::wrist::{run_grasp, Eq3Model, Grasp, WristParams};
+use host_sim::wrist_estimate;
+use host_sim::wrist_log::{self, Holding, OnFault, JOINT_NAMES};
 
 /// A short free run (the identification run's motion for `seconds`), its
 /// ticks from the controllers' start, and the four joints' logs of it.
@@ -52,7 +56,8 @@ fn eq3_fitted_on_the_joints_logs_is_eq3_fitted_on_the_simulated_wrist() {
     let (ticks, logs) = short_run(&params, 10.0);
     let dir = tempfile::tempdir().unwrap();
     let read = round_trip(&logs, dir.path());
-    let run = wrist_log::replay(&read, &params.configs, &holding(&params)).unwrap();
+    let run =
+        wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
     assert_eq!(run.samples.len(), ticks.len());
     for (k, (s, t)) in run.samples.iter().zip(&ticks).enumerate() {
         assert_eq!(*s, Eq3Sample::of_tick(&params, t), "tick {k}");
@@ -93,7 +98,8 @@ fn logs_recorded_apart_are_refused_and_a_small_shift_is_cut() {
     near[1] = near[1].rows(0..n - 10);
     let dir = tempfile::tempdir().unwrap();
     let read = round_trip(&near, dir.path());
-    let run = wrist_log::replay(&read, &params.configs, &holding(&params)).unwrap();
+    let run =
+        wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
     assert_eq!(run.samples.len(), ticks.len() - 10);
     assert!(
         run.notes.iter().any(|n| n.contains("cut to the shortest")),
@@ -111,7 +117,8 @@ fn logs_recorded_apart_are_refused_and_a_small_shift_is_cut() {
         };
     }
     let read = round_trip(&apart, dir.path());
-    let run = wrist_log::replay(&read, &params.configs, &holding(&params)).unwrap();
+    let run =
+        wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
     let note = run
         .notes
         .iter()
@@ -124,7 +131,7 @@ fn logs_recorded_apart_are_refused_and_a_small_shift_is_cut() {
     // 100 ticks (50 ms) late: refused (2 s of settling and 1 s of motion).
     logs[1] = logs[1].rows(100..n);
     let read = round_trip(&logs, dir.path());
-    let e = wrist_log::replay(&read, &params.configs, &holding(&params))
+    let e = wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse)
         .unwrap_err()
         .to_string();
     assert!(e.contains("recorded") && e.contains("together"), "{e}");
@@ -144,10 +151,70 @@ fn jaws_of_different_lengths_are_refused() {
     let read = round_trip(&logs, dir.path());
     let mut configs = params.configs;
     configs[3].machine.gripper_length_m *= 1.1;
-    let e = wrist_log::replay(&read, &configs, &holding(&params))
+    let e = wrist_log::replay(&read, &configs, &holding(&params), OnFault::Refuse)
         .unwrap_err()
         .to_string();
     assert!(e.contains("jaw A") && e.contains("jaw B"), "{e}");
+}
+
+/// A grasp recorded as four logs and replayed (`estimate-wrist`'s path)
+/// gives the simulated wrist's Eq. 4–5 bit for bit on every tick: each
+/// joint's external torque bound with Eq. 3 taken out, each jaw's force,
+/// the clamp force and its bound; and the jaws' logs give the true contact
+/// force as the reference. Eq. 3 here is the links' true moments, so the
+/// model's path is compared too.
+#[test]
+fn the_clamp_force_from_a_grasps_logs_is_the_simulated_wrists_tick_for_tick() {
+    let mut params = simulated_wrist(None);
+    let links = params.links.unwrap();
+    let mut body_params = [0.0f32; N_PARAMS];
+    for (p, v) in body_params
+        .iter_mut()
+        .zip(links.base_params(&params.geometry))
+    {
+        *p = v as f32;
+    }
+    let model = Eq3Model {
+        body: InverseDynamics {
+            params: body_params,
+            std_dev: body_params.map(|p| 0.1 * p.abs()),
+            gravity_m_s2: links.gravity_m_s2.map(|g| g as f32),
+            sign_speed_rad_s: sign_speeds_rad_s(&params.configs),
+        },
+        motion_bandwidth_hz: 30.0,
+    };
+    params.inverse_dynamics = Some(model);
+    let grasp = Grasp {
+        target_n: 2.0,
+        settle_s: 0.3,
+        move_s: 0.3,
+        hold_s: 0.6,
+        after_s: 0.2,
+    };
+    let ticks: Vec<_> = run_grasp(&params, object(1000.0), &grasp, 5)
+        .unwrap()
+        .into_iter()
+        .map(|(_, t)| t)
+        .collect();
+    assert!(
+        ticks.iter().any(|t| t.contact_n > 1.0),
+        "the grasp squeezes the object"
+    );
+    let logs = wrist_log::joint_logs(&params, &ticks).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let read = round_trip(&logs, dir.path());
+    let run = wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Cut).unwrap();
+    let replayed = wrist_estimate::estimate(&run, Some(&model));
+    assert_eq!(replayed.len(), ticks.len());
+    for (k, (e, t)) in replayed.iter().zip(&ticks).enumerate() {
+        assert_eq!(e.force.clamp_n.to_bits(), t.clamp_n.to_bits(), "tick {k}");
+        assert_eq!(e.force.clamp_bound_n, t.clamp_bound_n, "tick {k}");
+        assert_eq!(e.force.torque_bound_nm, t.torque_bound_nm, "tick {k}");
+        assert_eq!(e.force.jaws[0].force_n, t.jaws[0].force_n, "tick {k}");
+        assert_eq!(e.force.jaws[1].force_n, t.jaws[1].force_n, "tick {k}");
+        assert_eq!(e.links_hat_nm, t.links_hat_nm, "tick {k}");
+        assert_eq!(e.reference_n, Some(t.contact_n), "tick {k}");
+    }
 }
 
 /// `host-sim` run with `args`.
@@ -252,6 +319,73 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
             corrected[j]
         );
     }
+    // A grasp recorded the same way; its forces estimated with the model,
+    // judged on the jaws' true contact force (`f_ext_n`).
+    let o = host_sim(&[
+        "simulate-wrist",
+        "--out",
+        &d("grasp"),
+        "--grasp",
+        "2",
+        "--seed",
+        "3",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let estimate = |eq3: &str, out: &str| {
+        host_sim(&[
+            "estimate-wrist",
+            "--run",
+            &d("grasp"),
+            &gravity,
+            "--jaw-open-deg",
+            "20",
+            "--eq3",
+            &d(eq3),
+            "--out",
+            &d(out),
+            "--plot",
+            &d(out),
+        ])
+    };
+    let o = estimate("eq3.toml", "forces.csv");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        stdout.contains("holding (reference clamp force >= 1 N"),
+        "{stdout}"
+    );
+    assert!(dir.path().join("forces.svg").is_file());
+    let forces = Log::read_with(
+        dir.path().join("forces.csv"),
+        &Schema::with_required(&["t_s", "clamp_n", "clamp_ref_n"]),
+    )
+    .unwrap();
+    let (est, reference) = (
+        forces.col("clamp_n").unwrap(),
+        forces.col("clamp_ref_n").unwrap(),
+    );
+    let held: Vec<(f64, f64)> = est
+        .iter()
+        .zip(reference)
+        .filter(|(_, r)| **r >= 1.0)
+        .map(|(e, r)| (*e, *r))
+        .collect();
+    let mean = |f: fn(&(f64, f64)) -> f64| held.iter().map(f).sum::<f64>() / held.len() as f64;
+    let (mean_est, mean_ref) = (mean(|p| p.0), mean(|p| p.1));
+    assert!(
+        held.len() > 1000 && (mean_est - mean_ref).abs() < 0.2 * mean_ref,
+        "{} ticks held: clamp estimate {mean_est} N against {mean_ref} N",
+        held.len()
+    );
+    // Not a model: refused by name, nothing written.
+    let o = estimate("grasp/roll.toml", "not.csv");
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("roll.toml") && e.contains("not an Eq. 3 model"),
+        "{e}"
+    );
+    assert!(!dir.path().join("not.csv").exists());
     // The fitted run as its own validation.
     let o = fit("id", "id", "same.toml");
     assert!(!o.status.success());

@@ -5,9 +5,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{ensure, Context, Result};
+use cable_joint::wrist_dynamics::InverseDynamics;
 use cable_joint::wrist_dynamics::{N_PARAMS, PARAM_NAMES};
 use cable_joint::Config;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::cli;
 use crate::ident::excite_wrist::WristDesign;
@@ -15,24 +16,20 @@ use crate::links::{self, fit_eq3, FreeRun, InverseDynamicsFit, Links, NoLoad};
 use crate::output::{write_atomic, Outputs};
 use crate::plant::PlantParams;
 use crate::scenario::{oracle_config, tuned_gains};
-use crate::wrist::{Eq3Model, WristParams};
-use crate::wrist_log::{self, Holding, WristRun, JOINT_NAMES};
+use crate::wrist::{run_grasp, Eq3Model, Grasp, WristParams};
+use crate::wrist_estimate;
+use crate::wrist_log::{self, Holding, OnFault, WristRun, JOINT_NAMES};
 
-/// Arguments of `host-sim identify-wrist`.
+/// A wrist's recorded run and what its logs cannot say: the options
+/// `identify-wrist` and `estimate-wrist` share.
 #[derive(clap::Args, Debug, Clone)]
-pub struct IdentifyWristArgs {
-    /// Directory of the free run (nothing touching the jaws) to fit:
-    /// `roll.csv`, `pitch.csv`, `jaw_a.csv`, `jaw_b.csv`, each joint's log
-    /// in the project's CSV schema, recorded together (`host-sim link ...
-    /// --record roll.csv` on each joint's controller, or `host-sim
-    /// simulate-wrist`).
+pub struct WristRunArgs {
+    /// Directory of the run: `roll.csv`, `pitch.csv`, `jaw_a.csv`,
+    /// `jaw_b.csv`, each joint's log in the project's CSV schema, recorded
+    /// together (`host-sim link ... --record roll.csv` on each joint's
+    /// controller, or `host-sim simulate-wrist`).
     #[arg(long, value_name = "DIR")]
     pub run: PathBuf,
-    /// Directory of another free run, the same four files, that the fit
-    /// does not see: each joint's no-load error is reported on it, with
-    /// and without the model.
-    #[arg(long, value_name = "DIR")]
-    pub validate: Option<PathBuf>,
     /// Every joint's configuration (TOML). Without it each joint's is the
     /// file beside its log (`roll.toml`, ...: its controller's own, as
     /// `host-sim identify` wrote it), else the datasheet values; which one
@@ -54,6 +51,43 @@ pub struct IdentifyWristArgs {
     /// `estimate --ticks-per-row`).
     #[arg(long, value_name = "N")]
     pub ticks_per_row: Option<u32>,
+}
+
+impl WristRunArgs {
+    /// How the wrist was held and built, from `--gravity` and
+    /// `--jaw-open-deg` (a note on stderr after `command: ` when the
+    /// gravity given is not 9.81 m/s² long).
+    fn holding(&self, command: &str) -> Result<Holding> {
+        let gravity_m_s2: [f64; 3] = self.gravity.as_slice().try_into().map_err(|_| {
+            anyhow::anyhow!(
+                "--gravity: expected three components GX,GY,GZ (m/s²), got {}",
+                self.gravity.len()
+            )
+        })?;
+        let g = gravity_m_s2.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if (g - crate::scenario::G_M_S2).abs() > 0.05 * crate::scenario::G_M_S2 {
+            eprintln!(
+                "{command}: note: --gravity is {g:.2} m/s² long, not 9.81: the links' moments are fitted in its scale"
+            );
+        }
+        Ok(Holding {
+            gravity_m_s2,
+            jaw_open_rad: self.jaw_open_deg.to_radians(),
+        })
+    }
+}
+
+/// Arguments of `host-sim identify-wrist`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct IdentifyWristArgs {
+    /// The free run to fit (nothing touching the jaws) and how it was held.
+    #[command(flatten)]
+    pub run: WristRunArgs,
+    /// Directory of another free run, the same four files, that the fit
+    /// does not see: each joint's no-load error is reported on it, with
+    /// and without the model.
+    #[arg(long, value_name = "DIR")]
+    pub validate: Option<PathBuf>,
     /// Output: the fitted model, its `%sigma`, condition numbers, the
     /// held-out check and the validation (TOML).
     #[arg(long)]
@@ -86,9 +120,46 @@ pub struct SimulateWristArgs {
     #[arg(allow_negative_numbers = true, long, value_name = "K", default_value_t = 1.0,
           value_parser = cli::f64_in(0.0, 1e4))]
     pub links_scale: f64,
+    /// Instead of a free run, a grasp: the jaws close on a soft object
+    /// (10 mm wide) to the angle that squeezes it with N at rigid jaws,
+    /// hold 3 s and open again (the report's grasp); each jaw's log holds
+    /// the true contact force as `f_ext_n`. The input of `estimate-wrist`.
+    #[arg(long, value_name = "N", conflicts_with_all = ["free_run", "excitation"],
+          value_parser = cli::f64_in(0.01, 50.0))]
+    pub grasp: Option<f64>,
+    /// The grasped object's stiffness, N/m.
+    #[arg(long, value_name = "N_PER_M", default_value_t = crate::report::wrist::STIFFNESS_N_M[0],
+          requires = "grasp", value_parser = cli::f64_in(1.0, 1e7))]
+    pub object_stiffness: f64,
+    /// Eq. 3's model (`identify-wrist --out`) the simulated wrist takes out
+    /// of its estimates, as `estimate-wrist --eq3` does.
+    #[arg(long, value_name = "EQ3.TOML")]
+    pub eq3: Option<PathBuf>,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+/// Arguments of `host-sim estimate-wrist`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct EstimateWristArgs {
+    /// The run to estimate and how it was held.
+    #[command(flatten)]
+    pub run: WristRunArgs,
+    /// Eq. 3's model (`identify-wrist --out`), taken out of every joint's
+    /// estimate before Eq. 4; without it, none (the links and the joints'
+    /// residual friction stay in the forces).
+    #[arg(long, value_name = "EQ3.TOML")]
+    pub eq3: Option<PathBuf>,
+    /// Output: per tick each joint's external torque and bound, each jaw's
+    /// `F_y` bound, the clamp force and its bound, and the reference clamp
+    /// force where the jaws' logs have `f_ext_n` (CSV).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also draw the clamp force in its bound (and the reference) and each
+    /// joint's external torque against time, as STEM.svg and STEM.png.
+    #[arg(long, value_name = "STEM")]
+    pub plot: Option<PathBuf>,
 }
 
 /// `simulate-wrist --free-run`.
@@ -115,35 +186,47 @@ pub fn simulated_wrist(config: Option<Config>) -> WristParams {
 
 /// `host-sim simulate-wrist`.
 pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
-    let run = match &args.excitation {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            let design: WristDesign = toml::from_str(&text).map_err(|e| {
-                anyhow::anyhow!(
-                    "{}: not a wrist design of `host-sim excite --wrist`: {}",
-                    path.display(),
-                    crate::log::toml_error(&text, &e)
-                )
-            })?;
-            FreeRun::designed(&design)
-        }
-        None => match args.free_run {
-            FreeRunArg::Identification => FreeRun::identification(),
-            FreeRunArg::Validation => FreeRun::validation(),
-        },
-    };
+    const COMMAND: &str = "simulate-wrist";
     let config = match &args.config {
         Some(p) => Some(crate::io::config::load_config(p)?),
         None => None,
     };
     let mut params = simulated_wrist(config);
     params.links = params.links.map(|l| l.scaled(args.links_scale));
-    eprintln!(
-        "simulate-wrist: {:.1} s at rest, then {:.1} s of motion ...",
-        run.settle_s, run.duration_s
-    );
-    let (ticks, _) = links::run_free_settled(&params, &run, args.seed)?;
+    let gravity_m_s2 = Links::prototype().gravity_m_s2;
+    if let Some(path) = &args.eq3 {
+        params.inverse_dynamics = Some(load_eq3(path, gravity_m_s2, COMMAND)?);
+    }
+    let ticks = match args.grasp {
+        Some(target_n) => {
+            let grasp = Grasp {
+                target_n,
+                ..Grasp::default()
+            };
+            eprintln!(
+                "{COMMAND}: a grasp of a {:.0} N/m object to {target_n} N: {:.1} s open, {:.1} s closing, {:.1} s holding, {:.1} s opening, {:.1} s open ...",
+                args.object_stiffness,
+                grasp.settle_s,
+                grasp.move_s,
+                grasp.hold_s,
+                grasp.move_s,
+                grasp.after_s
+            );
+            let object = crate::report::wrist::object(args.object_stiffness);
+            run_grasp(&params, object, &grasp, args.seed)?
+                .into_iter()
+                .map(|(_, t)| t)
+                .collect()
+        }
+        None => {
+            let run = free_run(&args)?;
+            eprintln!(
+                "{COMMAND}: {:.1} s at rest, then {:.1} s of motion ...",
+                run.settle_s, run.duration_s
+            );
+            links::run_free_settled(&params, &run, args.seed)?.0
+        }
+    };
     let logs = wrist_log::joint_logs(&params, &ticks)?;
     let mut out = Outputs::new();
     out.create_dir(&args.out)?;
@@ -152,22 +235,212 @@ pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
         crate::io::config::stage_config(&mut out, args.out.join(format!("{name}.toml")), config)?;
     }
     out.commit()?;
-    let g = Links::prototype().gravity_m_s2;
+    let [gx, gy, gz] = gravity_m_s2;
+    let next = if args.grasp.is_some() {
+        format!(
+            "estimate its forces with `host-sim estimate-wrist --run {} --gravity {gx:.3},{gy:.3},{gz:.3} --jaw-open-deg {} [--eq3 eq3.toml] --out forces.csv`",
+            args.out.display(),
+            params.jaw_open_rad.to_degrees().round()
+        )
+    } else {
+        format!(
+            "fit Eq. 3 with `host-sim identify-wrist --run {} --gravity {gx:.3},{gy:.3},{gz:.3} --jaw-open-deg {} --out eq3.toml`",
+            args.out.display(),
+            params.jaw_open_rad.to_degrees().round()
+        )
+    };
     crate::stdoutln!(
-        "wrote {} ({} ticks each) and each joint's configuration beside its log: fit Eq. 3 with `host-sim identify-wrist --run {} --gravity {:.3},{:.3},{:.3} --jaw-open-deg {} --out eq3.toml`",
+        "wrote {} ({} ticks each) and each joint's configuration beside its log: {next}",
         paths
             .iter()
             .map(|p| p.display().to_string())
             .collect::<Vec<_>>()
             .join(", "),
         ticks.len(),
-        args.out.display(),
-        g[0],
-        g[1],
-        g[2],
-        params.jaw_open_rad.to_degrees().round()
     );
     Ok(())
+}
+
+/// The free run `simulate-wrist` runs: `--excitation`'s design, else
+/// `--free-run`'s.
+fn free_run(args: &SimulateWristArgs) -> Result<FreeRun> {
+    let Some(path) = &args.excitation else {
+        return Ok(match args.free_run {
+            FreeRunArg::Identification => FreeRun::identification(),
+            FreeRunArg::Validation => FreeRun::validation(),
+        });
+    };
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let design: WristDesign = toml::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: not a wrist design of `host-sim excite --wrist`: {}",
+            path.display(),
+            crate::log::toml_error(&text, &e)
+        )
+    })?;
+    Ok(FreeRun::designed(&design))
+}
+
+/// What `estimate-wrist` and `simulate-wrist` read of `identify-wrist
+/// --out`'s file.
+#[derive(Deserialize)]
+struct Eq3FileIn {
+    parameter_names: Vec<String>,
+    fit: Eq3FitIn,
+}
+
+/// The fit's fields [`load_eq3`] needs.
+#[derive(Deserialize)]
+struct Eq3FitIn {
+    body: InverseDynamics,
+    motion_bandwidth_hz: f32,
+    kept: bool,
+}
+
+/// Eq. 3's model in `path` (`identify-wrist --out`), evaluated under
+/// `gravity_m_s2`: its parameters are the links' mass moments, which do not
+/// depend on how the instrument is held, so a model fitted held one way
+/// serves a run held another (a note after `command: ` says so).
+///
+/// # Errors
+/// Not such a file, another parameter list, a model its own run did not
+/// keep, a parameter that is not finite.
+pub fn load_eq3(path: &Path, gravity_m_s2: [f64; 3], command: &str) -> Result<Eq3Model> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let file: Eq3FileIn = toml::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: not an Eq. 3 model of `host-sim identify-wrist --out`: {}",
+            path.display(),
+            crate::log::toml_error(&text, &e)
+        )
+    })?;
+    ensure!(
+        file.parameter_names
+            .iter()
+            .map(String::as_str)
+            .eq(PARAM_NAMES),
+        "{}: its parameters are [{}], this version's Eq. 3 has [{}]: fit it again with this \
+         version's `identify-wrist`",
+        path.display(),
+        file.parameter_names.join(", "),
+        PARAM_NAMES.join(", ")
+    );
+    ensure!(
+        file.fit.kept,
+        "{}: the model was not kept (it did not cut the torque on the part of its own run it \
+         did not fit): run without it",
+        path.display()
+    );
+    let mut body = file.fit.body;
+    if let Some(k) = body.params.iter().position(|p| !p.is_finite()) {
+        anyhow::bail!(
+            "{}: parameter {} is {}",
+            path.display(),
+            PARAM_NAMES[k],
+            body.params[k]
+        );
+    }
+    ensure!(
+        file.fit.motion_bandwidth_hz.is_finite() && file.fit.motion_bandwidth_hz > 0.0,
+        "{}: fit.motion_bandwidth_hz is {}: a positive bandwidth, Hz",
+        path.display(),
+        file.fit.motion_bandwidth_hz
+    );
+    let g = gravity_m_s2.map(|x| x as f32);
+    let apart = (0..3)
+        .map(|i| (g[i] - body.gravity_m_s2[i]).abs())
+        .fold(0.0, f32::max);
+    if apart > 0.01 {
+        eprintln!(
+            "{command}: note: {} was fitted with gravity {:?} m/s² in the shaft frame, this run is held at {g:?}: the model is evaluated at this run's",
+            path.display(),
+            body.gravity_m_s2
+        );
+    }
+    body.gravity_m_s2 = g;
+    Ok(Eq3Model {
+        body,
+        motion_bandwidth_hz: file.fit.motion_bandwidth_hz,
+    })
+}
+
+/// `host-sim estimate-wrist`.
+pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
+    const COMMAND: &str = "estimate-wrist";
+    let holding = args.run.holding(COMMAND)?;
+    let model = match &args.eq3 {
+        Some(p) => Some(load_eq3(p, holding.gravity_m_s2, COMMAND)?),
+        None => None,
+    };
+    let dir = &args.run.run;
+    let (_, run) = replay_run(dir, &args.run, &holding, OnFault::Cut, COMMAND)?;
+    let ticks = wrist_estimate::estimate(&run, model.as_ref());
+    let log = wrist_estimate::to_log(&ticks, run.rate_hz)?;
+    // The CSV and the figure are written together or not at all.
+    let mut files = Outputs::new();
+    log.stage(&mut files, &args.out)?;
+    let figures = match &args.plot {
+        Some(stem) => {
+            let title = dir.display().to_string();
+            let fig = wrist_estimate::figure(&log, &title, run.gripper_length_m)?;
+            crate::plot::stage_figure(&mut files, &fig, stem)?.to_vec()
+        }
+        None => Vec::new(),
+    };
+    files.commit()?;
+    crate::stdoutln!(
+        "Eq. 3: {}",
+        match &args.eq3 {
+            Some(p) => format!("{} taken out of every joint's estimate", p.display()),
+            None =>
+                "none (no --eq3: the links and the joints' residual friction stay in)".to_owned(),
+        }
+    );
+    match wrist_estimate::summary(&ticks) {
+        Some(s) => report_summary(&s),
+        None => crate::stdoutln!(
+            "no reference: the jaws' logs have no f_ext_n, so the estimate is not judged"
+        ),
+    }
+    crate::stdoutln!("wrote {} ({} rows)", args.out.display(), ticks.len());
+    for f in &figures {
+        crate::stdoutln!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+/// Print how the clamp estimate met the reference.
+fn report_summary(s: &wrist_estimate::Summary) {
+    if s.holding > 0 {
+        crate::stdoutln!(
+            "holding (reference clamp force >= {} N, {} ticks): clamp error RMS {:.3} N, worst {:.1} % of the reference; bound holds the reference {:.1} %",
+            wrist_estimate::HOLDING_N,
+            s.holding,
+            s.holding_rms_n,
+            s.holding_worst_pct,
+            100.0 * s.holding_coverage
+        );
+    } else {
+        crate::stdoutln!(
+            "holding: no tick with a reference clamp force of {} N or more",
+            wrist_estimate::HOLDING_N
+        );
+    }
+    if s.open > 0 {
+        crate::stdoutln!(
+            "open (reference <= {} N, {} ticks): largest |clamp estimate| {:.3} N",
+            wrist_estimate::OPEN_N,
+            s.open,
+            s.open_max_n
+        );
+    }
+    crate::stdoutln!(
+        "whole run ({} ticks with a reference): bound holds the reference {:.1} %",
+        s.with_reference,
+        100.0 * s.coverage
+    );
 }
 
 /// What `identify-wrist --out` writes.
@@ -194,7 +467,11 @@ struct Validation {
 }
 
 /// The four logs of `dir`, read.
-fn read_run(dir: &Path, ticks_per_row: Option<u32>) -> Result<[(String, crate::log::Log); 4]> {
+fn read_run(
+    dir: &Path,
+    ticks_per_row: Option<u32>,
+    command: &str,
+) -> Result<[(String, crate::log::Log); 4]> {
     ensure!(
         dir.is_dir(),
         "{} is not a directory: a wrist's run is a directory of {}",
@@ -210,7 +487,7 @@ fn read_run(dir: &Path, ticks_per_row: Option<u32>) -> Result<[(String, crate::l
             path.display(),
             JOINT_NAMES.map(|n| format!("{n}.csv")).join(", ")
         );
-        logs.push(wrist_log::read(&path, ticks_per_row, "identify-wrist")?);
+        logs.push(wrist_log::read(&path, ticks_per_row, command)?);
     }
     logs.try_into()
         .map_err(|_| anyhow::anyhow!("four joints' logs"))
@@ -244,64 +521,63 @@ fn configs(config: Option<&Path>, dir: &Path) -> Result<[(Config, String); 4]> {
 }
 
 /// Read and replay the run in `dir`, its configurations as [`configs`]
-/// finds them.
+/// finds them (`args.run` names the fitted run; `dir` may be another),
+/// what it did printed after `command: `.
 fn replay_run(
     dir: &Path,
-    args: &IdentifyWristArgs,
+    args: &WristRunArgs,
     holding: &Holding,
+    on_fault: OnFault,
+    command: &str,
 ) -> Result<([(String, crate::log::Log); 4], WristRun)> {
     let configs = configs(args.config.as_deref(), dir)?;
     for (name, (_, what)) in JOINT_NAMES.iter().zip(&configs) {
         eprintln!(
-            "identify-wrist: {}: {name}'s configuration: {what}",
+            "{command}: {}: {name}'s configuration: {what}",
             dir.display()
         );
     }
-    let logs = read_run(dir, args.ticks_per_row)?;
-    let run = wrist_log::replay(&logs, &configs.map(|c| c.0), holding)
+    let logs = read_run(dir, args.ticks_per_row, command)?;
+    let run = wrist_log::replay(&logs, &configs.map(|c| c.0), holding, on_fault)
         .with_context(|| format!("the run in {}", dir.display()))?;
-    report_run(dir, &run);
+    for n in &run.notes {
+        eprintln!("{command}: {n}");
+    }
+    crate::stdoutln!(
+        "{}: {} ticks at {} Hz ({:.1} s), four joints",
+        dir.display(),
+        run.samples.len(),
+        run.rate_hz,
+        run.samples.len() as f64 / run.rate_hz
+    );
     Ok((logs, run))
 }
 
 /// `host-sim identify-wrist`.
 pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
-    let gravity_m_s2: [f64; 3] = args.gravity.as_slice().try_into().map_err(|_| {
-        anyhow::anyhow!(
-            "--gravity: expected three components GX,GY,GZ (m/s²), got {}",
-            args.gravity.len()
-        )
-    })?;
-    let g = gravity_m_s2.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if (g - crate::scenario::G_M_S2).abs() > 0.05 * crate::scenario::G_M_S2 {
-        eprintln!(
-            "identify-wrist: note: --gravity is {g:.2} m/s² long, not 9.81: the links' moments are fitted in its scale"
-        );
-    }
-    let holding = Holding {
-        gravity_m_s2,
-        jaw_open_rad: args.jaw_open_deg.to_radians(),
-    };
+    const COMMAND: &str = "identify-wrist";
+    let holding = args.run.holding(COMMAND)?;
     if let Some(v) = &args.validate {
         cli::refuse_reused_files(
-            std::slice::from_ref(&args.run),
+            std::slice::from_ref(&args.run.run),
             std::slice::from_ref(v),
             &[],
         )?;
     }
-    let (logs, run) = replay_run(&args.run, &args, &holding)?;
+    let dir = &args.run.run;
+    let (logs, run) = replay_run(dir, &args.run, &holding, OnFault::Refuse, COMMAND)?;
     ensure!(
         run.samples.len() >= 100,
         "{}: {} ticks in common: too few to fit Eq. 3's {N_PARAMS} parameters",
-        args.run.display(),
+        dir.display(),
         run.samples.len()
     );
     let fit = fit_eq3(&run.setting, &run.samples)
-        .with_context(|| format!("fitting Eq. 3 on {}", args.run.display()))?;
+        .with_context(|| format!("fitting Eq. 3 on {}", dir.display()))?;
     report_fit(&fit);
     let validation = match &args.validate {
         Some(dir) => {
-            let (vlogs, vrun) = replay_run(dir, &args, &holding)?;
+            let (vlogs, vrun) = replay_run(dir, &args.run, &holding, OnFault::Refuse, COMMAND)?;
             let fitted: Vec<(&str, &crate::log::Log)> =
                 logs.iter().map(|(n, l)| (n.as_str(), l)).collect();
             let unseen: Vec<(&str, &crate::log::Log)> =
@@ -329,7 +605,7 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
         written_by: format!(
             "host-sim {} identify-wrist on {} ({} ticks at {} Hz)",
             env!("CARGO_PKG_VERSION"),
-            args.run.display(),
+            dir.display(),
             run.samples.len(),
             run.rate_hz
         ),
@@ -341,20 +617,6 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
         .with_context(|| format!("writing {}", args.out.display()))?;
     crate::stdoutln!("wrote {}", args.out.display());
     Ok(())
-}
-
-/// Print what reading `dir` did.
-fn report_run(dir: &Path, run: &WristRun) {
-    for n in &run.notes {
-        eprintln!("identify-wrist: {n}");
-    }
-    crate::stdoutln!(
-        "{}: {} ticks at {} Hz ({:.1} s), four joints",
-        dir.display(),
-        run.samples.len(),
-        run.rate_hz,
-        run.samples.len() as f64 / run.rate_hz
-    );
 }
 
 /// Print the fit.

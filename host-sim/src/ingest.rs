@@ -36,10 +36,35 @@ use cable_joint::Config;
 use crate::log::Log;
 
 /// Options of the conversion.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LogOptions {
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LogOptions<'a> {
     /// Add `theta_rad` from the magnetic encoder.
     pub magnetic: bool,
+    /// When records arrived on the host (`host-sim link`): each a tick
+    /// counter received and the host's wall clock then (Unix time, s).
+    /// Not empty, the log gets [`HOST_CLOCK_COLUMN`] ([`host_clock_offset_s`]).
+    pub arrivals: &'a [(u32, f64)],
+}
+
+/// The host's wall clock at each tick (Unix time, s), estimated from when
+/// its records arrived ([`host_clock_offset_s`]): logs recorded by several
+/// `host-sim link` processes on one computer share it, so a wrist's four
+/// joints' logs can be aligned on it (`host_sim::wrist_log`).
+pub const HOST_CLOCK_COLUMN: &str = "t_unix_s";
+
+/// The host's wall clock at tick zero, s: the least `arrived - tick /
+/// rate_hz` over `arrivals` (tick, Unix time of arrival). A record cannot
+/// arrive before it was made, and the fastest arrival is the closest to
+/// it, so the least difference is the estimate least delayed by the link
+/// (its error is the link's shortest delay plus the drift between the
+/// board's crystal and the host's clock over the run: 50 ppm, 3 ms a
+/// minute). `None` without arrivals.
+pub fn host_clock_offset_s(arrivals: &[(u32, f64)], rate_hz: f64) -> Option<f64> {
+    arrivals
+        .iter()
+        .map(|&(tick, unix_s)| unix_s - f64::from(tick) / rate_hz)
+        .filter(|x| x.is_finite())
+        .reduce(f64::min)
 }
 
 /// Read every telemetry record of a decoded defmt text. `name` is used in
@@ -127,6 +152,9 @@ pub fn columns(opts: &LogOptions) -> Vec<&'static str> {
         "cycles_dob",
         "cycles_cascade",
     ]);
+    if !opts.arrivals.is_empty() {
+        c.push(HOST_CLOCK_COLUMN);
+    }
     c
 }
 
@@ -320,6 +348,10 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
     }
     let s: &Scales = &config.scales;
     let mut log = Log::with_columns(&columns(opts))?;
+    let host_offset_s = host_clock_offset_s(opts.arrivals, f64::from(rate_hz));
+    if host_offset_s.is_none() && !opts.arrivals.is_empty() {
+        bail!("no arrival time of the records is a finite wall-clock time");
+    }
     let mut motor = Extender16::default();
     let mut magnetic = Extender16::default();
     let mut origin = (0i32, 0i32, 0i32, 0i32);
@@ -380,6 +412,9 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
                     row.push(s.magnetic_rad(g.wrapping_sub(origin.3)) as f64);
                 }
                 row.extend(tick_columns(t));
+                if let Some(offset_s) = host_offset_s {
+                    row.push(offset_s + f64::from(t.tick) / f64::from(rate_hz));
+                }
                 log.push_row(&row)?;
             }
         }
@@ -488,6 +523,28 @@ impl std::fmt::Display for CycleStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The host's clock at tick zero is the least arrival less the tick's
+    /// time: with every record delayed by a link latency of at least 2 ms,
+    /// it is late by about that least latency, never early.
+    #[test]
+    fn the_host_clock_offset_is_the_least_delayed_arrival() {
+        let (zero_s, rate_hz) = (1.7e9, 2000.0);
+        let arrivals: Vec<(u32, f64)> = (0..200u32)
+            .map(|k| {
+                let tick = 100 * k;
+                let latency_s = 0.002 + 0.02 * f64::from((k * 37) % 11) / 11.0;
+                (tick, zero_s + f64::from(tick) / rate_hz + latency_s)
+            })
+            .collect();
+        let offset = host_clock_offset_s(&arrivals, rate_hz).unwrap();
+        assert!(
+            (offset - zero_s - 0.002).abs() < 1e-6,
+            "{}",
+            offset - zero_s
+        );
+        assert_eq!(host_clock_offset_s(&[], rate_hz), None);
+    }
     use cable_joint::telemetry::{OriginRecord, FORMAT_VERSION, MAX_RECORD_LEN};
     use cable_joint::units::{AdcCode, MagneticCount, MotorCount};
     use cable_joint::RawSample;

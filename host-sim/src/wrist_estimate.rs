@@ -91,27 +91,31 @@ pub fn to_log(ticks: &[WristEstimate], rate_hz: f64) -> Result<Log> {
     }
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut log = Log::with_columns(&refs)?;
-    let mut row = Vec::with_capacity(names.len());
+    let mut row: Vec<Option<f64>> = Vec::with_capacity(names.len());
     for (k, t) in ticks.iter().enumerate() {
         let f = &t.force;
         row.clear();
-        row.push(k as f64 / rate_hz);
+        row.push(Some(k as f64 / rate_hz));
         for j in 0..4 {
             let b = f.torque_bound_nm[j];
-            row.extend([f.torque_nm[j], b.lo, b.hi, t.links_hat_nm[j]].map(f64::from));
+            row.extend([f.torque_nm[j], b.lo, b.hi, t.links_hat_nm[j]].map(|v| Some(f64::from(v))));
         }
         for jaw in &f.jaws {
-            row.extend([jaw.force_n[1].lo, jaw.force_n[1].hi].map(f64::from));
+            row.extend([jaw.force_n[1].lo, jaw.force_n[1].hi].map(|v| Some(f64::from(v))));
         }
-        row.extend([
-            f.clamp_n,
-            f64::from(f.clamp_bound_n.lo),
-            f64::from(f.clamp_bound_n.hi),
-        ]);
+        row.extend(
+            [
+                f.clamp_n,
+                f64::from(f.clamp_bound_n.lo),
+                f64::from(f.clamp_bound_n.hi),
+            ]
+            .map(Some),
+        );
         if with_reference {
-            row.push(t.reference_n.unwrap_or(f64::NAN));
+            // Empty where a jaw's reference is not measured.
+            row.push(t.reference_n);
         }
-        log.push_row(&row)?;
+        log.push_row_opt(&row)?;
     }
     Ok(log)
 }

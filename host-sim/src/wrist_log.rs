@@ -12,11 +12,19 @@
 //!   tick, and the core stepped on every tick with that joint's
 //!   configuration. The replay's JAE angle and fused force estimate are
 //!   what the wrist reads, as in the simulated wrist.
-//! * The four are aligned on time since each one's first replayed tick:
-//!   the four controllers must start their runs together (as `excite
-//!   --wrist`'s per-joint files already need). The logs carry no common
-//!   clock to check that against; what is checked is that the four run at
-//!   one control rate and last equally long within the force estimate's
+//! * Where every log has the host's wall clock (`t_unix_s`, which `host-sim
+//!   link --record` stamps from when the records arrived on the host:
+//!   [`crate::ingest::host_clock_offset_s`]), the four are aligned on it:
+//!   the run starts at the latest of their first replayed ticks and ends
+//!   at the earliest last one, so the four controllers need not have
+//!   started together; logs that do not overlap are refused. The stamps'
+//!   error is the link's shortest delay (milliseconds over a probe or
+//!   USB) plus the crystals' drift against the host's clock.
+//! * Without it the four are aligned on time since each one's first
+//!   replayed tick: the four controllers must start their runs together
+//!   (as `excite --wrist`'s per-joint files already need). Nothing in the
+//!   logs can check that; what is checked is that the four run at one
+//!   control rate and last equally long within the force estimate's
 //!   low-pass time constant (`1 / dob.cutoff_rad_s`): a shift shorter than
 //!   the estimate's own lag is within what the fit already absorbs, a
 //!   longer one would couple one joint's torque to another's motion at the
@@ -33,7 +41,7 @@ use cable_joint::wrist::Geometry;
 use cable_joint::Config;
 
 use crate::derive::TickReplay;
-use crate::ingest::{fault_words, ReplayEnd};
+use crate::ingest::{fault_words, ReplayEnd, HOST_CLOCK_COLUMN};
 use crate::links::{sign_speeds_rad_s, Eq3Sample, Eq3Setting};
 use crate::log::{line_of_row, Log};
 use crate::output::Outputs;
@@ -140,32 +148,15 @@ pub fn replay(
         );
     }
     let rate_hz = f64::from(rate_hz);
-    let lengths: Vec<usize> = replays.iter().map(|r| r.log.len()).collect();
-    let (shortest, longest) = (
-        lengths.iter().copied().min().unwrap_or(0),
-        lengths.iter().copied().max().unwrap_or(0),
-    );
     let lag_s = 1.0 / f64::from(configs[0].dob.cutoff_rad_s);
-    let spread_s = (longest - shortest) as f64 / rate_hz;
-    if spread_s > lag_s {
-        let each: Vec<String> = (0..4)
-            .map(|j| format!("{} {:.3} s", JOINT_NAMES[j], lengths[j] as f64 / rate_hz))
-            .collect();
-        bail!(
-            "the four logs last {} after their first replayed rows: {spread_s:.3} s apart, more \
-             than the force estimate's time constant ({lag_s:.3} s). They must be recorded \
-             together: start the four controllers' runs at once",
-            each.join(", ")
-        );
-    }
-    if longest > shortest {
-        notes.push(format!(
-            "the logs differ by {} ticks ({:.1} ms) in length: cut to the shortest",
-            longest - shortest,
-            spread_s * 1e3
-        ));
-    }
-    if let Some(note) = motion_starts(&replays, rate_hz, lag_s) {
+    let skip = align(logs, &replays, rate_hz, lag_s, &mut notes)?;
+    let shortest = replays
+        .iter()
+        .zip(skip)
+        .map(|(r, k)| r.log.len() - k)
+        .min()
+        .unwrap_or(0);
+    if let Some(note) = motion_starts(&replays, skip, rate_hz, lag_s) {
         notes.push(note);
     }
     let mut columns = Vec::with_capacity(4);
@@ -176,24 +167,24 @@ pub fn replay(
                 .col_required(n)
                 .map_err(|e| anyhow::anyhow!("{} ({}): {e}", JOINT_NAMES[j], logs[j].0))
         };
-        let fault = col("fault_code")?;
+        let fault = &col("fault_code")?[skip[j]..];
         if let Some(k) = fault[..shortest].iter().position(|c| *c != 0.0) {
             let what = format!(
                 "{} ({}): the replay latched {} at line {}",
                 JOINT_NAMES[j],
                 logs[j].0,
                 fault_words(fault[k].clamp(0.0, 255.0) as u8),
-                line_of_row(r.log_row(k))
+                line_of_row(r.log_row(skip[j] + k))
             );
             if first_fault.as_ref().is_none_or(|(_, at, _)| k < *at) {
                 first_fault = Some((j, k, what));
             }
         }
         columns.push([
-            col("theta_hat_rad")?,
-            col("f_ext_fused_n")?,
-            col("f_ext_lo_n")?,
-            col("f_ext_hi_n")?,
+            &col("theta_hat_rad")?[skip[j]..],
+            &col("f_ext_fused_n")?[skip[j]..],
+            &col("f_ext_lo_n")?[skip[j]..],
+            &col("f_ext_hi_n")?[skip[j]..],
         ]);
     }
     let mut shortest = shortest;
@@ -218,7 +209,7 @@ pub fn replay(
         replays[JAW_A].log.col("f_ext_n"),
         replays[JAW_B].log.col("f_ext_n"),
     ) {
-        (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
+        (Some(a), Some(b)) => Some([a[skip[JAW_A]..].to_vec(), b[skip[JAW_B]..].to_vec()]),
         _ => None,
     };
     let jaw_length_m = [JAW_A, JAW_B].map(|j| replays[j].config.machine.gripper_length_m);
@@ -272,16 +263,118 @@ pub fn replay(
     })
 }
 
+/// Where each joint's replay starts in the common run: the ticks to skip
+/// at its start. With the host's clock in every log ([`HOST_CLOCK_COLUMN`],
+/// `host-sim link` writes it) the four are aligned on it: each starts at
+/// the latest first replayed tick, and they may have started apart.
+/// Without it they are taken to have started together, which their
+/// lengths can only check: lengths further apart than `lag_s` are
+/// refused (module docs). Notes what it did.
+fn align(
+    logs: &[(String, Log); 4],
+    replays: &[TickReplay],
+    rate_hz: f64,
+    lag_s: f64,
+    notes: &mut Vec<String>,
+) -> Result<[usize; 4]> {
+    let lengths: [usize; 4] = core::array::from_fn(|j| replays[j].log.len());
+    // The host's clock at each replay's first tick (one of the log's own
+    // rows: homing's rows are dropped before the replay).
+    let clock: Vec<Option<f64>> = logs
+        .iter()
+        .zip(replays)
+        .map(|((_, log), r)| {
+            let row = r.source_row.first().copied().flatten()?;
+            log.col(HOST_CLOCK_COLUMN)?
+                .get(row)
+                .copied()
+                .filter(|t| t.is_finite())
+        })
+        .collect();
+    if let [Some(a), Some(b), Some(c), Some(d)] = clock[..] {
+        let starts = [a, b, c, d];
+        let common = starts.iter().copied().fold(f64::MIN, f64::max);
+        let skip: [usize; 4] =
+            core::array::from_fn(|j| ((common - starts[j]) * rate_hz).round() as usize);
+        let each: Vec<String> = (0..4)
+            .map(|j| {
+                format!(
+                    "{} {:+.3} s",
+                    JOINT_NAMES[j],
+                    starts[j] - starts.iter().copied().fold(f64::MAX, f64::min)
+                )
+            })
+            .collect();
+        for j in 0..4 {
+            ensure!(
+                skip[j] < lengths[j],
+                "{} ({}) ends {:.3} s before {} starts on the host's clock ({HOST_CLOCK_COLUMN}): \
+                 the four logs do not overlap",
+                JOINT_NAMES[j],
+                logs[j].0,
+                (common - starts[j]) - lengths[j] as f64 / rate_hz,
+                JOINT_NAMES[(0..4).find(|&k| starts[k] == common).unwrap_or(0)]
+            );
+        }
+        let common_len = (0..4).map(|j| lengths[j] - skip[j]).min().unwrap_or(0);
+        notes.push(format!(
+            "aligned on the host's clock ({HOST_CLOCK_COLUMN}): first replayed ticks at {}; \
+             {common_len} ticks ({:.3} s) in common",
+            each.join(", "),
+            common_len as f64 / rate_hz
+        ));
+        return Ok(skip);
+    }
+    if clock.iter().any(Option::is_some) {
+        notes.push(format!(
+            "only {} of the four logs have the host's clock ({HOST_CLOCK_COLUMN}): aligned on \
+             their first replayed ticks instead",
+            clock.iter().filter(|c| c.is_some()).count()
+        ));
+    }
+    let (shortest, longest) = (
+        lengths.iter().copied().min().unwrap_or(0),
+        lengths.iter().copied().max().unwrap_or(0),
+    );
+    let spread_s = (longest - shortest) as f64 / rate_hz;
+    if spread_s > lag_s {
+        let each: Vec<String> = (0..4)
+            .map(|j| format!("{} {:.3} s", JOINT_NAMES[j], lengths[j] as f64 / rate_hz))
+            .collect();
+        bail!(
+            "the four logs last {} after their first replayed rows: {spread_s:.3} s apart, more \
+             than the force estimate's time constant ({lag_s:.3} s), and they have no common \
+             clock ({HOST_CLOCK_COLUMN}, which `host-sim link --record` writes) to align them \
+             on. They must be recorded together: start the four controllers' runs at once",
+            each.join(", ")
+        );
+    }
+    if longest > shortest {
+        notes.push(format!(
+            "the logs differ by {} ticks ({:.1} ms) in length: cut to the shortest",
+            longest - shortest,
+            spread_s * 1e3
+        ));
+    }
+    Ok([0; 4])
+}
+
 /// When each joint's commanded angle (`theta_ref_rad`, where the logs
 /// have it) first leaves its first value, after its log's first replayed
 /// tick: a program whose joints start moving together shows the four
 /// logs' alignment. A note, with a warning when they are further apart
 /// than `lag_s` (a program may start its joints apart on purpose).
-fn motion_starts(replays: &[TickReplay], rate_hz: f64, lag_s: f64) -> Option<String> {
+fn motion_starts(
+    replays: &[TickReplay],
+    skip: [usize; 4],
+    rate_hz: f64,
+    lag_s: f64,
+) -> Option<String> {
     let starts: Vec<Option<f64>> = replays
         .iter()
-        .map(|r| {
-            let reference = r.log.col("theta_ref_rad")?;
+        .zip(skip)
+        .map(|(r, skip)| {
+            let reference = &r.log.col("theta_ref_rad")?[skip..];
             let first = *reference.first()?;
             let k = reference
                 .iter()

@@ -120,15 +120,56 @@ fn record_from_stand_in(name: &str, stream: Stream) -> (bool, String, Option<Str
     if let Some(n) = decimation {
         cmd.args(["--decimation", &n.to_string()]);
     }
+    let before_s = unix_now_s();
     let out = cmd.output().unwrap();
+    let after_s = unix_now_s();
     firmware.join().unwrap();
     let text = std::fs::read_to_string(&log).ok();
+    if let Some(text) = &text {
+        host_clock_is_the_runs(text, before_s, after_s);
+    }
     std::fs::remove_dir_all(&dir).ok();
     (
         out.status.success(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
         text,
     )
+}
+
+/// The host's wall clock, Unix time in seconds.
+fn unix_now_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+}
+
+/// The log's host clock (`t_unix_s`, `host-sim link` stamps it from when
+/// records arrived): on every row, advancing with the tick counter at the
+/// control rate, and no row stamped after the last record could have
+/// arrived. The stand-in sends faster than real time, so the stamps can
+/// lie before the run began by at most the ticks' span.
+fn host_clock_is_the_runs(text: &str, before_s: f64, after_s: f64) {
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let at = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (clock, tick) = (at("t_unix_s"), at("tick"));
+    let rows: Vec<(f64, f64)> = lines
+        .map(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            (cells[clock].parse().unwrap(), cells[tick].parse().unwrap())
+        })
+        .collect();
+    let span_s = f64::from(SENT_TICKS) / 2000.0;
+    for &(unix_s, tick) in &rows {
+        let (first_unix_s, first_tick) = rows[0];
+        let expected = first_unix_s + (tick - first_tick) / 2000.0;
+        assert!((unix_s - expected).abs() < 1e-6, "{unix_s} at tick {tick}");
+        assert!(
+            (before_s - span_s - 1.0..=after_s).contains(&unix_s),
+            "{unix_s} outside the run [{before_s}, {after_s}]"
+        );
+    }
 }
 
 /// Every tick sent, an origin record where homing ends.

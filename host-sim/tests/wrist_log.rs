@@ -141,6 +141,62 @@ fn logs_recorded_apart_are_refused_and_a_small_shift_is_cut() {
     );
 }
 
+/// `log` with the host's clock (`t_unix_s`, as `host-sim link` records
+/// it), its first row at `start_s`.
+fn with_host_clock(log: &Log, start_s: f64) -> Log {
+    let mut out = log.clone();
+    let t = log.time_s().unwrap();
+    let clock = t.iter().map(|x| start_s + x - t[0]).collect();
+    out.set_col("t_unix_s", clock).unwrap();
+    out
+}
+
+/// Logs carrying the host's clock are aligned on it, not on their first
+/// rows: the pitch's recording started 200 ticks (0.1 s) after the others
+/// and ends with them, so the run starts at the pitch's first tick and
+/// the roll's and the jaws' samples are the simulated wrist's from tick
+/// 200 on. (Without the clock, logs 0.1 s apart are refused:
+/// `logs_recorded_apart_are_refused_and_a_small_shift_is_cut`.) Logs that
+/// do not overlap on the clock are refused.
+#[test]
+fn logs_with_the_host_clock_are_aligned_on_it() {
+    let params = simulated_wrist(None);
+    let (ticks, logs) = short_run(&params, 1.0);
+    let n = logs[1].len();
+    let t0 = 1.7e9;
+    let mut late: [Log; 4] = core::array::from_fn(|j| with_host_clock(&logs[j], t0));
+    late[1] = with_host_clock(&logs[1].rows(200..n), t0 + 0.1);
+    let dir = tempfile::tempdir().unwrap();
+    let read = round_trip(&late, dir.path());
+    let run =
+        wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
+    let note = run
+        .notes
+        .iter()
+        .find(|n| n.contains("aligned on the host's clock"))
+        .unwrap();
+    assert!(note.contains("pitch +0.100 s"), "{note}");
+    assert_eq!(run.samples.len(), n - 200);
+    for (k, s) in run.samples.iter().enumerate() {
+        let t = Eq3Sample::of_tick(&params, &ticks[200 + k]);
+        for j in [0, 2, 3] {
+            assert_eq!(
+                s.theta_hat_rad[j], t.theta_hat_rad[j],
+                "tick {k}, joint {j}"
+            );
+            assert_eq!(s.torque_nm[j], t.torque_nm[j], "tick {k}, joint {j}");
+        }
+    }
+    // The pitch recorded 10 s after the others had ended.
+    let mut apart = late.clone();
+    apart[1] = with_host_clock(&logs[1], t0 + 10.0);
+    let read = round_trip(&apart, dir.path());
+    let e = wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("do not overlap") && e.contains("roll"), "{e}");
+}
+
 /// Jaws configured with different lengths cannot be the wrist's two jaws:
 /// refused, naming both.
 #[test]

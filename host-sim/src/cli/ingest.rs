@@ -48,6 +48,7 @@ pub fn run(args: IngestArgs) -> anyhow::Result<()> {
     }
     let opts = LogOptions {
         magnetic: args.magnetic,
+        ..LogOptions::default()
     };
     let log =
         to_log(&records, &config, &opts).with_context(|| format!("{}", args.file.display()))?;

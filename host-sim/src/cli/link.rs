@@ -234,6 +234,9 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     };
     let mut stopped = false;
     let mut records: Vec<Record> = Vec::new();
+    // The newest tick of each batch received and the host's clock then:
+    // the log's `t_unix_s` (ingest::host_clock_offset_s).
+    let mut arrivals: Vec<(u32, f64)> = Vec::new();
     let (mut first_tick, mut homed_tick, mut last_beat) = (None::<u32>, None::<u32>, 0u32);
     let mut elapsed = 0u64;
     let mut last_data = Instant::now();
@@ -257,6 +260,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
             }
             if let Some(now) = now {
                 elapsed = u64::from(now.wrapping_sub(*first_tick.get_or_insert(now)));
+                arrivals.push((now, unix_now_s()));
             }
             if let Some((screen, live)) = &mut view {
                 live.set_note(format!(
@@ -302,6 +306,14 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         Ok(())
     })();
     records.extend(client.take_telemetry());
+    // Records taken while a request waited for its answer arrived before
+    // now: a late stamp, which the least-delay estimate may use.
+    if let Some(last) = records.iter().rev().find_map(|r| match r {
+        Record::Tick(t) => Some(t.tick),
+        _ => None,
+    }) {
+        arrivals.push((last, unix_now_s()));
+    }
     bar.finish_and_clear();
     let mut written = String::from("nothing recorded");
     let ticks = tick_records(&records);
@@ -310,6 +322,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         &config,
         &LogOptions {
             magnetic: args.magnetic,
+            arrivals: &arrivals,
         },
     );
     let lost = log
@@ -352,6 +365,14 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         eprintln!("{written}");
     }
     Ok(())
+}
+
+/// The host's wall clock, Unix time in seconds (0 if the clock is set
+/// before 1970).
+fn unix_now_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// Tick records among `records`.

@@ -421,7 +421,10 @@ pub fn defmt_text(data: &[u8]) {
         .collect();
     let _ = cycle_stats(&ticks);
     for magnetic in [false, true] {
-        let opts = LogOptions { magnetic };
+        let opts = LogOptions {
+            magnetic,
+            ..LogOptions::default()
+        };
         let Ok(log) = to_log(&records, &Config::default(), &opts) else {
             continue;
         };

@@ -356,3 +356,165 @@ fn the_no_load_motor_run_is_sent_as_a_motor_only_program() {
     let jae = program_sent_for("jae-ident");
     assert!(!jae.homing.motor_only);
 }
+
+/// A stand-in that runs in real time: a start record, then a tick record
+/// every 0.5 ms (sent 20 at a time every 10 ms), homing until `homed_tick`,
+/// running after it, for `ticks`; every request acknowledged and kept
+/// with the tick and the wall-clock time it arrived at.
+fn firmware_in_real_time(
+    listener: TcpListener,
+    homed_tick: u32,
+    ticks: u32,
+) -> Vec<(u32, f64, cable_joint::board::Request)> {
+    let (mut s, _) = listener.accept().unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_millis(1)))
+        .unwrap();
+    let mut reader = FrameReader::<MAX_WIRE_LEN>::new();
+    let mut up_seq = 0u8;
+    let mut requests = Vec::new();
+    let start = StartRecord {
+        version: FORMAT_VERSION,
+        control_rate_hz: 2000.0,
+        decimation: 1,
+    };
+    send_record(&mut s, &mut up_seq, Record::Start(start));
+    let began = std::time::Instant::now();
+    let mut buf = [0u8; 512];
+    let mut tick = 0;
+    while tick < ticks {
+        // Ticks due by now (2 kHz since `began`), at most 20 at once.
+        let due = (began.elapsed().as_secs_f64() * 2000.0) as u32;
+        while tick < due.min(ticks) {
+            let t = TickRecord {
+                tick,
+                phase: if tick < homed_tick { 3 } else { 4 },
+                mode: 1,
+                drive_enable: true,
+                dac: cable_joint::units::DacCode(2048),
+                ..TickRecord::default()
+            };
+            send_record(&mut s, &mut up_seq, Record::Tick(t));
+            tick += 1;
+        }
+        match s.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                for &b in &buf[..n] {
+                    if let Pushed::Frame(len) = reader.push(b) {
+                        let r = receive(reader.frame(), len);
+                        let ack = Up::Ack {
+                            seq: r.seq,
+                            refused: None,
+                        };
+                        send(&mut s, &mut up_seq, &ack);
+                        requests.push((tick, unix_now_s(), r.outcome.expect("a valid request")));
+                    }
+                }
+            }
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(_) => break,
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    requests
+}
+
+/// `link --scenario jae-ident --start-at T` against [`firmware_in_real_time`]
+/// homing until 0.2 s: the program holds the joint where the scenario's
+/// first command starts, and that first command goes out when the host's
+/// clock reaches T, not when homing ends; the run's length counts the
+/// wait. A time in the past is refused before the board is touched, and
+/// homing still running at T is an error.
+#[test]
+fn a_scenario_started_at_a_wall_clock_time_starts_its_motion_then() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let firmware = std::thread::spawn(move || firmware_in_real_time(listener, 400, 3000));
+    let start_at = unix_now_s() + 0.8;
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
+        .args(["--scenario", "jae-ident", "--duration-scale", "0.1"])
+        .args(["--duration-s", "1.2"])
+        .args(["--start-at", &format!("{start_at:.3}")])
+        .output()
+        .unwrap();
+    let requests = firmware.join().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("the scenario's motion starts now"),
+        "{stderr}"
+    );
+    let Some((_, _, cable_joint::board::Request::Program(program))) = requests.get(1) else {
+        panic!("second request not a program: {requests:?}");
+    };
+    assert!(
+        matches!(
+            program.command.trajectory,
+            cable_joint::trajectory::Trajectory::Hold { .. }
+        ),
+        "{program:?}"
+    );
+    let commands: Vec<(u32, f64, cable_joint::Command)> = requests
+        .iter()
+        .filter_map(|(tick, at, r)| match r {
+            cable_joint::board::Request::SetCommand(c) => Some((*tick, *at, *c)),
+            _ => None,
+        })
+        .collect();
+    assert!(commands.len() >= 2, "{requests:?}");
+    let ((tick, at_s, first), (next_tick, _, next)) = (commands[0], commands[1]);
+    assert_eq!(first, program_sent_for("jae-ident").command);
+    assert!(
+        (start_at..start_at + 1.0).contains(&at_s) && tick > 400,
+        "first command at {:+.3} s from --start-at, tick {tick}",
+        at_s - start_at
+    );
+    // jae-ident's sine follows its 1 s hold, scaled by 0.1: 200 ticks on
+    // (sent on the host's next poll after, never before; the bounds are
+    // loose for a loaded machine).
+    assert!(
+        matches!(
+            next.trajectory,
+            cable_joint::trajectory::Trajectory::Sine { .. }
+        ) && (150..=1000).contains(&(next_tick - tick)),
+        "{next:?} {} ticks after the first",
+        next_tick - tick
+    );
+    // In the past: refused before connecting (nothing listens on port 9).
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args([
+            "link",
+            "--port",
+            "tcp:127.0.0.1:9",
+            "--scenario",
+            "jae-ident",
+        ])
+        .args(["--start-at", "1000"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("in the past"),
+        "{stderr}"
+    );
+    // Homing until 1 s, the motion asked for at 0.3 s.
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let firmware = std::thread::spawn(move || firmware_in_real_time(listener, 2000, 2400));
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
+        .args(["--scenario", "jae-ident", "--duration-s", "1.2"])
+        .args(["--start-at", &format!("{:.3}", unix_now_s() + 0.3)])
+        .output()
+        .unwrap();
+    firmware.join().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("homing had not ended"),
+        "{stderr}"
+    );
+}

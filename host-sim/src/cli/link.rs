@@ -11,7 +11,7 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{bail, Context};
+use anyhow::{bail, ensure, Context};
 use cable_joint::board::{HomingConfig, Phase, Program};
 use cable_joint::controller::{Command, Mode};
 use cable_joint::link::Down;
@@ -80,6 +80,15 @@ pub struct LinkArgs {
     /// stops early and keeps what was recorded).
     #[command(flatten)]
     pub view: ViewArg,
+    /// Start the scenario's motion at this wall-clock time (Unix time, s;
+    /// e.g. `$(( $(date +%s) + 30 ))`) instead of when homing ends: the
+    /// joint holds where its first command starts until then. Four `link`
+    /// processes given one time start a wrist's four joints together
+    /// (each joint's homing takes its own time). Homing still running at
+    /// that time is an error.
+    #[arg(long, value_name = "UNIX_S", requires = "scenario",
+          value_parser = cli::f64_above(0.0, 1e11))]
+    pub start_at: Option<f64>,
     /// Give up when no telemetry arrives for this long (wall clock), s.
     #[arg(allow_negative_numbers = true, long, default_value_t = 60.0, value_parser = cli::f64_above(0.0, 1e5))]
     pub idle_timeout_s: f64,
@@ -100,6 +109,7 @@ fn schedule(
     duration_scale: f64,
     excitation: Option<Design>,
     grip: GripOptions,
+    start_at: Option<f64>,
 ) -> anyhow::Result<Schedule> {
     let opts = ScenarioOptions {
         duration_scale,
@@ -121,6 +131,17 @@ fn schedule(
         trajectory: Trajectory::Hold { angle_rad: 0.0 },
     };
     let first = commands.first().map_or(hold, |&(_, c)| c);
+    // Started at a wall-clock time: hold where the first command starts
+    // until then; every command, the first included, is sent then.
+    let first = match start_at {
+        Some(_) => Command {
+            mode: first.mode,
+            trajectory: Trajectory::Hold {
+                angle_rad: first.trajectory.at(0.0).angle_rad,
+            },
+        },
+        None => first,
+    };
     let program = Program {
         // `bm-noload` runs with the rope wheel unhooked: no homing, and
         // the firmware faults if slider 1 moves (HomingConfig::motor_only).
@@ -139,6 +160,10 @@ fn schedule(
     })
 }
 
+/// The furthest ahead `--start-at` may be, s (a larger value is more
+/// likely milliseconds or a typo than a plan).
+const MAX_START_WAIT_S: f64 = 3600.0;
+
 /// Scenarios whose run rests on the force estimate (`loading` judges it,
 /// `grip` regulates it): `link` warns before them when the configuration
 /// it loads still has force parameters of the datasheet plant.
@@ -151,8 +176,35 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let scenario = args
         .scenario
         .as_deref()
-        .map(|name| schedule(name, args.duration_scale, excitation, args.grip.options()))
+        .map(|name| {
+            schedule(
+                name,
+                args.duration_scale,
+                excitation,
+                args.grip.options(),
+                args.start_at,
+            )
+        })
         .transpose()?;
+    // The wait before the motion starts, host clock, s.
+    let wait_s = match args.start_at {
+        Some(at) => {
+            let wait_s = at - unix_now_s();
+            ensure!(
+                wait_s > 0.0,
+                "--start-at {at} is {:.1} s in the past (the host's clock now: {:.1})",
+                -wait_s,
+                unix_now_s()
+            );
+            ensure!(
+                wait_s <= MAX_START_WAIT_S,
+                "--start-at {at} is {wait_s:.0} s away, more than {MAX_START_WAIT_S} s: \
+                 a Unix time in seconds, e.g. $(( $(date +%s) + 30 ))"
+            );
+            wait_s
+        }
+        None => 0.0,
+    };
     // Before the board is touched: a run that acts on the force estimate
     // (a grip regulates it) with force parameters of the datasheet plant.
     if let (Some(path), Some(name)) = (&args.config, args.scenario.as_deref()) {
@@ -191,7 +243,10 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let duration_s = match &scenario {
         Some(s) => {
             client.request(&Down::Program(s.program))?;
-            pending = s.commands.iter().skip(1).rev().copied().collect();
+            // The first command runs with the program after homing, unless
+            // the motion starts at a wall-clock time.
+            let sent = usize::from(args.start_at.is_none());
+            pending = s.commands.iter().skip(sent).rev().copied().collect();
             eprintln!(
                 "scenario {}: check, {}then {} commands over {:.1} s",
                 args.scenario.as_deref().unwrap_or_default(),
@@ -204,7 +259,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
                 s.commands.len(),
                 s.length_s
             );
-            args.duration_s.unwrap_or(s.length_s + 3.0)
+            args.duration_s.unwrap_or(s.length_s + 3.0 + wait_s)
         }
         None => args.duration_s.unwrap_or(1.0),
     };
@@ -238,6 +293,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     // the log's `t_unix_s` (ingest::host_clock_offset_s).
     let mut arrivals: Vec<(u32, f64)> = Vec::new();
     let (mut first_tick, mut homed_tick, mut last_beat) = (None::<u32>, None::<u32>, 0u32);
+    let mut origin_tick: Option<u32> = None;
     let mut elapsed = 0u64;
     let mut last_data = Instant::now();
     let idle = Duration::from_secs_f64(args.idle_timeout_s);
@@ -287,8 +343,35 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
             records.extend(got);
             let Some(now) = now else { continue };
             bar.set_position(elapsed.min(want_ticks));
-            if let Some(homed) = homed_tick {
-                let since_s = f64::from(now.wrapping_sub(homed)) / rate_hz;
+            // The tick the scenario's time counts from: homing's end, or
+            // the board's tick at --start-at.
+            if origin_tick.is_none() {
+                origin_tick = match (homed_tick, args.start_at) {
+                    (Some(homed), None) => Some(homed),
+                    (Some(_), Some(at)) => {
+                        let late_s = unix_now_s() - at;
+                        (late_s >= 0.0).then(|| now.wrapping_sub((late_s * rate_hz).round() as u32))
+                    }
+                    (None, Some(at)) => {
+                        let late_s = unix_now_s() - at;
+                        ensure!(
+                            late_s < 0.0,
+                            "homing had not ended {late_s:.1} s after --start-at: the joint \
+                             cannot start its motion with the others; give a later --start-at"
+                        );
+                        None
+                    }
+                    (None, None) => None,
+                };
+                if let (Some(_), Some(at)) = (origin_tick, args.start_at) {
+                    eprintln!(
+                        "the scenario's motion starts now (--start-at {at}, {:.3} s ago on the host's clock)",
+                        unix_now_s() - at
+                    );
+                }
+            }
+            if let Some(origin) = origin_tick {
+                let since_s = f64::from(now.wrapping_sub(origin)) / rate_hz;
                 while pending.last().is_some_and(|&(t, _)| t <= since_s) {
                     let (_, c) = pending.pop().expect("checked");
                     client.request(&Down::SetCommand(c))?;

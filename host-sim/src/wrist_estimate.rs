@@ -201,3 +201,45 @@ pub fn figure(out: &Log, title: &str, l_m: [f64; 4]) -> Result<Figure> {
     fig.panel_px = (1000, 420);
     Ok(fig)
 }
+
+/// A free run's no-load force at each joint's tip (the truth is zero):
+/// the estimate as the joint gave it, with Eq. 3 taken out, and the bound
+/// with it taken out, one panel a joint; `ticks` are [`estimate`]'s of
+/// `run` with the model.
+pub fn no_load_figure(run: &WristRun, ticks: &[WristEstimate], title: &str) -> Figure {
+    let t: Vec<f64> = (0..ticks.len()).map(|k| k as f64 / run.rate_hz).collect();
+    let l = run.gripper_length_m;
+    let panels = JOINT_NAMES
+        .iter()
+        .enumerate()
+        .map(|(j, name)| {
+            let over = |f: &dyn Fn(usize) -> f64| (0..ticks.len()).map(f).collect::<Vec<f64>>();
+            Panel::new(
+                format!("{title}: {name}, no load (truth 0)"),
+                "t [s]",
+                "tau_ext / l_e [N]",
+            )
+            .with(Series::line(
+                "bound, low (Eq. 3 out)",
+                t.clone(),
+                over(&|k| f64::from(ticks[k].force.torque_bound_nm[j].lo) / l[j]),
+            ))
+            .with(Series::line(
+                "bound, high (Eq. 3 out)",
+                t.clone(),
+                over(&|k| f64::from(ticks[k].force.torque_bound_nm[j].hi) / l[j]),
+            ))
+            .with(Series::line(
+                "estimate",
+                t.clone(),
+                over(&|k| run.samples[k].torque_nm[j] / l[j]),
+            ))
+            .with(Series::line(
+                "Eq. 3 taken out",
+                t.clone(),
+                over(&|k| f64::from(ticks[k].force.torque_nm[j]) / l[j]),
+            ))
+        })
+        .collect();
+    Figure::grid(panels, 2)
+}

@@ -349,9 +349,23 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
             &d(out),
         ])
     };
-    let o = fit("id", "val", "eq3.toml");
+    let o = host_sim(&[
+        "identify-wrist",
+        "--run",
+        &d("id"),
+        "--validate",
+        &d("val"),
+        &gravity,
+        "--jaw-open-deg",
+        "20",
+        "--out",
+        &d("eq3.toml"),
+        "--plot",
+        &d("no-load"),
+    ]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("no-load.svg").is_file(), "{stdout}");
     assert!(stdout.contains("kept = true"), "{stdout}");
     let text = std::fs::read_to_string(dir.path().join("eq3.toml")).unwrap();
     let file: toml::Value = toml::from_str(&text).unwrap();

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use crate::cli;
 use crate::ident::excite_wrist::WristDesign;
 use crate::links::{self, fit_eq3, FreeRun, InverseDynamicsFit, Links, NoLoad};
-use crate::output::{write_atomic, Outputs};
+use crate::output::Outputs;
 use crate::plant::PlantParams;
 use crate::scenario::{oracle_config, tuned_gains};
 use crate::wrist::{run_grasp, Eq3Model, Grasp, WristParams};
@@ -92,6 +92,11 @@ pub struct IdentifyWristArgs {
     /// held-out check and the validation (TOML).
     #[arg(long)]
     pub out: PathBuf,
+    /// Also draw the validation run's no-load force at each joint's tip,
+    /// as the joint estimated it and with the model taken out, with the
+    /// bound, as STEM.svg and STEM.png (needs `--validate`).
+    #[arg(long, value_name = "STEM", requires = "validate")]
+    pub plot: Option<PathBuf>,
 }
 
 /// Arguments of `host-sim simulate-wrist`.
@@ -575,6 +580,9 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
     let fit = fit_eq3(&run.setting, &run.samples)
         .with_context(|| format!("fitting Eq. 3 on {}", dir.display()))?;
     report_fit(&fit);
+    // The model and the figure are written together or not at all.
+    let mut files = Outputs::new();
+    let mut figures = Vec::new();
     let validation = match &args.validate {
         Some(dir) => {
             let (vlogs, vrun) = replay_run(dir, &args.run, &holding, OnFault::Refuse, COMMAND)?;
@@ -594,6 +602,12 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
                 vrun.gripper_length_m,
             );
             report_validation(dir, &no_load, fit.kept);
+            if let Some(stem) = &args.plot {
+                let ticks = wrist_estimate::estimate(&vrun, Some(&model));
+                let title = dir.display().to_string();
+                let fig = wrist_estimate::no_load_figure(&vrun, &ticks, &title);
+                figures = crate::plot::stage_figure(&mut files, &fig, stem)?.to_vec();
+            }
             Some(Validation {
                 run: dir.display().to_string(),
                 no_load,
@@ -613,9 +627,14 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
         fit: &fit,
         validation,
     };
-    write_atomic(&args.out, toml::to_string_pretty(&file)?.as_bytes())
+    files
+        .bytes(&args.out, toml::to_string_pretty(&file)?.as_bytes())
         .with_context(|| format!("writing {}", args.out.display()))?;
+    files.commit()?;
     crate::stdoutln!("wrote {}", args.out.display());
+    for f in &figures {
+        crate::stdoutln!("wrote {}", f.display());
+    }
     Ok(())
 }
 

@@ -45,6 +45,14 @@ fn holding(params: &WristParams) -> Holding {
     }
 }
 
+/// The note of `run` that contains `text`.
+fn note<'a>(run: &'a wrist_log::WristRun, text: &str) -> &'a str {
+    run.notes
+        .iter()
+        .find(|n| n.contains(text))
+        .unwrap_or_else(|| panic!("no note with {text:?}: {:?}", run.notes))
+}
+
 /// The four joints' logs, written as CSV, read back and replayed through
 /// the core, are the simulated wrist's run bit for bit: every tick's JAE
 /// angles, estimated torques and bounds, so Eq. 3's fit on them is the fit
@@ -101,11 +109,7 @@ fn logs_recorded_apart_are_refused_and_a_small_shift_is_cut() {
     let run =
         wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
     assert_eq!(run.samples.len(), ticks.len() - 10);
-    assert!(
-        run.notes.iter().any(|n| n.contains("cut to the shortest")),
-        "{:?}",
-        run.notes
-    );
+    note(&run, "cut to the shortest");
     // The pitch's log starting 100 ticks (50 ms) late and the others
     // ending as early: the lengths agree, the motions' starts do not.
     let mut apart = logs.clone();
@@ -119,11 +123,7 @@ fn logs_recorded_apart_are_refused_and_a_small_shift_is_cut() {
     let read = round_trip(&apart, dir.path());
     let run =
         wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
-    let note = run
-        .notes
-        .iter()
-        .find(|n| n.contains("first moves"))
-        .unwrap();
+    let note = note(&run, "first moves");
     assert!(
         note.contains("0.050 s apart") && note.contains("not aligned"),
         "{note}"
@@ -170,11 +170,7 @@ fn logs_with_the_host_clock_are_aligned_on_it() {
     let read = round_trip(&late, dir.path());
     let run =
         wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
-    let note = run
-        .notes
-        .iter()
-        .find(|n| n.contains("aligned on the host's clock"))
-        .unwrap();
+    let note = note(&run, "aligned on the host's clock");
     assert!(note.contains("pitch +0.100 s"), "{note}");
     assert_eq!(run.samples.len(), n - 200);
     for (k, s) in run.samples.iter().enumerate() {
@@ -271,6 +267,15 @@ fn the_clamp_force_from_a_grasps_logs_is_the_simulated_wrists_tick_for_tick() {
         assert_eq!(e.links_hat_nm, t.links_hat_nm, "tick {k}");
         assert_eq!(e.reference_n, Some(t.contact_n), "tick {k}");
     }
+}
+
+/// `o` failed, its stderr says every one of `words`, and `out` was not
+/// written.
+fn refused(o: &Output, out: &Path, words: &[&str]) {
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{e}");
+    assert!(words.iter().all(|w| e.contains(w)), "{words:?} in {e}");
+    assert!(!out.exists(), "{}", out.display());
 }
 
 /// `host-sim` run with `args`.
@@ -448,30 +453,24 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
         held.len()
     );
     // Not a model: refused by name, nothing written.
-    let o = estimate("grasp/roll.toml", "not.csv");
-    assert!(!o.status.success());
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        e.contains("roll.toml") && e.contains("not an Eq. 3 model"),
-        "{e}"
+    refused(
+        &estimate("grasp/roll.toml", "not.csv"),
+        &dir.path().join("not.csv"),
+        &["roll.toml", "not an Eq. 3 model"],
     );
-    assert!(!dir.path().join("not.csv").exists());
     // The fitted run as its own validation.
-    let o = fit("id", "id", "same.toml");
-    assert!(!o.status.success());
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("--validate") && e.contains("fitted"), "{e}");
-    assert!(!dir.path().join("same.toml").exists());
+    refused(
+        &fit("id", "id", "same.toml"),
+        &dir.path().join("same.toml"),
+        &["--validate", "fitted"],
+    );
     // A run without jaw B's log.
     std::fs::remove_file(dir.path().join("val").join("jaw_b.csv")).unwrap();
-    let o = fit("id", "val", "missing.toml");
-    assert!(!o.status.success());
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        e.contains("jaw_b.csv") && e.contains("no log of joint jaw_b"),
-        "{e}"
+    refused(
+        &fit("id", "val", "missing.toml"),
+        &dir.path().join("missing.toml"),
+        &["jaw_b.csv", "no log of joint jaw_b"],
     );
-    assert!(!dir.path().join("missing.toml").exists());
     // A cell that is not a number, in the pitch's log at line 5.
     let pitch = dir.path().join("id").join("pitch.csv");
     let text = std::fs::read_to_string(&pitch).unwrap();
@@ -480,9 +479,9 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
     cells[1] = "oops";
     lines[4] = cells.join(",");
     std::fs::write(&pitch, lines.join("\n") + "\n").unwrap();
-    let o = fit("id", "val", "bad.toml");
-    assert!(!o.status.success());
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("pitch.csv:5") && e.contains("x1_m"), "{e}");
-    assert!(!dir.path().join("bad.toml").exists());
+    refused(
+        &fit("id", "val", "bad.toml"),
+        &dir.path().join("bad.toml"),
+        &["pitch.csv:5", "x1_m"],
+    );
 }

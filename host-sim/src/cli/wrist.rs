@@ -275,15 +275,8 @@ fn free_run(args: &SimulateWristArgs) -> Result<FreeRun> {
             FreeRunArg::Validation => FreeRun::validation(),
         });
     };
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let design: WristDesign = toml::from_str(&text).map_err(|e| {
-        anyhow::anyhow!(
-            "{}: not a wrist design of `host-sim excite --wrist`: {}",
-            path.display(),
-            crate::log::toml_error(&text, &e)
-        )
-    })?;
+    let design: WristDesign =
+        crate::io::read_toml(path, "a wrist design of `host-sim excite --wrist`")?;
     Ok(FreeRun::designed(&design))
 }
 
@@ -312,15 +305,8 @@ struct Eq3FitIn {
 /// Not such a file, another parameter list, a model its own run did not
 /// keep, a parameter that is not finite.
 pub fn load_eq3(path: &Path, gravity_m_s2: [f64; 3], command: &str) -> Result<Eq3Model> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let file: Eq3FileIn = toml::from_str(&text).map_err(|e| {
-        anyhow::anyhow!(
-            "{}: not an Eq. 3 model of `host-sim identify-wrist --out`: {}",
-            path.display(),
-            crate::log::toml_error(&text, &e)
-        )
-    })?;
+    let file: Eq3FileIn =
+        crate::io::read_toml(path, "an Eq. 3 model of `host-sim identify-wrist --out`")?;
     ensure!(
         file.parameter_names
             .iter()

@@ -37,7 +37,7 @@ use cable_joint::filter::LowPass1;
 use cable_joint::lsq::{compact_row, BatchLsq, LsqConfig};
 use cable_joint::trajectory::Trajectory;
 use cable_joint::wrist::{Geometry, Interval};
-use cable_joint::wrist_dynamics::{regressor, InverseDynamics, N_LINKS, N_PARAMS};
+use cable_joint::wrist_dynamics::{regressor, InverseDynamics, N_LINKS, N_PARAMS, PARAM_NAMES};
 use cable_joint::{Command, Config, Mode};
 use serde::Serialize;
 
@@ -533,10 +533,12 @@ pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDyn
 /// Fit Eq. 3's parameters to `torques` against `rows` (one of each per
 /// sample, in time order), by the core's least squares.
 ///
-/// * The links' columns are kept only if what they fit could be links: an
-///   inertia or second moment below zero says the estimates do not see
-///   the links (their columns took other errors) and the model keeps each
-///   joint's friction alone ([`InverseDynamicsFit::links_observed`]).
+/// * The links' columns are kept only if what they fit could be links
+///   ([`unphysical_links`]: a negative inertia or moment, or a second
+///   moment that puts mass beyond a body's length): else the estimates do
+///   not see the links (their columns took other errors) and the model
+///   keeps each joint's friction alone
+///   ([`InverseDynamicsFit::links_observed`]).
 /// * The model is kept only if it helps on motion it did not see: fitted
 ///   first on the run's first 70 %, it must cut the torques' RMS on the
 ///   last 30 % ([`InverseDynamicsFit::kept`]); the model returned is then
@@ -587,7 +589,7 @@ pub fn fit_rows(
     let mut drop = [false; N_PARAMS];
     let every = fit_on(0..n, &drop)?;
     let ((whole, _, whole_pct), condition_with_links, _, _) = every;
-    let links_observed = SECOND_MOMENTS.iter().all(|&k| whole[k] >= 0.0);
+    let links_observed = unphysical_links(&setting.geometry, &whole[..N_LINKS]).is_empty();
     if !links_observed {
         drop[..N_LINKS].fill(true);
     }
@@ -631,9 +633,43 @@ pub fn fit_rows(
     })
 }
 
-/// The columns of the roll inertia and the three second moments: none can
-/// be negative for real links.
-pub const SECOND_MOMENTS: [usize; 4] = [0, 2, 4, 6];
+/// What makes Eq. 3's link parameters `p` (the first [`N_LINKS`] of
+/// [`PARAM_NAMES`]) impossible
+/// for links of geometry `g` as [`cable_joint::wrist_dynamics`] models
+/// them, one line each; empty if they could be real links. The roll
+/// inertia is not negative. The wrist link and each jaw are slender
+/// bodies whose mass lies along their axis between their joint and their
+/// far end (`l_2`, the jaws' axis, for the wrist link, the jaws' masses
+/// folded in there; `l_e` for a jaw): so for each, with `X = int s dm` and
+/// `XX = int s^2 dm` over `0 <= s <= L`, `X >= 0` and `0 <= XX <= L X`.
+pub fn unphysical_links(g: &Geometry, p: &[f64]) -> Vec<String> {
+    let mut out = Vec::new();
+    if p[0] < 0.0 {
+        out.push(format!("{} = {:.3e} < 0", PARAM_NAMES[0], p[0]));
+    }
+    let bodies = [
+        (1, f64::from(g.pitch_to_jaw_m), "l_2"),
+        (3, f64::from(g.jaw_length_m), "l_e"),
+        (5, f64::from(g.jaw_length_m), "l_e"),
+    ];
+    for (k, length_m, name) in bodies {
+        let (x, xx) = (p[k], p[k + 1]);
+        if x < 0.0 {
+            out.push(format!("{} = {x:.3e} < 0", PARAM_NAMES[k]));
+        }
+        if xx < 0.0 {
+            out.push(format!("{} = {xx:.3e} < 0", PARAM_NAMES[k + 1]));
+        } else if xx > length_m * x.max(0.0) {
+            out.push(format!(
+                "{} = {xx:.3e} > {name} {} = {:.3e} (mass beyond the body's length)",
+                PARAM_NAMES[k + 1],
+                PARAM_NAMES[k],
+                length_m * x.max(0.0)
+            ));
+        }
+    }
+    out
+}
 
 /// Each joint's no-load error on a free run, as a force at `l_e`, N: the
 /// links' true torque (what the estimate reads unless Eq. 3 takes it out)
@@ -769,6 +805,46 @@ mod tests {
     /// the simulator's Lagrangian torque of the rods (two independent
     /// derivations), on random poses, speeds and accelerations, at a
     /// heavy scale so the torques stand well above rounding.
+    /// Real links pass the physical check at any mass (uniform rods from
+    /// their joints, the jaws' masses folded in at `l_2`), also with the
+    /// jaws' mass concentrated at their tips (`XX = l_e X`, the limit); a
+    /// second moment that puts mass beyond a body's length, a negative
+    /// first moment or inertia fails it, naming the parameter.
+    #[test]
+    fn only_moments_real_links_can_have_pass_the_links_check() {
+        let g = Geometry::default();
+        for k in [0.1, 1.0, 100.0] {
+            let p = Links::prototype().scaled(k).base_params(&g);
+            assert!(unphysical_links(&g, &p).is_empty(), "{k}: {p:?}");
+        }
+        let mut p = Links::prototype().base_params(&g);
+        let le = f64::from(g.jaw_length_m);
+        p[4] = le * p[3];
+        assert!(
+            unphysical_links(&g, &p).is_empty(),
+            "mass at the tip: {p:?}"
+        );
+        p[4] = 1.01 * le * p[3];
+        let e = unphysical_links(&g, &p);
+        assert!(e.len() == 1 && e[0].contains(PARAM_NAMES[4]), "{e:?}");
+        // Fitted on a run whose estimates do not resolve the links (the
+        // report's default variant): every sign right on the wrist link,
+        // a second moment 60 times what its length allows.
+        let mut p = Links::prototype().base_params(&g);
+        p[1] = 1.791e-5;
+        p[2] = 9.943e-6;
+        let e = unphysical_links(&g, &p);
+        assert!(e.len() == 1 && e[0].contains(PARAM_NAMES[2]), "{e:?}");
+        p[0] = -1e-9;
+        p[5] = -1e-6;
+        assert_eq!(
+            unphysical_links(&g, &p).len(),
+            4,
+            "{:?}",
+            unphysical_links(&g, &p)
+        );
+    }
+
     #[test]
     fn the_cores_eq3_regressor_is_the_simulated_links_lagrangian_torque() {
         let g = Geometry::default();

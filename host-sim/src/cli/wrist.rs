@@ -565,7 +565,7 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
     );
     let fit = fit_eq3(&run.setting, &run.samples)
         .with_context(|| format!("fitting Eq. 3 on {}", dir.display()))?;
-    report_fit(&fit);
+    report_fit(&fit, &run.setting.geometry);
     // The model and the figure are written together or not at all.
     let mut files = Outputs::new();
     let mut figures = Vec::new();
@@ -625,7 +625,7 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
 }
 
 /// Print the fit.
-fn report_fit(fit: &InverseDynamicsFit) {
+fn report_fit(fit: &InverseDynamicsFit, geometry: &cable_joint::wrist::Geometry) {
     crate::stdoutln!(
         "Eq. 3 fit: {} rows; condition number of the equilibrated regressor {:.2} (every column {:.2}); residual RMS {:.3e} N·m",
         fit.rows,
@@ -645,17 +645,13 @@ fn report_fit(fit: &InverseDynamicsFit) {
     );
     if fit.links_observed {
         crate::stdoutln!(
-            "links: observed (their inertia and second moments fitted at or above zero)"
+            "links: observed (their moments fitted as real links could have them: links::unphysical_links)"
         );
     } else {
-        let negative: Vec<String> = links::SECOND_MOMENTS
-            .into_iter()
-            .filter(|&k| fit.with_links[k][0] < 0.0)
-            .map(|k| format!("{} = {:.3e}", PARAM_NAMES[k], fit.with_links[k][0]))
-            .collect();
+        let with_links: Vec<f64> = fit.with_links.iter().map(|[v, _]| *v).collect();
         crate::stdoutln!(
-            "links: not observed ({} below zero with every column: the estimates do not resolve the links; the model is each joint's friction alone)",
-            negative.join(", ")
+            "links: not observed (with every column {}: the estimates do not resolve the links; the model is each joint's friction alone)",
+            links::unphysical_links(geometry, &with_links).join(", ")
         );
     }
     crate::stdoutln!("  {:<28} {:>12} {:>9}", "parameter", "value", "%sigma");

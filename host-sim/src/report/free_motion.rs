@@ -298,8 +298,9 @@ pub fn markdown(
          `Q`'s) the fit chooses by the held-out check below; then judged on a 10 s run with other amplitudes and frequencies that it never saw \
          (the true external force is zero throughout: every newton is error), and on the \
          grasps of 2 N at 1000 and 10 000 N/m without and with it. The links' columns are left out when \
-         they fit a negative inertia or second moment (what they took is not links), the \
-         friction staying. The model is kept only if, \
+         they fit values no real links have (`links::unphysical_links`: a negative inertia or \
+         moment, or a second moment above a body's length times its first moment, mass beyond \
+         its end): what they took is not links, the friction staying. The model is kept only if, \
          fitted on the identification run's first 70 %, it cuts the torques' RMS on its last \
          30 %; a model not kept is not used (its columns read as without). With a model the \
          bound is the estimate's own joined with the one Eq. 3 shifts and widens by three \

@@ -25,9 +25,11 @@ use crate::wrist_log::{self, Holding, OnFault, WristRun, JOINT_NAMES};
 #[derive(clap::Args, Debug, Clone)]
 pub struct WristRunArgs {
     /// Directory of the run: `roll.csv`, `pitch.csv`, `jaw_a.csv`,
-    /// `jaw_b.csv`, each joint's log in the project's CSV schema, recorded
-    /// together (`host-sim link ... --record roll.csv` on each joint's
-    /// controller, or `host-sim simulate-wrist`).
+    /// `jaw_b.csv`, each joint's log in the project's CSV schema
+    /// (`host-sim link ... --record roll.csv` on each joint's controller,
+    /// or `host-sim simulate-wrist`). Logs with the host's clock
+    /// (`t_unix_s`, which `link` writes) are aligned on it; others must
+    /// have been started together.
     #[arg(long, value_name = "DIR")]
     pub run: PathBuf,
     /// Every joint's configuration (TOML). Without it each joint's is the

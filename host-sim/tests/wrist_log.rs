@@ -452,6 +452,29 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
         "{} ticks held: clamp estimate {mean_est} N against {mean_ref} N",
         held.len()
     );
+    // The same grasp on another plant (cable 1 half as stiff, as a
+    // report variant's plant.toml gives it): the joints' logs differ.
+    let mut soft = host_sim::plant::PlantParams::default();
+    soft.cable1.stiffness_n_m *= 0.5;
+    std::fs::write(dir.path().join("soft.toml"), soft.to_toml_string().unwrap()).unwrap();
+    let o = host_sim(&[
+        "simulate-wrist",
+        "--out",
+        &d("grasp-soft"),
+        "--grasp",
+        "2",
+        "--seed",
+        "3",
+        "--plant",
+        &d("soft.toml"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let x1 = |run: &str| {
+        let (_, log) =
+            wrist_log::read(&dir.path().join(run).join("jaw_a.csv"), None, "test").unwrap();
+        log.col("x1_m").unwrap().to_vec()
+    };
+    assert_ne!(x1("grasp"), x1("grasp-soft"));
     // Not a model: refused by name, nothing written.
     refused(
         &estimate("grasp/roll.toml", "not.csv"),

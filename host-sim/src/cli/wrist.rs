@@ -121,6 +121,10 @@ pub struct SimulateWristArgs {
     /// `simulate --oracle --tuned-gains`). Written beside each log.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Every joint's plant (TOML, as `simulate --plant` takes it, e.g. a
+    /// report variant's `plant.toml`; default: the datasheet prototype).
+    #[arg(long)]
+    pub plant: Option<PathBuf>,
     /// Every link's mass and inertia times K (a heavier instrument of the
     /// same shapes, [`Links::scaled`]; the prototype's links put about
     /// 1.5 mN at a jaw's tip).
@@ -183,7 +187,12 @@ pub enum FreeRunArg {
 /// [`tuned_gains`]), the prototype's links held as [`Links::prototype`]
 /// says.
 pub fn simulated_wrist(config: Option<Config>) -> WristParams {
-    let plant = PlantParams::default();
+    simulated_wrist_on(PlantParams::default(), config)
+}
+
+/// [`simulated_wrist`] with `plant` at every joint (the configuration's
+/// default is that plant's true values).
+pub fn simulated_wrist_on(plant: PlantParams, config: Option<Config>) -> WristParams {
     let config = config.unwrap_or_else(|| oracle_config(&plant, &tuned_gains(&Config::default())));
     WristParams {
         links: Some(Links::prototype()),
@@ -198,7 +207,8 @@ pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
         Some(p) => Some(crate::io::config::load_config(p)?),
         None => None,
     };
-    let mut params = simulated_wrist(config);
+    let plant = crate::io::config::load_plant(args.plant.as_deref())?;
+    let mut params = simulated_wrist_on(plant, config);
     params.links = params.links.map(|l| l.scaled(args.links_scale));
     let gravity_m_s2 = Links::prototype().gravity_m_s2;
     if let Some(path) = &args.eq3 {

@@ -45,8 +45,7 @@ use crate::ident::excite_wrist::WristDesign;
 use crate::scenario::G_M_S2;
 use crate::stats::rms;
 use crate::wrist::{
-    torque_bound_nm, Eq3Filter, Eq3Model, Eq3Timing, MotionEstimator, SoftObject, WristParams,
-    WristSim, WristTick, ROLL,
+    Eq3Model, Eq3Timing, MotionEstimator, SoftObject, WristParams, WristSim, WristTick, ROLL,
 };
 
 /// The wrist's links (module docs).
@@ -712,37 +711,11 @@ pub fn no_load(params: &WristParams, ticks: &[WristTick]) -> NoLoad {
     }
 }
 
-/// [`NoLoad`] of a free run's samples (a simulated or a rig's, where
-/// nothing touches the tips) with `model` applied to them as the wrist
-/// applies it ([`Eq3Filter`]), at tip distances `gripper_length_m`; the
-/// links' true torque is not known from samples (zero).
-pub fn no_load_of(
-    setting: &Eq3Setting,
-    model: Option<&Eq3Model>,
-    samples: &[Eq3Sample],
-    gripper_length_m: [f64; 4],
-) -> NoLoad {
-    let mut filter = model.map(|m| Eq3Filter::new(m, &setting.timing));
-    let per_tick = samples.iter().map(|s| {
-        let (hat, spread) = match &mut filter {
-            Some(f) => {
-                let (_, hat, spread) = f.update(&setting.geometry, s.theta_hat_rad);
-                (hat, spread)
-            }
-            None => ([0.0; 4], [0.0; 4]),
-        };
-        let bound = core::array::from_fn(|j| {
-            let [lo, hi] = s.bound_nm[j];
-            torque_bound_nm(lo, hi, hat[j], spread[j])
-        });
-        (*s, hat, bound)
-    });
-    no_load_stats(per_tick, gripper_length_m)
-}
-
 /// [`NoLoad`]'s error figures from each tick's sample, the model's torque
-/// taken out and the bound with it taken out.
-fn no_load_stats(
+/// taken out and the bound with it taken out (the links' true torque is
+/// left zero: a simulated wrist's caller fills it, [`no_load`]; a rig's
+/// samples do not know it, `wrist_estimate::no_load`).
+pub fn no_load_stats(
     per_tick: impl Iterator<Item = (Eq3Sample, [f32; 4], [Interval; 4])>,
     l: [f64; 4],
 ) -> NoLoad {

@@ -12,6 +12,7 @@
 
 use anyhow::Result;
 
+use crate::links::{no_load_stats, NoLoad};
 use crate::log::Log;
 use crate::plot::{Figure, Panel, Series};
 use crate::wrist::{wrist_force, Eq3Filter, Eq3Model, WristForce};
@@ -66,6 +67,19 @@ pub fn estimate(run: &WristRun, model: Option<&Eq3Model>) -> Vec<WristEstimate> 
             }
         })
         .collect()
+}
+
+/// [`NoLoad`] of a free run (nothing touches the tips: the true torque is
+/// zero) from [`estimate`]'s `ticks` of it: each joint's estimate against
+/// zero, raw and with the model's torque taken out, and how often each
+/// bound holds zero; the links' true torque is not known from logs (zero).
+pub fn no_load(run: &WristRun, ticks: &[WristEstimate]) -> NoLoad {
+    let per_tick = run
+        .samples
+        .iter()
+        .zip(ticks)
+        .map(|(s, t)| (*s, t.links_hat_nm, t.force.torque_bound_nm));
+    no_load_stats(per_tick, run.gripper_length_m)
 }
 
 /// The output log's columns for each joint (prefixed by its name).

@@ -296,14 +296,9 @@ fn align(
         let common = starts.iter().copied().fold(f64::MIN, f64::max);
         let skip: [usize; 4] =
             core::array::from_fn(|j| ((common - starts[j]) * rate_hz).round() as usize);
+        let earliest = starts.iter().copied().fold(f64::MAX, f64::min);
         let each: Vec<String> = (0..4)
-            .map(|j| {
-                format!(
-                    "{} {:+.3} s",
-                    JOINT_NAMES[j],
-                    starts[j] - starts.iter().copied().fold(f64::MAX, f64::min)
-                )
-            })
+            .map(|j| format!("{} {:+.3} s", JOINT_NAMES[j], starts[j] - earliest))
             .collect();
         for j in 0..4 {
             ensure!(

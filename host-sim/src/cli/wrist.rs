@@ -253,19 +253,19 @@ pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
     }
     out.commit()?;
     let [gx, gy, gz] = gravity_m_s2;
-    let next = if args.grasp.is_some() {
-        format!(
-            "estimate its forces with `host-sim estimate-wrist --run {} --gravity {gx:.3},{gy:.3},{gz:.3} --jaw-open-deg {} [--eq3 eq3.toml] --out forces.csv`",
-            args.out.display(),
-            params.jaw_open_rad.to_degrees().round()
-        )
-    } else {
-        format!(
-            "fit Eq. 3 with `host-sim identify-wrist --run {} --gravity {gx:.3},{gy:.3},{gz:.3} --jaw-open-deg {} --out eq3.toml`",
-            args.out.display(),
-            params.jaw_open_rad.to_degrees().round()
-        )
+    let (what, command, out) = match args.grasp {
+        Some(_) => (
+            "estimate its forces",
+            "estimate-wrist",
+            "[--eq3 eq3.toml] --out forces.csv",
+        ),
+        None => ("fit Eq. 3", "identify-wrist", "--out eq3.toml"),
     };
+    let next = format!(
+        "{what} with `host-sim {command} --run {} --gravity {gx:.3},{gy:.3},{gz:.3} --jaw-open-deg {} {out}`",
+        args.out.display(),
+        params.jaw_open_rad.to_degrees().round()
+    );
     crate::stdoutln!(
         "wrote {} ({} ticks each) and each joint's configuration beside its log: {next}",
         paths
@@ -593,15 +593,10 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
                 body: fit.body,
                 motion_bandwidth_hz: fit.motion_bandwidth_hz,
             };
-            let no_load = links::no_load_of(
-                &vrun.setting,
-                Some(&model),
-                &vrun.samples,
-                vrun.gripper_length_m,
-            );
+            let ticks = wrist_estimate::estimate(&vrun, Some(&model));
+            let no_load = wrist_estimate::no_load(&vrun, &ticks);
             report_validation(dir, &no_load, fit.kept);
             if let Some(stem) = &args.plot {
-                let ticks = wrist_estimate::estimate(&vrun, Some(&model));
                 let title = dir.display().to_string();
                 let fig = wrist_estimate::no_load_figure(&vrun, &ticks, &title);
                 figures = crate::plot::stage_figure(&mut files, &fig, stem)?.to_vec();

@@ -269,6 +269,11 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
             b.condition_at_least
         );
     }
+    crate::stdoutln!(
+        "these are predicted from the commanded motion: a fit sees the joints' actual motion, \
+         whose friction sign is wider where they stick and slip at low speed (`identify-wrist` \
+         prints its width), and measures a higher condition number (README, \"Eq. 3's designed excitation\")"
+    );
     let stem = args.out.with_extension("");
     for (j, name) in JOINT_NAMES.iter().enumerate() {
         // `with_extension` would take a dot in the stem (`w.v2`) for one.

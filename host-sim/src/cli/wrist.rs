@@ -578,6 +578,7 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
     let fit = fit_eq3(&run.setting, &run.samples)
         .with_context(|| format!("fitting Eq. 3 on {}", dir.display()))?;
     report_fit(&fit, &run.setting.geometry);
+    report_sign_width(&fit, &run.setting);
     // The model and the figure are written together or not at all.
     let mut files = Outputs::new();
     let mut figures = Vec::new();
@@ -629,6 +630,24 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
         crate::stdoutln!("wrote {}", f.display());
     }
     Ok(())
+}
+
+/// Print each joint's friction sign as the fit saw it
+/// ([`InverseDynamicsFit::sign_width_seen_rad_s`]) against the
+/// regressor's own width.
+fn report_sign_width(fit: &InverseDynamicsFit, setting: &links::Eq3Setting) {
+    let each: Vec<String> = JOINT_NAMES
+        .iter()
+        .zip(fit.sign_width_seen_rad_s)
+        .zip(setting.sign_speed_rad_s)
+        .map(|((name, w), v_s)| format!("{name} {w:.3} ({v_s:.3})"))
+        .collect();
+    crate::stdoutln!(
+        "friction sign as the fit sees it: tanh(|q'|/w) with w = {} rad/s (the regressor's v_s in brackets): \
+         a w above v_s is the joint sticking and slipping at low speed, its sign averaged by Q; \
+         below about w a run cannot tell its Coulomb from its viscous friction",
+        each.join(", ")
+    );
 }
 
 /// Print the fit.

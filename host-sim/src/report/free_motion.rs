@@ -83,6 +83,9 @@ pub struct ExcitationFit {
     pub kept: bool,
     /// The motion observer's bandwidth the fit chose, Hz.
     pub motion_bandwidth_hz: f32,
+    /// The widest friction sign the fit's joints show, rad/s
+    /// ([`InverseDynamicsFit::sign_width_seen_rad_s`]).
+    pub sign_width_seen_rad_s: f64,
     /// The validation run's no-load errors with this fit's model.
     pub validation: NoLoad,
 }
@@ -112,6 +115,7 @@ impl ExcitationFit {
             worst_kept: kept.1,
             links_observed: fit.links_observed,
             kept: fit.kept,
+            sign_width_seen_rad_s: max4(&fit.sign_width_seen_rad_s),
             validation,
         }
     }
@@ -453,9 +457,9 @@ fn excitation_markdown(o: &mut String, sec: &FreeMotionSection, figure: Option<&
     );
     let _ = writeln!(
         o,
-        "| variant | condition, every column: hand-made → designed | ≤ 1/3? | condition as kept | worst %σ, every column | halved? | worst %σ as kept | links' columns (hand-made / designed) | Eq. 3 kept | no-load RMS on the validation run, worst joint: hand-made's model → designed's | least bound coverage |"
+        "| variant | condition, every column: hand-made → designed | ≤ 1/3? | condition as kept | worst %σ, every column | halved? | worst %σ as kept | links' columns (hand-made / designed) | Eq. 3 kept | no-load RMS on the validation run, worst joint: hand-made's model → designed's | least bound coverage | friction sign seen, widest joint: hand-made → designed |"
     );
-    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(o, "|---|---|---|---|---|---|---|---|---|---|---|---|");
     let (mut third, mut halved, mut n) = (0, 0, 0);
     let (mut kept, mut lower) = ([0, 0], 0);
     for r in &sec.rows {
@@ -480,7 +484,7 @@ fn excitation_markdown(o: &mut String, sec: &FreeMotionSection, figure: Option<&
         let kept = |f: &ExcitationFit| if f.kept { "kept" } else { "**not kept**" };
         let _ = writeln!(
             o,
-            "| {} | {:.2} → {:.2} ({:.2}×) | {} | {:.2} → {:.2} | {:.1} ({}) → {:.1} % ({}) | {} | {:.1} ({}) → {:.1} % ({}) | {} / {} | {} / {} | {:.3} → {:.3} N | {:.1} / {:.1} % |",
+            "| {} | {:.2} → {:.2} ({:.2}×) | {} | {:.2} → {:.2} | {:.1} ({}) → {:.1} % ({}) | {} | {:.1} ({}) → {:.1} % ({}) | {} / {} | {} / {} | {:.3} → {:.3} N | {:.1} / {:.1} % | {:.2} → {:.2} rad/s |",
             r.variant,
             a.condition_with_links,
             b.condition_with_links,
@@ -505,6 +509,8 @@ fn excitation_markdown(o: &mut String, sec: &FreeMotionSection, figure: Option<&
             max4(&b.validation.corrected_rms_n),
             100.0 * min4(&a.validation.coverage),
             100.0 * min4(&b.validation.coverage),
+            a.sign_width_seen_rad_s,
+            b.sign_width_seen_rad_s,
         );
     }
     let _ =
@@ -515,7 +521,13 @@ fn excitation_markdown(o: &mut String, sec: &FreeMotionSection, figure: Option<&
          met on {third} of {n} variants ({}); worst parameter `%σ` at least halved: met on \
          {halved} of {n} ({}). The table names each fit's worst parameter; a parameter the fit \
          puts near zero (a link the data does not see, a friction term a joint's own model \
-         already holds) has a large relative deviation whatever the excitation. Reproduce: \
+         already holds) has a large relative deviation whatever the excitation. The last column \
+         says why the predicted figure does not carry over: the design is predicted from the \
+         commanded motion, the fit sees the joints' actual motion, and a joint that sticks and \
+         slips at low speed has its Coulomb column (the sign of its speed, averaged by `Q`) \
+         follow its speed up to that width instead of the design's `v_s` ({:.2} rad/s), \
+         where the design counted on the two columns parting (`identify-wrist` prints it per \
+         joint). Reproduce: \
          `cargo run --release -p host-sim` (this section); the design alone: `host-sim excite \
          --wrist --out w.toml`.\n\n\
          What the fits did with each run: Eq. 3 was kept (it cut its own run's held-out \
@@ -524,6 +536,7 @@ fn excitation_markdown(o: &mut String, sec: &FreeMotionSection, figure: Option<&
          on the validation run on {lower} of {n}.\n",
         if third == n && n > 0 { "met" } else { "**not met**" },
         if halved == n && n > 0 { "met" } else { "**not met**" },
+        WristDesignOptions::replacing_free_run().shape.sign_speed_rad_s[0],
         kept[0],
         kept[1],
     );

@@ -42,11 +42,13 @@ use cable_joint::{Command, Config, Mode};
 use serde::Serialize;
 
 use crate::ident::excite_wrist::WristDesign;
+use crate::plot::{Panel, Series};
 use crate::scenario::G_M_S2;
 use crate::stats::rms;
 use crate::wrist::{
     Eq3Model, Eq3Timing, MotionEstimator, SoftObject, WristParams, WristSim, WristTick, ROLL,
 };
+use crate::wrist_log::JOINT_NAMES;
 
 /// The wrist's links (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -580,6 +582,52 @@ pub fn sign_width_seen_rad_s(rows: &[Eq3Rows]) -> [f64; 4] {
         }
         (0.5 * (a + b)).exp()
     })
+}
+
+/// One panel per joint of what [`sign_width_seen_rad_s`] fitted: the
+/// Coulomb column's magnitude against the speed's (a point every `stride`
+/// rows), with `tanh(|q'| / w)` at the width seen and at the regressor's
+/// `v_s`.
+pub fn sign_panels(
+    rows: &[Eq3Rows],
+    seen_rad_s: [f64; 4],
+    v_s_rad_s: [f32; 4],
+    title: &str,
+) -> Vec<Panel> {
+    let stride = (rows.len() / 2000).max(1);
+    (0..4)
+        .map(|j| {
+            let (c, v) = (N_LINKS + 2 * j, N_LINKS + 2 * j + 1);
+            let (speed, sign): (Vec<f64>, Vec<f64>) = rows
+                .iter()
+                .step_by(stride)
+                .map(|r| (r[j][v].abs(), r[j][c].abs()))
+                .unzip();
+            let top = speed.iter().copied().fold(0.0, f64::max);
+            let grid: Vec<f64> = (0..=100).map(|k| top * f64::from(k) / 100.0).collect();
+            let curve = |w: f64| grid.iter().map(|x| (x / w).tanh()).collect::<Vec<f64>>();
+            let v_s = f64::from(v_s_rad_s[j]);
+            Panel::new(
+                format!(
+                    "{title}: {}, friction sign as the fit sees it",
+                    JOINT_NAMES[j]
+                ),
+                "|q'| through Q [rad/s]",
+                "|Coulomb column|",
+            )
+            .with(Series::points("rows", speed, sign))
+            .with(Series::line(
+                format!("tanh(|q'|/w), w = {:.3} rad/s seen", seen_rad_s[j]),
+                grid.clone(),
+                curve(seen_rad_s[j]),
+            ))
+            .with(Series::line(
+                format!("tanh(|q'|/v_s), v_s = {v_s:.3} rad/s"),
+                grid.clone(),
+                curve(v_s),
+            ))
+        })
+        .collect()
 }
 
 /// Fit Eq. 3's parameters to `torques` against `rows` (one of each per

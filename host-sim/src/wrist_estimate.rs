@@ -220,10 +220,10 @@ pub fn figure(out: &Log, title: &str, l_m: [f64; 4]) -> Result<Figure> {
 /// the estimate as the joint gave it, with Eq. 3 taken out, and the bound
 /// with it taken out, one panel a joint; `ticks` are [`estimate`]'s of
 /// `run` with the model.
-pub fn no_load_figure(run: &WristRun, ticks: &[WristEstimate], title: &str) -> Figure {
+pub fn no_load_panels(run: &WristRun, ticks: &[WristEstimate], title: &str) -> Vec<Panel> {
     let t: Vec<f64> = (0..ticks.len()).map(|k| k as f64 / run.rate_hz).collect();
     let l = run.gripper_length_m;
-    let panels = JOINT_NAMES
+    JOINT_NAMES
         .iter()
         .enumerate()
         .map(|(j, name)| {
@@ -254,6 +254,5 @@ pub fn no_load_figure(run: &WristRun, ticks: &[WristEstimate], title: &str) -> F
                 over(&|k| f64::from(ticks[k].force.torque_nm[j]) / l[j]),
             ))
         })
-        .collect();
-    Figure::grid(panels, 2)
+        .collect()
 }

@@ -394,6 +394,37 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
             corrected[j]
         );
     }
+    // Each joint's friction sign as the fit saw it, printed and written:
+    // a width, at least the regressor's own (the simulated joints stick
+    // and slip at low speed: wrist_eq3's test of it).
+    assert!(
+        stdout.contains("friction sign as the fit sees it"),
+        "{stdout}"
+    );
+    let widths: Vec<f64> = file["fit"]["sign_width_seen_rad_s"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_float().unwrap())
+        .collect();
+    assert_eq!(widths.len(), 4, "{text}");
+    assert!(widths.iter().all(|w| *w >= 0.05), "{widths:?}");
+    // Without a validation run `--plot` draws the friction sign alone.
+    let o = host_sim(&[
+        "identify-wrist",
+        "--run",
+        &d("id"),
+        &gravity,
+        "--jaw-open-deg",
+        "20",
+        "--out",
+        &d("alone.toml"),
+        "--plot",
+        &d("sign"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("sign.svg").is_file());
+    assert!(dir.path().join("sign.png").is_file());
     // A grasp recorded the same way; its forces estimated with the model,
     // judged on the jaws' true contact force (`f_ext_n`).
     let o = host_sim(&[

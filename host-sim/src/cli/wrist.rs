@@ -94,10 +94,12 @@ pub struct IdentifyWristArgs {
     /// held-out check and the validation (TOML).
     #[arg(long)]
     pub out: PathBuf,
-    /// Also draw the validation run's no-load force at each joint's tip,
-    /// as the joint estimated it and with the model taken out, with the
-    /// bound, as STEM.svg and STEM.png (needs `--validate`).
-    #[arg(long, value_name = "STEM", requires = "validate")]
+    /// Also draw, as STEM.svg and STEM.png, each joint's friction sign as
+    /// the fit saw it (its Coulomb column against its speed, with the
+    /// width seen and the regressor's) and, with `--validate`, the
+    /// validation run's no-load force at each joint's tip, as the joint
+    /// estimated it and with the model taken out, with the bound.
+    #[arg(long, value_name = "STEM")]
     pub plot: Option<PathBuf>,
 }
 
@@ -581,7 +583,15 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
     report_sign_width(&fit, &run.setting);
     // The model and the figure are written together or not at all.
     let mut files = Outputs::new();
-    let mut figures = Vec::new();
+    let mut panels = match &args.plot {
+        Some(_) => {
+            let rows = links::filtered_rows(&run.setting, &run.samples, fit.motion_bandwidth_hz);
+            let title = dir.display().to_string();
+            let v_s = run.setting.sign_speed_rad_s;
+            links::sign_panels(&rows, fit.sign_width_seen_rad_s, v_s, &title)
+        }
+        None => Vec::new(),
+    };
     let validation = match &args.validate {
         Some(dir) => {
             let (vlogs, vrun) = replay_run(dir, &args.run, &holding, OnFault::Refuse, COMMAND)?;
@@ -597,10 +607,9 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
             let ticks = wrist_estimate::estimate(&vrun, Some(&model));
             let no_load = wrist_estimate::no_load(&vrun, &ticks);
             report_validation(dir, &no_load, fit.kept);
-            if let Some(stem) = &args.plot {
+            if args.plot.is_some() {
                 let title = dir.display().to_string();
-                let fig = wrist_estimate::no_load_figure(&vrun, &ticks, &title);
-                figures = crate::plot::stage_figure(&mut files, &fig, stem)?.to_vec();
+                panels.extend(wrist_estimate::no_load_panels(&vrun, &ticks, &title));
             }
             Some(Validation {
                 run: dir.display().to_string(),
@@ -608,6 +617,13 @@ pub fn run_identify(args: IdentifyWristArgs) -> Result<()> {
             })
         }
         None => None,
+    };
+    let figures = match &args.plot {
+        Some(stem) => {
+            let fig = crate::plot::Figure::grid(panels, 2);
+            crate::plot::stage_figure(&mut files, &fig, stem)?.to_vec()
+        }
+        None => Vec::new(),
     };
     let file = Eq3File {
         written_by: format!(

@@ -149,14 +149,14 @@ pub fn replay(
     }
     let rate_hz = f64::from(rate_hz);
     let lag_s = 1.0 / f64::from(configs[0].dob.cutoff_rad_s);
-    let skip = align(logs, &replays, rate_hz, lag_s, &mut notes)?;
+    let (skip, on_clock) = align(logs, &replays, rate_hz, lag_s, &mut notes)?;
     let shortest = replays
         .iter()
         .zip(skip)
         .map(|(r, k)| r.log.len() - k)
         .min()
         .unwrap_or(0);
-    if let Some(note) = motion_starts(&replays, skip, rate_hz, lag_s) {
+    if let Some(note) = motion_starts(&replays, skip, rate_hz, lag_s, on_clock) {
         notes.push(note);
     }
     let mut columns = Vec::with_capacity(4);
@@ -269,14 +269,15 @@ pub fn replay(
 /// the latest first replayed tick, and they may have started apart.
 /// Without it they are taken to have started together, which their
 /// lengths can only check: lengths further apart than `lag_s` are
-/// refused (module docs). Notes what it did.
+/// refused (module docs). Notes what it did; says whether the clock
+/// aligned them.
 fn align(
     logs: &[(String, Log); 4],
     replays: &[TickReplay],
     rate_hz: f64,
     lag_s: f64,
     notes: &mut Vec<String>,
-) -> Result<[usize; 4]> {
+) -> Result<([usize; 4], bool)> {
     let lengths: [usize; 4] = core::array::from_fn(|j| replays[j].log.len());
     // The host's clock at each replay's first tick (one of the log's own
     // rows: homing's rows are dropped before the replay).
@@ -318,7 +319,7 @@ fn align(
             each.join(", "),
             common_len as f64 / rate_hz
         ));
-        return Ok(skip);
+        return Ok((skip, true));
     }
     if clock.iter().any(Option::is_some) {
         notes.push(format!(
@@ -351,19 +352,22 @@ fn align(
             spread_s * 1e3
         ));
     }
-    Ok([0; 4])
+    Ok(([0; 4], false))
 }
 
 /// When each joint's commanded angle (`theta_ref_rad`, where the logs
 /// have it) first leaves its first value, after its log's first replayed
 /// tick: a program whose joints start moving together shows the four
 /// logs' alignment. A note, with a warning when they are further apart
-/// than `lag_s` (a program may start its joints apart on purpose).
+/// than `lag_s` (a program may start its joints apart on purpose); logs
+/// aligned on the host's clock (`on_clock`) are aligned, so there the
+/// warning is about the start, not the logs.
 fn motion_starts(
     replays: &[TickReplay],
     skip: [usize; 4],
     rate_hz: f64,
     lag_s: f64,
+    on_clock: bool,
 ) -> Option<String> {
     let starts: Vec<Option<f64>> = replays
         .iter()
@@ -389,7 +393,13 @@ fn motion_starts(
         .collect();
     let spread_s = known.iter().fold(f64::MIN, |m, x| m.max(*x))
         - known.iter().fold(f64::MAX, |m, x| m.min(*x));
-    let warning = if spread_s > lag_s {
+    let warning = if spread_s > lag_s && on_clock {
+        format!(
+            "; {spread_s:.3} s apart on the host's clock, more than the force estimate's time \
+             constant ({lag_s:.3} s): the joints started apart (if they were meant to start \
+             together, start each board's `link` with one `--start-at`)"
+        )
+    } else if spread_s > lag_s {
         format!(
             "; {spread_s:.3} s apart, more than the force estimate's time constant ({lag_s:.3} s): \
              if the program starts the joints together, the logs are not aligned"

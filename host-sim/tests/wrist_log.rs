@@ -183,6 +183,20 @@ fn logs_with_the_host_clock_are_aligned_on_it() {
             assert_eq!(s.torque_nm[j], t.torque_nm[j], "tick {k}, joint {j}");
         }
     }
+    // The pitch's whole run recorded 0.1 s after the others': aligned on
+    // the clock, its commanded motion starts 0.1 s after theirs, and the
+    // note says the joints started apart, not that the logs are not
+    // aligned.
+    let mut started_late: [Log; 4] = core::array::from_fn(|j| with_host_clock(&logs[j], t0));
+    started_late[1] = with_host_clock(&logs[1], t0 + 0.1);
+    let read = round_trip(&started_late, dir.path());
+    let run =
+        wrist_log::replay(&read, &params.configs, &holding(&params), OnFault::Refuse).unwrap();
+    let starts = self::note(&run, "first moves at");
+    assert!(
+        starts.contains("started apart") && !starts.contains("not aligned"),
+        "{starts}"
+    );
     // The pitch recorded 10 s after the others had ended.
     let mut apart = late.clone();
     apart[1] = with_host_clock(&logs[1], t0 + 10.0);

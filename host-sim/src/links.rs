@@ -563,8 +563,9 @@ pub fn sign_width_seen_rad_s(rows: &[Eq3Rows]) -> [f64; 4] {
                 .map(|(sign, speed)| (sign - (speed / w).tanh()).powi(2))
                 .sum::<f64>()
         };
-        // Golden-section search on ln w over 1 mrad/s to 100 rad/s (the
-        // misfit is unimodal in w: a wider tanh lies lower everywhere).
+        // Golden-section search on ln w over 1 mrad/s to 100 rad/s (each
+        // row's misfit is unimodal in w, `tanh(v / w)` falling as w grows;
+        // the unit test checks the search finds known widths).
         let (mut a, mut b) = (1e-3f64.ln(), 100f64.ln());
         let phi = (5f64.sqrt() - 1.0) / 2.0;
         let (mut x1, mut x2) = (b - phi * (b - a), a + phi * (b - a));
@@ -877,14 +878,10 @@ mod tests {
         }
     }
 
-    /// The core's Eq. 3 regressor times these links' base parameters is
-    /// the simulator's Lagrangian torque of the rods (two independent
-    /// derivations), on random poses, speeds and accelerations, at a
-    /// heavy scale so the torques stand well above rounding.
     /// The sign width a run shows is the `tanh` width its Coulomb column
     /// follows: recovered from exact rows of widths 0.05 and 0.4 rad/s
-    /// (smooth motion, and a speed whose ripple the sign averages), NaN
-    /// for a joint that never moves.
+    /// (smooth motion, and a joint that sticks and slips), NaN for a joint
+    /// that never moves.
     #[test]
     fn the_sign_width_seen_is_the_width_the_coulomb_column_follows() {
         let widths = [0.05, 0.4, 0.4, f64::NAN];
@@ -952,6 +949,10 @@ mod tests {
         );
     }
 
+    /// The core's Eq. 3 regressor times these links' base parameters is
+    /// the simulator's Lagrangian torque of the rods (two independent
+    /// derivations), on random poses, speeds and accelerations, at a
+    /// heavy scale so the torques stand well above rounding.
     #[test]
     fn the_cores_eq3_regressor_is_the_simulated_links_lagrangian_torque() {
         let g = Geometry::default();

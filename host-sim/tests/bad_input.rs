@@ -1031,3 +1031,30 @@ fn residual_quotes_a_huge_column_name_in_its_message() {
     assert!(q.ends_with(" (5000002 bytes)"), "{q}");
     assert!(err.contains(&q), "{}", &err[..err.len().min(500)]);
 }
+
+/// A scenario longer than one simulated run can hold (the seed's loading
+/// protocol at 5 kHz: 1.155e6 ticks) is refused before it runs, naming the
+/// limit and how to shorten it or run one part; nothing is written.
+#[test]
+fn a_scenario_too_long_for_one_run_is_refused_with_the_way_to_shorten_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("c5k.toml");
+    std::fs::write(&config, "control_rate_hz = 5000.0\n").unwrap();
+    let out = dir.path().join("loading.csv");
+    let e = run_err(
+        host_sim()
+            .args(["simulate", "--scenario", "loading", "--config"])
+            .arg(&config)
+            .arg("--out")
+            .arg(&out),
+    );
+    assert!(
+        e.contains("scenario loading") && e.contains("at most 1000000 ticks"),
+        "{e}"
+    );
+    assert!(
+        e.contains("--duration-scale") && e.contains("--angle-deg"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}

@@ -111,7 +111,15 @@ pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> R
         &what,
         plan(name, &scenario_opts)?.duration_s(),
         f64::from(config.control_rate_hz),
-    )?;
+    )
+    .map_err(|e| {
+        let part = if name == "loading" {
+            ", or run one part of it (`--angle-deg`, `--mass-g`, `--direction`)"
+        } else {
+            ""
+        };
+        anyhow::anyhow!("{e}: shorten it (`--duration`, `--duration-scale`){part}")
+    })?;
     let mut log = LogRecorder::new(plant.sensors.magnetic_fitted);
     let mut raw = RawTrace::new();
     let summary = if opts.raw_trace {

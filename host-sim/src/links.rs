@@ -523,14 +523,16 @@ pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDyn
         if better {
             best = Some(InverseDynamicsFit {
                 motion_bandwidth_hz: bandwidth_hz,
-                sign_width_seen_rad_s: sign_width_seen_rad_s(&rows),
                 ..fit
             });
         }
     }
     let best = best.ok_or_else(|| anyhow::anyhow!("Eq. 3 fit: no bandwidth tried"))?;
+    // The chosen bandwidth's rows again (cheaper than keeping them).
+    let rows = filtered_rows(setting, samples, best.motion_bandwidth_hz);
     Ok(InverseDynamicsFit {
         bandwidth_held_out_nm: tried,
+        sign_width_seen_rad_s: sign_width_seen_rad_s(&rows),
         ..best
     })
 }

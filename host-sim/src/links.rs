@@ -537,6 +537,12 @@ pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDyn
     })
 }
 
+/// Joint `j`'s Coulomb and viscous columns in Eq. 3's regressor (after
+/// the links' [`N_LINKS`]; `cable_joint::wrist_dynamics`'s order).
+fn friction_columns(j: usize) -> [usize; 2] {
+    [N_LINKS + 2 * j, N_LINKS + 2 * j + 1]
+}
+
 /// Each joint's friction sign as a fit sees it, rad/s: the width `w`
 /// whose `tanh(|q'| / w)` best follows (least squares over the run) the
 /// joint's Coulomb column against its viscous column, both as
@@ -549,7 +555,7 @@ pub fn fit_eq3(setting: &Eq3Setting, samples: &[Eq3Sample]) -> Result<InverseDyn
 /// NaN for a joint that never moves.
 pub fn sign_width_seen_rad_s(rows: &[Eq3Rows]) -> [f64; 4] {
     core::array::from_fn(|j| {
-        let (c, v) = (N_LINKS + 2 * j, N_LINKS + 2 * j + 1);
+        let [c, v] = friction_columns(j);
         let pairs: Vec<(f64, f64)> = rows
             .iter()
             .map(|r| (r[j][c].abs(), r[j][v].abs()))
@@ -600,7 +606,7 @@ pub fn sign_panels(
     let stride = (rows.len() / 2000).max(1);
     (0..4)
         .map(|j| {
-            let (c, v) = (N_LINKS + 2 * j, N_LINKS + 2 * j + 1);
+            let [c, v] = friction_columns(j);
             let (speed, sign): (Vec<f64>, Vec<f64>) = rows
                 .iter()
                 .step_by(stride)
@@ -893,8 +899,9 @@ mod tests {
                 let mut r = [[0.0; N_PARAMS]; 4];
                 for (j, w) in widths.iter().enumerate() {
                     if w.is_finite() {
-                        r[j][N_LINKS + 2 * j] = (speed / w).tanh();
-                        r[j][N_LINKS + 2 * j + 1] = speed;
+                        let [c, v] = friction_columns(j);
+                        r[j][c] = (speed / w).tanh();
+                        r[j][v] = speed;
                     }
                 }
                 r

@@ -393,16 +393,22 @@ fn motion_starts(
         .collect();
     let spread_s = known.iter().fold(f64::MIN, |m, x| m.max(*x))
         - known.iter().fold(f64::MAX, |m, x| m.min(*x));
-    let warning = if spread_s > lag_s && on_clock {
+    let warning = if spread_s > lag_s {
+        let (clock, meaning) = if on_clock {
+            (
+                " on the host's clock",
+                "the joints started apart (if they were meant to start together, start each \
+                 board's `link` with one `--start-at`)",
+            )
+        } else {
+            (
+                "",
+                "if the program starts the joints together, the logs are not aligned",
+            )
+        };
         format!(
-            "; {spread_s:.3} s apart on the host's clock, more than the force estimate's time \
-             constant ({lag_s:.3} s): the joints started apart (if they were meant to start \
-             together, start each board's `link` with one `--start-at`)"
-        )
-    } else if spread_s > lag_s {
-        format!(
-            "; {spread_s:.3} s apart, more than the force estimate's time constant ({lag_s:.3} s): \
-             if the program starts the joints together, the logs are not aligned"
+            "; {spread_s:.3} s apart{clock}, more than the force estimate's time constant \
+             ({lag_s:.3} s): {meaning}"
         )
     } else {
         String::new()

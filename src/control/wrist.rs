@@ -59,15 +59,19 @@
 //!   deflected** (the straight wrist's `J` is singular). [`jaw_force`]
 //!   reports it unobservable, with an unbounded bound, below
 //!   [`Geometry::min_lever_m`] instead of dividing by a near-zero lever.
-//! * Eq. 5: the total force `F^a + F^b` (in the wrist frame after roll and
-//!   pitch, [`total_force`]) and the clamp force ([`clamp_force`]).
+//! * Eq. 5: the clamp force ([`clamp_force`]) and the total force `F^a +
+//!   F^b` in the wrist frame after roll and pitch ([`total_force`]).
 //!
 //! The roll and pitch joints are shared by both jaws: their torques carry
 //! both jaws' loads. Eq. 4 per jaw (as the seed writes it) therefore gives a
-//! jaw's `F_x` and `F_z` correctly only while the other jaw is free; in a
-//! grasp the two jaws' `x` and `z` loads cancel in the shared joints (a
-//! squeeze is an internal force) and only `F_y`, each from its own jaw's
-//! joint, is the jaw's. The clamp force uses `F_y` alone.
+//! jaw's `F_x` and `F_z` only while the other jaw is free; in a grasp only
+//! `F_y`, each from its own jaw's joint, is the jaw's, and the clamp force
+//! uses `F_y` alone. Summing two such Eq. 4 forces would count the shared
+//! joints' torques twice, so [`total_force`] solves the four torques for
+//! the total jointly: six force components meet four torques, and what the
+//! joints do not see of a component is bounded by a force limit the caller
+//! states (in a grasp the pitch joint gives the total along `x_2`, and the
+//! total along `z_2` is not observed).
 //!
 //! # Bounds
 //!
@@ -196,19 +200,60 @@ pub struct Geometry {
     /// unobservable. Default: a tenth of `l_2` times `sin 5°` squared
     /// (pitch and jaw both beyond about 5° from straight).
     pub min_lever_m: f32,
+    /// The largest force either jaw carries along any of its axes, N: what
+    /// bounds the part of [`total_force`] the joints do not see. Default:
+    /// the squeeze a jaw's drive holds at its current limit, `I_max K_m z_i
+    /// r_3 / (r_m l_e)` with the prototype's datasheet values (54.6 N); a
+    /// jaw that carried more would back-drive. Along the jaw's other axes
+    /// the structure, not a drive, carries the load: there the default
+    /// assumes the tissue pushes no harder than a jaw can squeeze. State
+    /// your task's bound to narrow the total force's bound.
+    pub force_limit_n: f32,
 }
 
 impl Default for Geometry {
     fn default() -> Self {
         let l2 = 9e-3;
         let s5 = math::sin(5.0f32.to_radians());
+        let (r, l) = (4e-3, 20e-3);
         Self {
             pitch_to_jaw_m: l2,
-            jaw_length_m: 20e-3,
-            pulley_radius_m: [4e-3; 3],
+            jaw_length_m: l,
+            pulley_radius_m: [r; 3],
             min_lever_m: l2 * s5 * s5,
+            force_limit_n: drive_squeeze_limit_n(&crate::config::Machine::default(), r, l),
         }
     }
+}
+
+impl Geometry {
+    /// The default wrist with jaws of `machine`: its gripper length, and
+    /// the squeeze its drive holds as the force limit.
+    pub fn with_jaws_of(machine: &crate::config::Machine) -> Self {
+        Self {
+            jaw_length_m: machine.gripper_length_m,
+            force_limit_n: drive_squeeze_limit_n(
+                machine,
+                machine.pulley_radius_m,
+                machine.gripper_length_m,
+            ),
+            ..Self::default()
+        }
+    }
+}
+
+/// The squeeze a jaw's drive holds at its current limit, N: the cable
+/// tension the motor pulls, `I_max K_m z_i / r_m`, on the jaw's pulley
+/// radius, at the jaw's length.
+pub fn drive_squeeze_limit_n(
+    machine: &crate::config::Machine,
+    pulley_radius_m: f32,
+    jaw_length_m: f32,
+) -> f32 {
+    machine.current_limit_a * machine.torque_constant_nm_a * machine.gear_ratio
+        / machine.rope_wheel_radius_m
+        * pulley_radius_m
+        / jaw_length_m
 }
 
 /// Which joint of a jaw's chain.
@@ -287,33 +332,140 @@ pub fn clamp_force(fy_a: Interval, fy_b: Interval) -> Interval {
     (fy_a.abs() + fy_b.abs()).scale(0.5)
 }
 
-/// A jaw's force turned from its frame into the wrist frame after roll and
-/// pitch (`x_2`, `y_2`, `z_2`): jaw A by `-q_jaw` about `x`, jaw B (the
-/// mirror image, `mirrored = true`) by `+q_jaw` with its `y` reversed.
-/// Interval rotation: each output component is bounded by the sum of the
-/// rotated inputs' ranges.
-pub fn to_wrist_frame(f: &JawForce, q_jaw_rad: f32, mirrored: bool) -> [Interval; 3] {
-    let (s, c) = (math::sin(q_jaw_rad), math::cos(q_jaw_rad));
-    // Jaw A: R = Rx(-q): y2 = c y - (-s) z = c y + s z ... written out:
-    // [x2]   [1  0   0] [x]
-    // [y2] = [0  c   s] [y]
-    // [z2]   [0 -s   c] [z]
-    // Jaw B mirrors y: y2 -> -y2 with the jaw turned the other way, which
-    // flips the sign of the y2 row.
-    let [fx, fy, fz] = f.force_n;
-    let sign = if mirrored { -1.0 } else { 1.0 };
-    let y2 = fy.scale(sign * c) + fz.scale(sign * s);
-    let z2 = fy.scale(-s) + fz.scale(c);
-    [fx, y2, z2]
+/// Eq. 5's total force `F^a + F^b` in a grasp, with its bound
+/// ([`total_force`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TotalForce {
+    /// `[x, y, z]` in the wrist frame after roll and pitch (`x_2`, `y_2`,
+    /// `z_2`), N; [`Interval::UNBOUNDED`] where neither the joints nor the
+    /// force limit bound it.
+    pub force_n: [Interval; 3],
+    /// The half-width of each bound that the force limit contributes, N:
+    /// zero where the four joints alone fix the component at this pose,
+    /// the whole bound where they see none of it.
+    pub prior_n: [f32; 3],
 }
 
-/// Eq. 5, the total force `F^a + F^b` in the wrist frame, N: jaw A's and
-/// jaw B's forces with their jaw angles. Shared-joint caveat in the module
-/// docs: in a grasp only the `y` components are each jaw's own.
-pub fn total_force(a: &JawForce, q_a_rad: f32, b: &JawForce, q_b_rad: f32) -> [Interval; 3] {
-    let fa = to_wrist_frame(a, q_a_rad, false);
-    let fb = to_wrist_frame(b, q_b_rad, true);
-    [fa[0] + fb[0], fa[1] + fb[1], fa[2] + fb[2]]
+/// Eq. 5's total force `F^a + F^b`, N, from the four joints' external
+/// torques `[roll, pitch, jaw A, jaw B]` (N·m, as intervals) with both jaws
+/// loaded.
+///
+/// The roll and pitch joints carry both jaws' loads, so the six force
+/// components meet four torques: `tau = M f`, `M`'s rows each joint's
+/// [`jaw_jacobian_t`] row for jaw A and, mirrored, jaw B (jaw B's roll row
+/// enters with the other sign). A total component `c . f` is what the
+/// joints see of it, `lambda . tau`, plus what they do not, `(c - M^T
+/// lambda) . f`; `lambda` minimises the joints' spread and the unseen part
+/// together (a ridge solve, each torque weighed by its bound's half-width
+/// against `force_limit_n`). The bound holds whenever each torque lies in
+/// its interval and every component of each jaw's force is within
+/// `±force_limit_n`; [`TotalForce::prior_n`] says how much of it that
+/// limit makes.
+///
+/// What this gives at a pose: along `x_2` the pitch joint sees `w_a
+/// F_x^a + w_b F_x^b` (`w = l_2 + l_e cos q_3`), the total exactly when
+/// the jaw angles are equal, widened in proportion to their difference
+/// otherwise; along `y_2` the roll joint sees the jaws' `sin q_3`-weighted
+/// pushes along themselves only through `sin q_2`, mixed with the jaws'
+/// `F_x` difference; along `z_2` nothing in a grasp (both jaws' pushes
+/// along themselves add there, the roll joint sees their `sin q_3`-weighted
+/// difference, which is their sum only with the jaws parallel, `q_a =
+/// -q_b`): that component is the force limit's.
+///
+/// `force_limit_n = f32::INFINITY` keeps only what the joints fix (to
+/// `f32` rounding) and leaves the rest unbounded. A joint whose bound is
+/// unbounded is left out; a `force_limit_n` that is not positive leaves
+/// every component unbounded.
+pub fn total_force(
+    g: &Geometry,
+    q_pitch_rad: f32,
+    q_a_rad: f32,
+    q_b_rad: f32,
+    external_torque_nm: [Interval; 4],
+    force_limit_n: f32,
+) -> TotalForce {
+    use nalgebra::{Matrix4, SMatrix, Vector4, Vector6};
+    if force_limit_n.is_nan() || force_limit_n <= 0.0 {
+        return TotalForce {
+            force_n: [Interval::UNBOUNDED; 3],
+            prior_n: [f32::INFINITY; 3],
+        };
+    }
+    let jt_a = jaw_jacobian_t(g, q_pitch_rad, q_a_rad);
+    let jt_b = jaw_jacobian_t(g, q_pitch_rad, q_b_rad);
+    // Columns: jaw A's F_x, F_y, F_z, then jaw B's, each in its jaw frame.
+    let mut m = SMatrix::<f32, 4, 6>::zeros();
+    for k in 0..3 {
+        m[(0, k)] = jt_a[joint::ROLL][k];
+        m[(0, 3 + k)] = -jt_b[joint::ROLL][k];
+        m[(1, k)] = jt_a[joint::PITCH][k];
+        m[(1, 3 + k)] = jt_b[joint::PITCH][k];
+        m[(2, k)] = jt_a[joint::JAW][k];
+        m[(3, 3 + k)] = jt_b[joint::JAW][k];
+    }
+    // Each torque's half-width relative to the limit's reach; an unbounded
+    // torque's row is left out.
+    let mut ridge = Vector4::<f32>::zeros();
+    let mut mid = [0.0f32; 4];
+    let mut half = [0.0f32; 4];
+    for (i, t) in external_torque_nm.iter().enumerate() {
+        if t.lo.is_finite() && t.hi.is_finite() {
+            mid[i] = t.mid();
+            half[i] = 0.5 * t.width();
+            let r = half[i] / force_limit_n;
+            ridge[i] = r * r;
+        } else {
+            m.row_mut(i).fill(0.0);
+            ridge[i] = 1.0;
+        }
+    }
+    let mut normal: Matrix4<f32> = m * m.transpose();
+    // f32 rounding's share, so the factorisation exists where M loses rank.
+    let floor = 1e-7 * normal.trace();
+    for i in 0..4 {
+        normal[(i, i)] += ridge[i] + floor;
+    }
+    let (sa, ca) = (math::sin(q_a_rad), math::cos(q_a_rad));
+    let (sb, cb) = (math::sin(q_b_rad), math::cos(q_b_rad));
+    // Each jaw's frame turned into the wrist frame (jaw B mirrored through
+    // the x_2 z_2 plane, module docs): rows x_2, y_2, z_2 of F^a + F^b.
+    let rows = [
+        Vector6::new(1.0, 0.0, 0.0, 1.0, 0.0, 0.0),
+        Vector6::new(0.0, ca, sa, 0.0, -cb, -sb),
+        Vector6::new(0.0, -sa, ca, 0.0, -sb, cb),
+    ];
+    let factor = normal.cholesky();
+    let mut force_n = [Interval::UNBOUNDED; 3];
+    let mut prior_n = [f32::INFINITY; 3];
+    for (k, c) in rows.iter().enumerate() {
+        let lambda = match &factor {
+            Some(f) => f.solve(&(m * c)),
+            None => Vector4::zeros(),
+        };
+        let unseen = c - m.transpose() * lambda;
+        let unseen_l1: f32 = unseen.iter().map(|&u| math::abs(u)).sum();
+        let (mut point, mut joints) = (0.0f32, 0.0f32);
+        for i in 0..4 {
+            point += lambda[i] * mid[i];
+            joints += math::abs(lambda[i]) * half[i];
+        }
+        // Without a limit, what the joints leave unseen at f32 rounding
+        // counts as nothing; anything more is unbounded.
+        let prior = if force_limit_n.is_finite() {
+            unseen_l1 * force_limit_n
+        } else if unseen_l1 <= 1e-5 {
+            0.0
+        } else {
+            f32::INFINITY
+        };
+        if prior.is_finite() {
+            let reach = joints + prior;
+            force_n[k] = Interval::new(point - reach, point + reach);
+            prior_n[k] = prior;
+        }
+    }
+    TotalForce { force_n, prior_n }
 }
 
 #[cfg(test)]
@@ -323,6 +475,21 @@ mod tests {
     /// Jaw A's tip in the wrist frame after roll (so roll turns it about z):
     /// `Ry(q2) ([0,0,l2] + Rx(-q3) [0,0,l])`, with the jaw frame's axes.
     fn tip_and_frame(g: &Geometry, q: [f64; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
+        jaw_tip_and_frame(g, q, false)
+    }
+
+    /// A jaw's tip and frame axes in the base frame; jaw B (`mirrored`) is
+    /// jaw A's mirror image through the `x_2 z_2` plane, its closing
+    /// direction (`y`) included. The axes are also returned in the wrist
+    /// frame after roll and pitch (the third element).
+    fn jaw_tip_and_frame(g: &Geometry, q: [f64; 3], mirrored: bool) -> ([f64; 3], [[f64; 3]; 3]) {
+        let (tip, base, _) = jaw_tip_frames(g, q, mirrored);
+        (tip, base)
+    }
+
+    type Frame = [[f64; 3]; 3];
+
+    fn jaw_tip_frames(g: &Geometry, q: [f64; 3], mirrored: bool) -> ([f64; 3], Frame, Frame) {
         let (l, l2) = (g.jaw_length_m as f64, g.pitch_to_jaw_m as f64);
         let rz = |a: f64, v: [f64; 3]| {
             [
@@ -345,17 +512,51 @@ mod tests {
                 a.sin() * v[1] + a.cos() * v[2],
             ]
         };
-        let jaw = rx(-q[2], [0.0, 0.0, l]);
+        let mirror = |v: [f64; 3]| if mirrored { [v[0], -v[1], v[2]] } else { v };
+        let jaw = mirror(rx(-q[2], [0.0, 0.0, l]));
         let tip = rz(q[0], ry(q[1], [jaw[0], jaw[1], jaw[2] + l2]));
-        let axis = |e: [f64; 3]| rz(q[0], ry(q[1], rx(-q[2], e)));
-        (
-            tip,
-            [
-                axis([1.0, 0.0, 0.0]),
-                axis([0.0, 1.0, 0.0]),
-                axis([0.0, 0.0, 1.0]),
-            ],
-        )
+        let in_wrist = |e: [f64; 3]| mirror(rx(-q[2], e));
+        let e = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let wrist = e.map(in_wrist);
+        let base = wrist.map(|v| rz(q[0], ry(q[1], v)));
+        (tip, base, wrist)
+    }
+
+    /// The four joints' torques `[roll, pitch, jaw A, jaw B]` that hold the
+    /// jaws' forces `fa`, `fb` (each in its jaw frame), by virtual work on
+    /// the tips' positions (finite differences, independent of
+    /// [`jaw_jacobian_t`]), and the total force `F^a + F^b` in the wrist
+    /// frame.
+    fn grasp_torques(
+        g: &Geometry,
+        q: [f64; 4],
+        fa: [f64; 3],
+        fb: [f64; 3],
+    ) -> ([f64; 4], [f64; 3]) {
+        let world = |frame: &Frame, f: [f64; 3]| -> [f64; 3] {
+            core::array::from_fn(|k| (0..3).map(|a| f[a] * frame[a][k]).sum())
+        };
+        let tips = |q: [f64; 4]| {
+            let (pa, _) = jaw_tip_and_frame(g, [q[0], q[1], q[2]], false);
+            let (pb, _) = jaw_tip_and_frame(g, [q[0], q[1], q[3]], true);
+            (pa, pb)
+        };
+        let (_, base_a, wrist_a) = jaw_tip_frames(g, [q[0], q[1], q[2]], false);
+        let (_, base_b, wrist_b) = jaw_tip_frames(g, [q[0], q[1], q[3]], true);
+        let (wa, wb) = (world(&base_a, fa), world(&base_b, fb));
+        let mut tau = [0.0; 4];
+        for (j, t) in tau.iter_mut().enumerate() {
+            let h = 1e-6;
+            let (mut qp, mut qm) = (q, q);
+            qp[j] += h;
+            qm[j] -= h;
+            let ((pa, pb), (ma, mb)) = (tips(qp), tips(qm));
+            *t = (0..3)
+                .map(|k| ((pa[k] - ma[k]) * wa[k] + (pb[k] - mb[k]) * wb[k]) / (2.0 * h))
+                .sum();
+        }
+        let (ta, tb) = (world(&wrist_a, fa), world(&wrist_b, fb));
+        (tau, core::array::from_fn(|k| ta[k] + tb[k]))
     }
 
     /// `J^T` against finite differences of the tip position: column `j` of
@@ -474,29 +675,116 @@ mod tests {
         }
     }
 
-    /// Eq. 5 on exact data: jaws squeezing an object with 2 N each give a
-    /// clamp force of 2 N and no net force across the closing direction,
-    /// at a pose where every component is observed (pitched wrist). Jaw
-    /// A's closing direction in the wrist frame is `y2` turned by `-q3`
-    /// about `x2`, `(0, cos q3, -sin q3)`, jaw B's its mirror image through
-    /// the `x2 z2` plane, `(0, -cos q3, -sin q3)`: the `x` and `y` parts of
-    /// the squeeze cancel and the `z` parts add to `-4 sin q3` N (both
-    /// jaws push the object out along the wrist's axis).
+    /// Eq. 5 on exact data: jaws squeezing an object with 2 N each at equal
+    /// angles on a pitched wrist. The clamp force is 2 N; the torques of
+    /// the shared joints, both jaws' loads together, give no net force
+    /// along `x_2`, with nothing of the force limit in it. Each jaw's
+    /// closing direction in the wrist frame is `(0, ±cos q3, -sin q3)`, so
+    /// the squeeze pushes `-4 sin q3` N along `z_2`, which the joints do
+    /// not see: its bound is the force limit's alone, and without a limit
+    /// it is unbounded.
     #[test]
-    fn eq5_a_pure_squeeze_has_its_clamp_force_and_no_net_force() {
+    fn eq5_a_squeeze_has_its_clamp_force_no_net_force_across_and_an_unseen_push_along() {
         let g = Geometry::default();
-        let (q2, q3) = (0.6, 0.2);
-        let squeeze = [0.0f32, 2.0, 0.0];
-        let a = jaw_force(&g, q2, q3, tau_of(&g, q2, q3, squeeze));
-        let b = jaw_force(&g, q2, q3, tau_of(&g, q2, q3, squeeze));
-        assert_eq!(a.observable, [true, true, true]);
-        let cp = clamp_force(a.force_n[1], b.force_n[1]);
-        assert!((cp.mid() - 2.0).abs() < 1e-5 && cp.width() < 1e-5);
-        let total = total_force(&a, q3, &b, q3);
-        let want = [0.0, 0.0, -4.0 * q3.sin()];
-        for (got, want) in total.iter().zip(want) {
-            assert!((got.mid() - want).abs() < 1e-4, "{total:?}");
-            assert!(got.width() < 1e-4, "{total:?}");
+        let (q2, q3) = (0.6f32, 0.2f32);
+        let q = [0.0, q2 as f64, q3 as f64, q3 as f64];
+        let (tau, want) = grasp_torques(&g, q, [0.0, 2.0, 0.0], [0.0, 2.0, 0.0]);
+        assert!((want[2] + 4.0 * (q3 as f64).sin()).abs() < 1e-9, "{want:?}");
+        let tau = tau.map(|t| Interval::point(t as f32));
+        let r = g.jaw_length_m;
+        let cp = clamp_force(tau[2].scale(1.0 / r), tau[3].scale(1.0 / r));
+        assert!((cp.mid() - 2.0).abs() < 1e-4 && cp.width() < 1e-5, "{cp:?}");
+        let total = total_force(&g, q2, q3, q3, tau, 10.0);
+        assert!(total.force_n[0].mid().abs() < 1e-4, "{total:?}");
+        assert!(total.force_n[0].width() < 1e-3, "{total:?}");
+        assert!(total.prior_n[0] < 1e-3, "{total:?}");
+        assert!(total.force_n[2].contains(want[2] as f32), "{total:?}");
+        assert!(total.prior_n[2] > 5.0, "{total:?}");
+        let unlimited = total_force(&g, q2, q3, q3, tau, f32::INFINITY);
+        assert!(unlimited.force_n[0].width() < 1e-3, "{unlimited:?}");
+        assert_eq!(unlimited.force_n[2], Interval::UNBOUNDED);
+    }
+
+    /// The total force's bound holds the true total, on exact torques from
+    /// any pose and any pair of jaw forces within the limit, each torque
+    /// known only to an interval around its true value.
+    #[test]
+    fn eq5_the_total_force_bound_holds_the_true_total_of_both_jaws() {
+        let g = Geometry::default();
+        let limit = 5.0f32;
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..2000 {
+            let q = [
+                next() * 6.0 - 3.0,
+                next() * 2.4 - 1.2,
+                next() * 1.2 - 0.3,
+                next() * 1.2 - 0.3,
+            ];
+            let fa: [f64; 3] = core::array::from_fn(|_| (next() * 2.0 - 1.0) * limit as f64);
+            let fb: [f64; 3] = core::array::from_fn(|_| (next() * 2.0 - 1.0) * limit as f64);
+            let (tau, want) = grasp_torques(&g, q, fa, fb);
+            let tau: [Interval; 4] = core::array::from_fn(|i| {
+                let spread = next() * 2e-3;
+                let at = tau[i] + (next() * 2.0 - 1.0) * spread;
+                Interval::new((at - spread) as f32, (at + spread) as f32)
+            });
+            let out = total_force(&g, q[1] as f32, q[2] as f32, q[3] as f32, tau, limit);
+            for (k, (b, w)) in out.force_n.iter().zip(want).enumerate() {
+                // f32 rounding of the bound's ends.
+                let tol = 1e-4 * (1.0 + b.lo.abs() + b.hi.abs());
+                let w = w as f32;
+                assert!(
+                    b.lo - tol <= w && w <= b.hi + tol,
+                    "q {q:?} component {k}: {w} outside {b:?}"
+                );
+                assert!(out.prior_n[k] >= 0.0);
+            }
+            // Both jaws' pushes along themselves add along z_2, and the
+            // roll joint sees their sin q_3-weighted difference: the total
+            // along z_2 is not observed unless the jaws are near parallel
+            // (q_a = -q_b, the pair deflected, not a grasp).
+            if (q[2] + q[3]).abs() > 0.2 {
+                assert!(out.prior_n[2] > 0.1 * limit, "q {q:?}: {out:?}");
+            }
+        }
+    }
+
+    /// Along `x_2` the pitch joint weighs each jaw's `F_x` by its lever
+    /// `l_2 + l_e cos q_3`: the total is fixed at equal jaw angles, and the
+    /// force limit's share of its bound grows with their difference.
+    #[test]
+    fn eq5_the_total_along_the_pitch_normal_needs_the_limit_in_proportion_to_the_jaw_angle_difference(
+    ) {
+        let g = Geometry::default();
+        let tau = [Interval::point(0.0); 4];
+        let prior = |dq: f32| total_force(&g, 0.5, 0.3, 0.3 + dq, tau, 10.0).prior_n[0];
+        let (p0, p1, p2) = (prior(0.0), prior(0.02), prior(0.2));
+        assert!(p0 < 1e-3, "{p0}");
+        assert!(p0 < p1 && p1 < p2, "{p0} {p1} {p2}");
+        // Read off the pitch joint alone, the unseen part is the jaws' F_x
+        // difference (up to 2 x 10 N) times half the lever difference over
+        // the mean lever; the joint solve, the roll joint's F_x terms
+        // included, does no worse.
+        let w = |q: f32| g.pitch_to_jaw_m + g.jaw_length_m * q.cos();
+        let pitch_alone = (w(0.3) - w(0.5)).abs() / (0.5 * (w(0.3) + w(0.5))) * 10.0;
+        assert!(p2 <= pitch_alone, "{p2} vs {pitch_alone}");
+        let unlimited = total_force(&g, 0.5, 0.3, 0.5, tau, f32::INFINITY);
+        assert_eq!(unlimited.force_n[0], Interval::UNBOUNDED);
+    }
+
+    /// A limit that is not positive bounds nothing.
+    #[test]
+    fn eq5_a_force_limit_that_is_not_positive_leaves_the_total_unbounded() {
+        let g = Geometry::default();
+        for limit in [0.0, -1.0, f32::NAN] {
+            let out = total_force(&g, 0.5, 0.3, 0.3, [Interval::point(0.0); 4], limit);
+            assert_eq!(out.force_n, [Interval::UNBOUNDED; 3]);
         }
     }
 

@@ -99,10 +99,7 @@ impl WristParams {
     /// Every joint the same machine (`plant`, `config`), the seed's
     /// geometry, jaws open by 20° each, the wrist pitched by 30°.
     pub fn uniform(plant: PlantParams, config: Config) -> Self {
-        let geometry = Geometry {
-            jaw_length_m: config.machine.gripper_length_m,
-            ..Geometry::default()
-        };
+        let geometry = Geometry::with_jaws_of(&config.machine);
         Self {
             plants: [plant; 4],
             configs: [config; 4],
@@ -163,8 +160,15 @@ pub struct WristTick {
     pub clamp_n: f64,
     /// Its bound, from the joints' bounds through Eq. 4 and 5, N.
     pub clamp_bound_n: Interval,
-    /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N.
+    /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N
+    /// ([`WristForce::jaws`]).
     pub jaws: [wrist::JawForce; 2],
+    /// Eq. 5's total force of both jaws, wrist frame, N ([`WristForce::total`]).
+    pub total: wrist::TotalForce,
+    /// The true total force: each jaw's squeeze along its closing direction
+    /// (`(0, cos q_a, -sin q_a)` and `(0, -cos q_b, -sin q_b)` in the wrist
+    /// frame, the true jaw angles), N.
+    pub total_true_n: [f64; 3],
     /// The joints' motion as their estimates give it (angles from the
     /// JAE, speeds and accelerations from tracking observers: at the
     /// model's bandwidth with an Eq. 3 model, else at `Q`'s), jaws as the
@@ -360,12 +364,18 @@ pub struct WristForce {
     pub torque_nm: [f32; 4],
     /// Each joint's external torque bound, Eq. 3 taken out ([`torque_bound_nm`]), N·m.
     pub torque_bound_nm: [Interval; 4],
-    /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N.
+    /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N; each
+    /// jaw's `F_x` and `F_z` are its own only while the other jaw is free
+    /// (the core's wrist module docs), `F_y` always.
     pub jaws: [wrist::JawForce; 2],
     /// Eq. 5's clamp force bound, N.
     pub clamp_bound_n: Interval,
     /// Eq. 5's clamp force from the joints' point estimates, N.
     pub clamp_n: f64,
+    /// Eq. 5's total force of both jaws from the four joints' bounds
+    /// together, wrist frame, N, with the geometry's force limit bounding
+    /// what the joints do not see.
+    pub total: wrist::TotalForce,
 }
 
 /// Eq. 4–5 on one tick: each joint's estimate at its tip `tip[j]` times
@@ -412,6 +422,7 @@ pub fn wrist_force(
         jaws: [jaw_a, jaw_b],
         clamp_bound_n,
         clamp_n: f64::from(wrist::clamp_force(pa, pb).mid()),
+        total: wrist::total_force(g, q2, qa, qb, torque_bound_nm, g.force_limit_n),
     }
 }
 
@@ -630,6 +641,12 @@ impl WristSim {
             clamp_n: forces.clamp_n,
             clamp_bound_n: forces.clamp_bound_n,
             jaws: forces.jaws,
+            total: forces.total,
+            total_true_n: [
+                0.0,
+                self.contact_n * (true_q[JAW_A].cos() - true_q[JAW_B].cos()),
+                -self.contact_n * (true_q[JAW_A].sin() + true_q[JAW_B].sin()),
+            ],
             motion,
             links_true_nm,
             links_hat_nm,
@@ -888,10 +905,63 @@ pub struct GraspStats {
     pub hold_coverage: f64,
     /// Mean bound width in the stable hold, N.
     pub hold_bound_width_n: f64,
+    /// Share of the hold's ticks whose total-force bound (Eq. 5, the four
+    /// joints together) holds the true total, per component of the wrist
+    /// frame.
+    pub hold_total_coverage: [f64; 3],
+    /// The total force's bound widths in the stable hold.
+    pub hold_total: TotalSpread,
     /// Largest |estimate| with the jaws open (before and after), N.
     pub open_max_n: f64,
     /// The first fault a joint latched (joint and fault), if any.
     pub fault: Option<String>,
+}
+
+/// How wide Eq. 5's total-force bound is over some ticks, and how much of
+/// it the force limit makes (what the joints do not see), per wrist-frame
+/// component.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct TotalSpread {
+    /// Median bound width, N (infinite where more than half are unbounded).
+    pub width_n: [f64; 3],
+    /// Mean share of the width the force limit makes: 0 where the joints
+    /// fix the component, 1 where they see none of it (an unbounded tick
+    /// counts 1).
+    pub limit_share: [f64; 3],
+}
+
+impl TotalSpread {
+    /// Over `totals` (zeros when there are none).
+    pub fn of<'a>(totals: impl Iterator<Item = &'a wrist::TotalForce> + Clone) -> Self {
+        let n = totals.clone().count();
+        if n == 0 {
+            return Self::default();
+        }
+        let per = |k: usize| {
+            let mut w: Vec<f64> = totals
+                .clone()
+                .map(|t| f64::from(t.force_n[k].width()))
+                .collect();
+            w.sort_by(f64::total_cmp);
+            let share: f64 = totals
+                .clone()
+                .map(|t| {
+                    let w = f64::from(t.force_n[k].width());
+                    if w > 0.0 && w.is_finite() {
+                        2.0 * f64::from(t.prior_n[k]) / w
+                    } else {
+                        1.0
+                    }
+                })
+                .sum();
+            (w[n / 2], share / n as f64)
+        };
+        let [x, y, z] = [0, 1, 2].map(per);
+        Self {
+            width_n: [x.0, y.0, z.0],
+            limit_share: [x.1, y.1, z.1],
+        }
+    }
 }
 
 /// Summarise a grasp run.
@@ -919,6 +989,15 @@ pub fn grasp_stats(ticks: &[(Phase, WristTick)]) -> GraspStats {
             / ticks.len().max(1) as f64,
         hold_coverage: hold.iter().filter(|t| inside(t)).count() as f64 / hold.len().max(1) as f64,
         hold_bound_width_n: mean(&|t| f64::from(t.clamp_bound_n.width()), stable),
+        hold_total_coverage: core::array::from_fn(|k| {
+            let inside = |t: &&&WristTick| {
+                let b = t.total.force_n[k];
+                let x = t.total_true_n[k] as f32;
+                b.lo <= x + 1e-6 && x - 1e-6 <= b.hi
+            };
+            hold.iter().filter(inside).count() as f64 / hold.len().max(1) as f64
+        }),
+        hold_total: TotalSpread::of(stable.iter().map(|t| &t.total)),
         open_max_n: ticks
             .iter()
             .filter(|(p, _)| matches!(p, Phase::Open | Phase::After))

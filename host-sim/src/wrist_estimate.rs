@@ -88,8 +88,10 @@ const JOINT_COLUMNS: [&str; 4] = ["tau_ext_nm", "tau_ext_lo_nm", "tau_ext_hi_nm"
 /// The ticks as a CSV log: `t_s` (since the run's first replayed tick),
 /// each joint's external torque with its bound and Eq. 3's torque taken
 /// out (`roll_tau_ext_nm`, ...), each jaw's `F_y` bound
-/// (`jaw_a_fy_lo_n`, ...), the clamp force and its bound, and the
-/// reference clamp force where the run has one.
+/// (`jaw_a_fy_lo_n`, ...), the clamp force and its bound, Eq. 5's total
+/// force per wrist-frame axis with the force limit's share of its bound
+/// (`total_x_lo_n`, `total_x_hi_n`, `total_x_limit_n`, ...; empty where
+/// unbounded), and the reference clamp force where the run has one.
 pub fn to_log(ticks: &[WristEstimate], rate_hz: f64) -> Result<Log> {
     let with_reference = ticks.iter().any(|t| t.reference_n.is_some());
     let mut names: Vec<String> = vec!["t_s".to_owned()];
@@ -100,6 +102,9 @@ pub fn to_log(ticks: &[WristEstimate], rate_hz: f64) -> Result<Log> {
         names.extend(["fy_lo_n", "fy_hi_n"].map(|c| format!("{j}_{c}")));
     }
     names.extend(["clamp_n", "clamp_lo_n", "clamp_hi_n"].map(str::to_owned));
+    for axis in ["x", "y", "z"] {
+        names.extend(["lo_n", "hi_n", "limit_n"].map(|c| format!("total_{axis}_{c}")));
+    }
     if with_reference {
         names.push("clamp_ref_n".to_owned());
     }
@@ -125,6 +130,10 @@ pub fn to_log(ticks: &[WristEstimate], rate_hz: f64) -> Result<Log> {
             ]
             .map(Some),
         );
+        // Empty where the total is unbounded.
+        for (b, prior) in f.total.force_n.iter().zip(f.total.prior_n) {
+            row.extend([b.lo, b.hi, prior].map(|v| v.is_finite().then_some(f64::from(v))));
+        }
         if with_reference {
             // Empty where a jaw's reference is not measured.
             row.push(t.reference_n);
@@ -186,8 +195,9 @@ pub fn summary(ticks: &[WristEstimate]) -> Option<Summary> {
 }
 
 /// The clamp force inside its bound (with the reference where the log has
-/// one) and each joint's external torque at its tip against time, from the
-/// log [`to_log`] wrote.
+/// one), the total force's bound across the pitch axis, and each joint's
+/// external torque at its tip against time, from the log [`to_log`]
+/// wrote.
 pub fn figure(out: &Log, title: &str, l_m: [f64; 4]) -> Result<Figure> {
     let t = out.time_s()?.to_vec();
     let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);
@@ -211,7 +221,26 @@ pub fn figure(out: &Log, title: &str, l_m: [f64; 4]) -> Result<Figure> {
             tau.iter().map(|x| x / l_m[j]).collect(),
         ));
     }
-    let mut fig = Figure::grid(vec![clamp, joints], 1);
+    // The one total-force axis the joints see in a grasp (x_2, the pitch
+    // joint's): its bound, and the part of it the force limit makes.
+    let (lo, hi, limit) = (
+        col("total_x_lo_n")?,
+        col("total_x_hi_n")?,
+        col("total_x_limit_n")?,
+    );
+    let total = Panel::new(
+        "total force across the pitch axis (Eq. 5, x_2; the axis the joints see in a grasp)",
+        "t [s]",
+        "F_x [N]",
+    )
+    .with(Series::line("bound, low", t.clone(), lo))
+    .with(Series::line("bound, high", t.clone(), hi))
+    .with(Series::line(
+        "the force limit's half-width",
+        t.clone(),
+        limit,
+    ));
+    let mut fig = Figure::grid(vec![clamp, total, joints], 1);
     fig.panel_px = (1000, 420);
     Ok(fig)
 }

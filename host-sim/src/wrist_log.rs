@@ -221,9 +221,11 @@ pub fn replay(
         jaw_length_m[1]
     );
     let replayed: [Config; 4] = core::array::from_fn(|j| replays[j].config);
+    // One limit bounds both jaws: the larger of their drives' squeezes.
+    let [a, b] = [JAW_A, JAW_B].map(|j| Geometry::with_jaws_of(&replayed[j].machine));
     let geometry = Geometry {
-        jaw_length_m: jaw_length_m[0],
-        ..Geometry::default()
+        force_limit_n: a.force_limit_n.max(b.force_limit_n),
+        ..a
     };
     let l = replayed.map(|c| f64::from(c.machine.gripper_length_m));
     let (samples, tip_n) = (0..shortest)

@@ -278,6 +278,7 @@ fn the_clamp_force_from_a_grasps_logs_is_the_simulated_wrists_tick_for_tick() {
         assert_eq!(e.force.torque_bound_nm, t.torque_bound_nm, "tick {k}");
         assert_eq!(e.force.jaws[0].force_n, t.jaws[0].force_n, "tick {k}");
         assert_eq!(e.force.jaws[1].force_n, t.jaws[1].force_n, "tick {k}");
+        assert_eq!(e.force.total, t.total, "tick {k}");
         assert_eq!(e.links_hat_nm, t.links_hat_nm, "tick {k}");
         assert_eq!(e.reference_n, Some(t.contact_n), "tick {k}");
     }
@@ -474,12 +475,31 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
         stdout.contains("holding (reference clamp force >= 1 N"),
         "{stdout}"
     );
+    assert!(stdout.contains("total force (Eq. 5"), "{stdout}");
     assert!(dir.path().join("forces.svg").is_file());
     let forces = Log::read_with(
         dir.path().join("forces.csv"),
-        &Schema::with_required(&["t_s", "clamp_n", "clamp_ref_n"]),
+        &Schema::with_required(&[
+            "t_s",
+            "clamp_n",
+            "clamp_ref_n",
+            "total_x_lo_n",
+            "total_z_limit_n",
+        ]),
     )
     .unwrap();
+    // Along the wrist (z) the joints see none of a grasp's total: while
+    // holding its bound is mostly the force limit's.
+    let (z_lo, z_hi, z_limit) = (
+        forces.col("total_z_lo_n").unwrap(),
+        forces.col("total_z_hi_n").unwrap(),
+        forces.col("total_z_limit_n").unwrap(),
+    );
+    let reference = forces.col("clamp_ref_n").unwrap();
+    let mostly_limit = (0..reference.len())
+        .filter(|&k| reference[k] >= 1.0)
+        .all(|k| 2.0 * z_limit[k] > 0.9 * (z_hi[k] - z_lo[k]));
+    assert!(mostly_limit);
     let (est, reference) = (
         forces.col("clamp_n").unwrap(),
         forces.col("clamp_ref_n").unwrap(),

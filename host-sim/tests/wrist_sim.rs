@@ -193,3 +193,29 @@ fn a_pair_with_a_fitted_pin_level_holds_the_true_force_at_its_set_point() {
         );
     }
 }
+
+/// Eq. 5's total force in a grasp, the four joints solved together: the
+/// bound holds the true total on every axis while holding; across the
+/// pitch joint's normal (`x_2`) the joints see it (jaws at nearly equal
+/// angles, the force limit's share small), along the wrist (`z_2`) they see
+/// none of it and the bound is the force limit's.
+#[test]
+fn a_grasps_total_force_is_seen_across_the_pitch_axis_and_said_unseen_along_the_wrist() {
+    let ticks = run_grasp(&params(false), soft(), &Grasp::default(), 13).unwrap();
+    let s = grasp_stats(&ticks);
+    eprintln!("coverage {:?}, {:?}", s.hold_total_coverage, s.hold_total);
+    let hold: Vec<_> = ticks.iter().filter(|(p, _)| *p == Phase::Hold).collect();
+    let z_true = hold.iter().map(|(_, t)| t.total_true_n[2]).sum::<f64>() / hold.len() as f64;
+    eprintln!("true z {z_true}");
+    // Jaws short of parallel (q_3 not zero) squeeze along directions that
+    // add along the wrist.
+    assert!(
+        z_true.abs() > 0.1,
+        "the squeeze pushes along the wrist: {z_true}"
+    );
+    for k in 0..3 {
+        assert!(s.hold_total_coverage[k] >= 0.95, "{k}: {s:?}");
+    }
+    assert!(s.hold_total.limit_share[0] < 0.5, "{s:?}");
+    assert!(s.hold_total.limit_share[2] > 0.9, "{s:?}");
+}

@@ -403,6 +403,7 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
                 "none (no --eq3: the links and the joints' residual friction stay in)".to_owned(),
         }
     );
+    report_total(&ticks, run.setting.geometry.force_limit_n);
     match wrist_estimate::summary(&ticks) {
         Some(s) => report_summary(&s),
         None => crate::stdoutln!(
@@ -414,6 +415,38 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
         crate::stdoutln!("wrote {}", f.display());
     }
     Ok(())
+}
+
+/// Print how much of Eq. 5's total force the joints see: each wrist axis'
+/// median bound width and the force limit's share of it, over the ticks
+/// the jaws hold at least [`wrist_estimate::HOLDING_N`] (by the reference,
+/// else by the clamp estimate).
+fn report_total(ticks: &[wrist_estimate::WristEstimate], force_limit_n: f32) {
+    let holding = |t: &&wrist_estimate::WristEstimate| {
+        t.reference_n.unwrap_or(t.force.clamp_n) >= wrist_estimate::HOLDING_N
+    };
+    let held = ticks.iter().filter(holding);
+    let n = held.clone().count();
+    if n == 0 {
+        return;
+    }
+    let s = crate::wrist::TotalSpread::of(held.map(|t| &t.force.total));
+    let axis = |k: usize| {
+        format!(
+            "{} {:.3} N ({:.0} % the limit's)",
+            ["x", "y", "z"][k],
+            s.width_n[k],
+            100.0 * s.limit_share[k]
+        )
+    };
+    crate::stdoutln!(
+        "total force (Eq. 5, the four joints together; force limit {force_limit_n:.1} N), \
+         median bound width while holding ({n} ticks): {}, {}, {}; an axis mostly the limit's \
+         is one the joints do not see (total_<axis>_limit_n in the CSV)",
+        axis(0),
+        axis(1),
+        axis(2)
+    );
 }
 
 /// Print how the clamp estimate met the reference.

@@ -279,6 +279,7 @@ pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
          `fusion.stiffness_tolerance` of each joint's stretch torque, which is why it widens \
          with the squeeze. What still escapes is in the coverage columns."
     );
+    total_force_paragraph(&mut o, sec);
     let _ = writeln!(
         o,
         "\nEvery grasp (k: object stiffness; target: the squeeze the closing angle aims at with \
@@ -314,6 +315,53 @@ pub fn markdown(sec: &WristSection, figure: Option<&str>) -> String {
         "clamp force estimate and bound against the true contact force",
     );
     o
+}
+
+/// Eq. 5's total force over every grasp: per wrist-frame component, the
+/// least hold coverage, the median bound width and the force limit's mean
+/// share of it.
+fn total_force_paragraph(o: &mut String, sec: &WristSection) {
+    if sec.rows.is_empty() {
+        return;
+    }
+    let per = |k: usize| {
+        let least = sec
+            .rows
+            .iter()
+            .map(|r| r.stats.hold_total_coverage[k])
+            .fold(f64::INFINITY, f64::min);
+        let mut widths: Vec<f64> = sec
+            .rows
+            .iter()
+            .map(|r| r.stats.hold_total.width_n[k])
+            .collect();
+        widths.sort_by(f64::total_cmp);
+        let median = widths[widths.len() / 2];
+        let share = sec
+            .rows
+            .iter()
+            .map(|r| r.stats.hold_total.limit_share[k])
+            .sum::<f64>()
+            / sec.rows.len() as f64;
+        (100.0 * least, median, 100.0 * share)
+    };
+    let [x, y, z] = [0, 1, 2].map(per);
+    let _ = writeln!(
+        o,
+        "\nEq. 5's total force `F^a + F^b` (`cable_joint::wrist::total_force`): the four \
+         joints' torque bounds solved together, since the roll and pitch joints carry both \
+         jaws (summing the two jaws' Eq. 4 forces would count their torques twice); six \
+         force components meet four torques, and what the joints do not see is bounded by \
+         the force limit, each jaw's drive squeeze at its current limit. Over every grasp's \
+         hold, per wrist-frame axis (least coverage of the true total; median bound width; \
+         the limit's mean share of the width): `x_2`, the pitch joint's, {:.1} %, {:.3} N, \
+         {:.1} % (the jaws close at nearly equal angles, so the pitch joint sees the \
+         total); `y_2`, across the jaws, {:.1} %, {:.1} N, {:.1} %; `z_2`, along the wrist, \
+         {:.1} %, {:.1} N, {:.1} %. Along `y_2` and `z_2` the joints see little or nothing \
+         of a grasp's total (both jaws' pushes along themselves add there, the roll joint \
+         sees their difference): the bound says only that it is within the limit.",
+        x.0, x.1, x.2, y.0, y.1, y.2, z.0, z.1, z.2
+    );
 }
 
 /// The figure: one grasp on the first variant with a configuration (the

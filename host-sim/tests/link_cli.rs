@@ -15,14 +15,27 @@ use cable_joint::telemetry::{
 const SENT_TICKS: u32 = 500;
 
 fn send(s: &mut TcpStream, seq: &mut u8, msg: &Up) {
+    try_send(s, seq, msg).unwrap();
+}
+
+fn try_send(s: &mut TcpStream, seq: &mut u8, msg: &Up) -> std::io::Result<()> {
     let mut wire = [0u8; MAX_WIRE_LEN];
-    s.write_all(encode(msg, *seq, &mut wire).unwrap()).unwrap();
+    let sent = s.write_all(encode(msg, *seq, &mut wire).unwrap());
     *seq = seq.wrapping_add(1);
+    sent
 }
 
 fn send_record(s: &mut TcpStream, seq: &mut u8, record: Record) {
     let mut bytes = [0u8; MAX_RECORD_LEN];
     send(s, seq, &Up::Telemetry(record.encode(&mut bytes)));
+}
+
+/// [`send_record`] for a stand-in that outlives the host: whether the host
+/// still takes records (it closes the link when it stops on an error, and
+/// a write after that fails at a time the kernel picks).
+fn send_record_while_open(s: &mut TcpStream, seq: &mut u8, record: Record) -> bool {
+    let mut bytes = [0u8; MAX_RECORD_LEN];
+    try_send(s, seq, &Up::Telemetry(record.encode(&mut bytes))).is_ok()
 }
 
 /// What the stand-in sends.
@@ -381,7 +394,7 @@ fn firmware_in_real_time(
     let began = std::time::Instant::now();
     let mut buf = [0u8; 512];
     let mut tick = 0;
-    while tick < ticks {
+    'run: while tick < ticks {
         // Ticks due by now (2 kHz since `began`), at most 20 at once.
         let due = (began.elapsed().as_secs_f64() * 2000.0) as u32;
         while tick < due.min(ticks) {
@@ -393,7 +406,9 @@ fn firmware_in_real_time(
                 dac: cable_joint::units::DacCode(2048),
                 ..TickRecord::default()
             };
-            send_record(&mut s, &mut up_seq, Record::Tick(t));
+            if !send_record_while_open(&mut s, &mut up_seq, Record::Tick(t)) {
+                break 'run;
+            }
             tick += 1;
         }
         match s.read(&mut buf) {

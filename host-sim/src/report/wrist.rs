@@ -356,7 +356,8 @@ fn total_force_paragraph(o: &mut String, sec: &WristSection) {
          hold, per wrist-frame axis (least coverage of the true total; median bound width; \
          the limit's mean share of the width): `x_2`, the pitch joint's, {:.1} %, {:.3} N, \
          {:.1} % (the jaws close at nearly equal angles, so the pitch joint sees the \
-         total); `y_2`, across the jaws, {:.1} %, {:.1} N, {:.1} %; `z_2`, along the wrist, \
+         total; the simulated squeeze loads only the jaws, so that total is zero here and \
+         the figure shows the bound's width, not a tracked push); `y_2`, across the jaws, {:.1} %, {:.1} N, {:.1} %; `z_2`, along the wrist, \
          {:.1} %, {:.1} N, {:.1} %. Along `y_2` and `z_2` the joints see little or nothing \
          of a grasp's total (both jaws' pushes along themselves add there, the roll joint \
          sees their difference): the bound says only that it is within the limit.",

@@ -500,6 +500,45 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
         .filter(|&k| reference[k] >= 1.0)
         .all(|k| 2.0 * z_limit[k] > 0.9 * (z_hi[k] - z_lo[k]));
     assert!(mostly_limit);
+    // A task's force limit narrows what the joints do not see: z's bound
+    // shrinks with it, and a limit that is not a force is refused.
+    let limited = |limit: &str, out: &str| {
+        host_sim(&[
+            "estimate-wrist",
+            "--run",
+            &d("grasp"),
+            &gravity,
+            "--jaw-open-deg",
+            "20",
+            "--eq3",
+            &d("eq3.toml"),
+            "--force-limit-n",
+            limit,
+            "--out",
+            &d(out),
+        ])
+    };
+    let o = limited("5", "limited.csv");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let narrow = Log::read_with(
+        dir.path().join("limited.csv"),
+        &Schema::with_required(&["total_z_limit_n"]),
+    )
+    .unwrap();
+    let narrow_limit = narrow.col("total_z_limit_n").unwrap();
+    assert!(
+        (0..reference.len())
+            .filter(|&k| reference[k] >= 1.0)
+            .all(|k| narrow_limit[k] < 0.2 * z_limit[k]),
+        "5 N against the drive's squeeze"
+    );
+    for bad in ["0", "-2", "inf"] {
+        refused(
+            &limited(bad, "bad-limit.csv"),
+            &dir.path().join("bad-limit.csv"),
+            &["--force-limit-n", "positive"],
+        );
+    }
     let (est, reference) = (
         forces.col("clamp_n").unwrap(),
         forces.col("clamp_ref_n").unwrap(),

@@ -356,9 +356,10 @@ pub struct TotalForce {
 /// [`jaw_jacobian_t`] row for jaw A and, mirrored, jaw B (jaw B's roll row
 /// enters with the other sign). A total component `c . f` is what the
 /// joints see of it, `lambda . tau`, plus what they do not, `(c - M^T
-/// lambda) . f`; `lambda` minimises the joints' spread and the unseen part
-/// together (a ridge solve, each torque weighed by its bound's half-width
-/// against `force_limit_n`). The bound holds whenever each torque lies in
+/// lambda) . f`; `lambda` trades the joints' spread against the unseen
+/// part (a ridge solve, each torque weighed by its bound's half-width
+/// against `force_limit_n`, tried at three weights; the narrowest bound
+/// is kept). The bound holds whenever each torque lies in
 /// its interval and every component of each jaw's force is within
 /// `±force_limit_n`; [`TotalForce::prior_n`] says how much of it that
 /// limit makes.
@@ -420,12 +421,9 @@ pub fn total_force(
             ridge[i] = 1.0;
         }
     }
-    let mut normal: Matrix4<f32> = m * m.transpose();
+    let gram: Matrix4<f32> = m * m.transpose();
     // f32 rounding's share, so the factorisation exists where M loses rank.
-    let floor = 1e-7 * normal.trace();
-    for i in 0..4 {
-        normal[(i, i)] += ridge[i] + floor;
-    }
+    let floor = 1e-7 * gram.trace();
     let (sa, ca) = (math::sin(q_a_rad), math::cos(q_a_rad));
     let (sb, cb) = (math::sin(q_b_rad), math::cos(q_b_rad));
     // Each jaw's frame turned into the wrist frame (jaw B mirrored through
@@ -435,34 +433,42 @@ pub fn total_force(
         Vector6::new(0.0, ca, sa, 0.0, -cb, -sb),
         Vector6::new(0.0, -sa, ca, 0.0, -sb, cb),
     ];
-    let factor = normal.cholesky();
     let mut force_n = [Interval::UNBOUNDED; 3];
     let mut prior_n = [f32::INFINITY; 3];
-    for (k, c) in rows.iter().enumerate() {
-        let lambda = match &factor {
-            Some(f) => f.solve(&(m * c)),
-            None => Vector4::zeros(),
-        };
-        let unseen = c - m.transpose() * lambda;
-        let unseen_l1: f32 = unseen.iter().map(|&u| math::abs(u)).sum();
-        let (mut point, mut joints) = (0.0f32, 0.0f32);
+    // The ridge's squares stand in for the bound's sums of magnitudes, so
+    // it is tried at its own weight and a hundred times either side, and
+    // each component keeps its narrowest bound (every one of them holds).
+    for weight in [1.0f32, 1e-2, 1e2] {
+        let mut normal = gram;
         for i in 0..4 {
-            point += lambda[i] * mid[i];
-            joints += math::abs(lambda[i]) * half[i];
+            normal[(i, i)] += weight * ridge[i] + floor;
         }
-        // Without a limit, what the joints leave unseen at f32 rounding
-        // counts as nothing; anything more is unbounded.
-        let prior = if force_limit_n.is_finite() {
-            unseen_l1 * force_limit_n
-        } else if unseen_l1 <= 1e-5 {
-            0.0
-        } else {
-            f32::INFINITY
+        let Some(factor) = normal.cholesky() else {
+            continue;
         };
-        if prior.is_finite() {
+        for (k, c) in rows.iter().enumerate() {
+            let lambda = factor.solve(&(m * c));
+            let unseen = c - m.transpose() * lambda;
+            let unseen_l1: f32 = unseen.iter().map(|&u| math::abs(u)).sum();
+            let (mut point, mut joints) = (0.0f32, 0.0f32);
+            for i in 0..4 {
+                point += lambda[i] * mid[i];
+                joints += math::abs(lambda[i]) * half[i];
+            }
+            // Without a limit, what the joints leave unseen at f32
+            // rounding counts as nothing; anything more is unbounded.
+            let prior = if force_limit_n.is_finite() {
+                unseen_l1 * force_limit_n
+            } else if unseen_l1 <= 1e-5 {
+                0.0
+            } else {
+                f32::INFINITY
+            };
             let reach = joints + prior;
-            force_n[k] = Interval::new(point - reach, point + reach);
-            prior_n[k] = prior;
+            if reach.is_finite() && 2.0 * reach < force_n[k].width() {
+                force_n[k] = Interval::new(point - reach, point + reach);
+                prior_n[k] = prior;
+            }
         }
     }
     TotalForce { force_n, prior_n }

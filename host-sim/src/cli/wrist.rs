@@ -173,6 +173,13 @@ pub struct EstimateWristArgs {
     /// joint's external torque against time, as STEM.svg and STEM.png.
     #[arg(long, value_name = "STEM")]
     pub plot: Option<PathBuf>,
+    /// The largest force either jaw carries along any axis, N: it bounds
+    /// the part of Eq. 5's total force the joints do not see. Default: the
+    /// jaws' drive squeeze at their current limit (their configurations);
+    /// your task's bound (a tissue's largest push) narrows the total's
+    /// bound.
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    pub force_limit_n: Option<f32>,
 }
 
 /// `simulate-wrist --free-run`.
@@ -379,8 +386,18 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
         Some(p) => Some(load_eq3(p, holding.gravity_m_s2, COMMAND)?),
         None => None,
     };
+    if let Some(limit) = args.force_limit_n {
+        ensure!(
+            limit.is_finite() && limit > 0.0,
+            "{COMMAND}: --force-limit-n {limit} is not a force limit: a positive number of \
+             newtons (the largest force either jaw carries along any axis)"
+        );
+    }
     let dir = &args.run.run;
-    let (_, run) = replay_run(dir, &args.run, &holding, OnFault::Cut, COMMAND)?;
+    let (_, mut run) = replay_run(dir, &args.run, &holding, OnFault::Cut, COMMAND)?;
+    if let Some(limit) = args.force_limit_n {
+        run.setting.geometry.force_limit_n = limit;
+    }
     let ticks = wrist_estimate::estimate(&run, model.as_ref());
     let log = wrist_estimate::to_log(&ticks, run.rate_hz)?;
     // The CSV and the figure are written together or not at all.

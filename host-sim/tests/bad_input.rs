@@ -585,6 +585,28 @@ fn every_numeric_option_refuses_non_finite_and_out_of_range_values() {
         (&["payload"], "--lowpass-hz", "1e9"),
         (&["payload"], "--creep-taus", "0"),
         (&["payload"], "--tare-s", "-1"),
+        (&["payload"], "--creep-taus", "-5"),
+        (&["link", "--scenario", "jae-ident"], "--start-at", "-1"),
+        (&["report", "--draws", "1-2"], "--draw-rate-hz", "-5"),
+        (&["simulate-wrist", "--out", "w"], "--grasp", "-2"),
+        (
+            &["simulate-wrist", "--out", "w", "--grasp", "2"],
+            "--object-stiffness",
+            "-5",
+        ),
+        (
+            &[
+                "estimate-wrist",
+                "--run",
+                "w",
+                "--jaw-open-deg",
+                "20",
+                "--out",
+                "f.csv",
+            ],
+            "--gravity",
+            "-200",
+        ),
     ];
     for (cmd, opt, bad) in cases {
         for value in ["NaN", "inf", bad] {

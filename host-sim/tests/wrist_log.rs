@@ -452,23 +452,39 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
         "3",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let estimate = |eq3: &str, out: &str| {
-        host_sim(&[
-            "estimate-wrist",
-            "--run",
-            &d("grasp"),
-            &gravity,
-            "--jaw-open-deg",
-            "20",
-            "--eq3",
-            &d(eq3),
-            "--out",
-            &d(out),
-            "--plot",
-            &d(out),
-        ])
+    // The next step's command as `simulate-wrist` prints it runs as printed
+    // (its `--gravity` starts with a minus), `[--eq3 ...]` left out and its
+    // output put in the test's directory; each estimate below adds to it.
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let printed = stdout
+        .split('`')
+        .find(|s| s.starts_with("host-sim estimate-wrist "))
+        .unwrap_or_else(|| panic!("no estimate-wrist command in {stdout}"));
+    let mut next: Vec<String> = printed
+        .replace(" [--eq3 eq3.toml]", "")
+        .split_whitespace()
+        .skip(1)
+        .map(str::to_owned)
+        .collect();
+    let out_at = next.iter().position(|a| a == "--out").unwrap();
+    assert_eq!(next.split_off(out_at).len(), 2, "{printed}");
+    assert!(next.iter().any(|a| a == "--gravity"), "{printed}");
+    let estimate = |extra: &[&str], out: &str| {
+        let out = d(out);
+        let mut args: Vec<&str> = next.iter().map(String::as_str).collect();
+        args.extend_from_slice(extra);
+        args.extend(["--out", &out]);
+        host_sim(&args)
     };
-    let o = estimate("eq3.toml", "forces.csv");
+    let o = estimate(&[], "printed.csv");
+    assert!(
+        o.status.success(),
+        "{printed}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(dir.path().join("printed.csv").is_file());
+    let eq3 = d("eq3.toml");
+    let o = estimate(&["--eq3", &eq3, "--plot", &d("forces.csv")], "forces.csv");
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
@@ -502,22 +518,8 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
     assert!(mostly_limit);
     // A task's force limit narrows what the joints do not see: z's bound
     // shrinks with it, and a limit that is not a force is refused.
-    let limited = |limit: &str, out: &str| {
-        host_sim(&[
-            "estimate-wrist",
-            "--run",
-            &d("grasp"),
-            &gravity,
-            "--jaw-open-deg",
-            "20",
-            "--eq3",
-            &d("eq3.toml"),
-            "--force-limit-n",
-            limit,
-            "--out",
-            &d(out),
-        ])
-    };
+    let limited =
+        |limit: &str, out: &str| estimate(&["--eq3", &eq3, "--force-limit-n", limit], out);
     let o = limited("5", "limited.csv");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let narrow = Log::read_with(
@@ -581,7 +583,7 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
     assert_ne!(x1("grasp"), x1("grasp-soft"));
     // Not a model: refused by name, nothing written.
     refused(
-        &estimate("grasp/roll.toml", "not.csv"),
+        &estimate(&["--eq3", &d("grasp/roll.toml")], "not.csv"),
         &dir.path().join("not.csv"),
         &["roll.toml", "not an Eq. 3 model"],
     );

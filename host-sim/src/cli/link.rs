@@ -86,7 +86,7 @@ pub struct LinkArgs {
     /// processes given one time start a wrist's four joints together
     /// (each joint's homing takes its own time). Homing still running at
     /// that time is an error.
-    #[arg(long, value_name = "UNIX_S", requires = "scenario",
+    #[arg(long, allow_negative_numbers = true, value_name = "UNIX_S", requires = "scenario",
           value_parser = cli::f64_above(0.0, 1e11))]
     pub start_at: Option<f64>,
     /// Give up when no telemetry arrives for this long (wall clock), s.

@@ -53,7 +53,7 @@ pub struct PayloadArgs {
     #[arg(long, requires = "rotational")]
     pub inertia: bool,
     /// Candidate creep time constants, s, for the compensation selection.
-    #[arg(allow_negative_numbers = true, long, value_delimiter = ',', default_value = default_creep_taus(),
+    #[arg(allow_hyphen_values = true, long, value_delimiter = ',', default_value = default_creep_taus(),
           value_parser = cli::f32_above(0.0, MAX_WINDOW_S as f32))]
     pub creep_taus: Vec<f32>,
     /// Known no-contact window at the start of each run, s (offset tracker).

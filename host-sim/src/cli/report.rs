@@ -46,7 +46,7 @@ pub struct ReportArgs {
     /// instead of 2 kHz for odd seeds and 1 kHz for even ones (another
     /// board's rate; 250 to 10 000 Hz, every rate-dependent setting derived
     /// from it as `simulate` does).
-    #[arg(long, value_name = "HZ", requires = "draws",
+    #[arg(long, allow_negative_numbers = true, value_name = "HZ", requires = "draws",
           value_parser = crate::cli::f64_in(250.0, 10_000.0))]
     pub draw_rate_hz: Option<f64>,
     /// Turn the payout stop on (`cascade.payout_stop`, off by default) in

@@ -42,7 +42,7 @@ pub struct WristRunArgs {
     /// held (`cable_joint::wrist`'s frame: `z_0` along the shaft; the
     /// simulated prototype's `-8.496,-4.905,0`, shaft level and turned
     /// 30° about it). The logs cannot say it.
-    #[arg(allow_negative_numbers = true, long, value_delimiter = ',', required = true,
+    #[arg(allow_hyphen_values = true, long, value_delimiter = ',', required = true,
           value_parser = cli::f64_in(-100.0, 100.0), value_name = "GX,GY,GZ")]
     pub gravity: Vec<f64>,
     /// Each jaw's angle from the wrist's axis where its controller homed
@@ -137,12 +137,13 @@ pub struct SimulateWristArgs {
     /// (10 mm wide) to the angle that squeezes it with N at rigid jaws,
     /// hold 3 s and open again (the report's grasp); each jaw's log holds
     /// the true contact force as `f_ext_n`. The input of `estimate-wrist`.
-    #[arg(long, value_name = "N", conflicts_with_all = ["free_run", "excitation"],
-          value_parser = cli::f64_in(0.01, 50.0))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N",
+          conflicts_with_all = ["free_run", "excitation"], value_parser = cli::f64_in(0.01, 50.0))]
     pub grasp: Option<f64>,
     /// The grasped object's stiffness, N/m.
-    #[arg(long, value_name = "N_PER_M", default_value_t = crate::report::wrist::STIFFNESS_N_M[0],
-          requires = "grasp", value_parser = cli::f64_in(1.0, 1e7))]
+    #[arg(long, allow_negative_numbers = true, value_name = "N_PER_M",
+          default_value_t = crate::report::wrist::STIFFNESS_N_M[0], requires = "grasp",
+          value_parser = cli::f64_in(1.0, 1e7))]
     pub object_stiffness: f64,
     /// Eq. 3's model (`identify-wrist --out`) the simulated wrist takes out
     /// of its estimates, as `estimate-wrist --eq3` does.

@@ -163,8 +163,10 @@ pub struct WristTick {
     /// Eq. 4's force of jaw A and B (from the bounds), jaw frames, N
     /// ([`WristForce::jaws`]).
     pub jaws: [wrist::JawForce; 2],
-    /// Eq. 5's total force of both jaws, wrist frame, N ([`WristForce::total`]).
-    pub total: wrist::TotalForce,
+    /// The pose Eq. 4–5 read, as the joints estimate it (the core's
+    /// `[q_2, q_3^a, q_3^b]`), rad: with [`Self::torque_bound_nm`] it gives
+    /// Eq. 5's total force ([`total_force`]).
+    pub pose_rad: [f32; 3],
     /// The true total force: each jaw's squeeze along its closing direction
     /// (`(0, cos q_a, -sin q_a)` and `(0, -cos q_b, -sin q_b)` in the wrist
     /// frame, the true jaw angles), N.
@@ -372,10 +374,30 @@ pub struct WristForce {
     pub clamp_bound_n: Interval,
     /// Eq. 5's clamp force from the joints' point estimates, N.
     pub clamp_n: f64,
-    /// Eq. 5's total force of both jaws from the four joints' bounds
-    /// together, wrist frame, N, with the geometry's force limit bounding
-    /// what the joints do not see.
-    pub total: wrist::TotalForce,
+    /// The pose Eq. 4–5 read, as the joints estimate it (the core's
+    /// `[q_2, q_3^a, q_3^b]`), rad.
+    pub pose_rad: [f32; 3],
+}
+
+impl WristForce {
+    /// Eq. 5's total force of both jaws ([`total_force`]).
+    pub fn total(&self, g: &Geometry) -> wrist::TotalForce {
+        total_force(g, self.pose_rad, self.torque_bound_nm)
+    }
+}
+
+/// Eq. 5's total force of both jaws from the four joints' torque bounds
+/// together at `pose_rad` (`[q_2, q_3^a, q_3^b]`), wrist frame, N, with
+/// the geometry's force limit bounding what the joints do not see
+/// (`cable_joint::wrist::total_force`). Computed where it is asked for,
+/// not every tick: it solves 210 small systems.
+pub fn total_force(
+    g: &Geometry,
+    pose_rad: [f32; 3],
+    torque_bound_nm: [Interval; 4],
+) -> wrist::TotalForce {
+    let [q2, qa, qb] = pose_rad;
+    wrist::total_force(g, q2, qa, qb, torque_bound_nm, g.force_limit_n)
 }
 
 /// Eq. 4–5 on one tick: each joint's estimate at its tip `tip[j]` times
@@ -422,7 +444,7 @@ pub fn wrist_force(
         jaws: [jaw_a, jaw_b],
         clamp_bound_n,
         clamp_n: f64::from(wrist::clamp_force(pa, pb).mid()),
-        total: wrist::total_force(g, q2, qa, qb, torque_bound_nm, g.force_limit_n),
+        pose_rad: [q2, qa, qb],
     }
 }
 
@@ -641,7 +663,7 @@ impl WristSim {
             clamp_n: forces.clamp_n,
             clamp_bound_n: forces.clamp_bound_n,
             jaws: forces.jaws,
-            total: forces.total,
+            pose_rad: forces.pose_rad,
             total_true_n: [
                 0.0,
                 self.contact_n * (true_q[JAW_A].cos() - true_q[JAW_B].cos()),
@@ -932,19 +954,19 @@ pub struct TotalSpread {
 
 impl TotalSpread {
     /// Over `totals` (zeros when there are none).
-    pub fn of<'a>(totals: impl Iterator<Item = &'a wrist::TotalForce> + Clone) -> Self {
-        let n = totals.clone().count();
+    pub fn of(totals: &[wrist::TotalForce]) -> Self {
+        let n = totals.len();
         if n == 0 {
             return Self::default();
         }
         let per = |k: usize| {
             let mut w: Vec<f64> = totals
-                .clone()
+                .iter()
                 .map(|t| f64::from(t.force_n[k].width()))
                 .collect();
             w.sort_by(f64::total_cmp);
             let share: f64 = totals
-                .clone()
+                .iter()
                 .map(|t| {
                     let w = f64::from(t.force_n[k].width());
                     if w > 0.0 && w.is_finite() {
@@ -965,7 +987,7 @@ impl TotalSpread {
 }
 
 /// Summarise a grasp run.
-pub fn grasp_stats(ticks: &[(Phase, WristTick)]) -> GraspStats {
+pub fn grasp_stats(g: &Geometry, ticks: &[(Phase, WristTick)]) -> GraspStats {
     let hold: Vec<&WristTick> = ticks
         .iter()
         .filter(|(p, _)| *p == Phase::Hold)
@@ -980,6 +1002,10 @@ pub fn grasp_stats(ticks: &[(Phase, WristTick)]) -> GraspStats {
         t.clamp_bound_n.lo <= c + 1e-6 && c - 1e-6 <= t.clamp_bound_n.hi
     };
     let hold_true_n = mean(&|t| t.contact_n, stable);
+    let hold_totals: Vec<wrist::TotalForce> = hold
+        .iter()
+        .map(|t| total_force(g, t.pose_rad, t.torque_bound_nm))
+        .collect();
     let hold_est_n = mean(&|t| t.clamp_n, stable);
     GraspStats {
         hold_true_n,
@@ -990,14 +1016,14 @@ pub fn grasp_stats(ticks: &[(Phase, WristTick)]) -> GraspStats {
         hold_coverage: hold.iter().filter(|t| inside(t)).count() as f64 / hold.len().max(1) as f64,
         hold_bound_width_n: mean(&|t| f64::from(t.clamp_bound_n.width()), stable),
         hold_total_coverage: core::array::from_fn(|k| {
-            let inside = |t: &&&WristTick| {
-                let b = t.total.force_n[k];
+            let inside = hold.iter().zip(&hold_totals).filter(|(t, total)| {
+                let b = total.force_n[k];
                 let x = t.total_true_n[k] as f32;
                 b.lo <= x + 1e-6 && x - 1e-6 <= b.hi
-            };
-            hold.iter().filter(inside).count() as f64 / hold.len().max(1) as f64
+            });
+            inside.count() as f64 / hold.len().max(1) as f64
         }),
-        hold_total: TotalSpread::of(stable.iter().map(|t| &t.total)),
+        hold_total: TotalSpread::of(&hold_totals[hold.len() / 2..]),
         open_max_n: ticks
             .iter()
             .filter(|(p, _)| matches!(p, Phase::Open | Phase::After))

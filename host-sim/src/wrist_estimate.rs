@@ -11,6 +11,7 @@
 //! the estimate is judged against it ([`Summary`]).
 
 use anyhow::Result;
+use cable_joint::wrist::Geometry;
 
 use crate::links::{no_load_stats, NoLoad};
 use crate::log::Log;
@@ -92,7 +93,7 @@ const JOINT_COLUMNS: [&str; 4] = ["tau_ext_nm", "tau_ext_lo_nm", "tau_ext_hi_nm"
 /// force per wrist-frame axis with the force limit's share of its bound
 /// (`total_x_lo_n`, `total_x_hi_n`, `total_x_limit_n`, ...; empty where
 /// unbounded), and the reference clamp force where the run has one.
-pub fn to_log(ticks: &[WristEstimate], rate_hz: f64) -> Result<Log> {
+pub fn to_log(ticks: &[WristEstimate], g: &Geometry, rate_hz: f64) -> Result<Log> {
     let with_reference = ticks.iter().any(|t| t.reference_n.is_some());
     let mut names: Vec<String> = vec!["t_s".to_owned()];
     for j in JOINT_NAMES {
@@ -131,7 +132,8 @@ pub fn to_log(ticks: &[WristEstimate], rate_hz: f64) -> Result<Log> {
             .map(Some),
         );
         // Empty where the total is unbounded.
-        for (b, prior) in f.total.force_n.iter().zip(f.total.prior_n) {
+        let total = f.total(g);
+        for (b, prior) in total.force_n.iter().zip(total.prior_n) {
             row.extend([b.lo, b.hi, prior].map(|v| v.is_finite().then_some(f64::from(v))));
         }
         if with_reference {

@@ -68,7 +68,7 @@ fn on_drawn_plants_the_clamp_force_bound_holds_the_true_squeeze() {
         let params = WristParams::uniform(r.plant, config);
         for k in STIFFNESS_N_M {
             let ticks = run_grasp(&params, object(k), &Grasp::default(), seed).unwrap();
-            let s = grasp_stats(&ticks);
+            let s = grasp_stats(&params.geometry, &ticks);
             eprintln!("draw {seed} ({} Hz), {k} N/m: {s:?}", r.rate_hz);
             assert_eq!(s.fault, None, "draw {seed}, {k} N/m");
             assert!(

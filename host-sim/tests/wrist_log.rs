@@ -278,7 +278,7 @@ fn the_clamp_force_from_a_grasps_logs_is_the_simulated_wrists_tick_for_tick() {
         assert_eq!(e.force.torque_bound_nm, t.torque_bound_nm, "tick {k}");
         assert_eq!(e.force.jaws[0].force_n, t.jaws[0].force_n, "tick {k}");
         assert_eq!(e.force.jaws[1].force_n, t.jaws[1].force_n, "tick {k}");
-        assert_eq!(e.force.total, t.total, "tick {k}");
+        assert_eq!(e.force.pose_rad, t.pose_rad, "tick {k}");
         assert_eq!(e.links_hat_nm, t.links_hat_nm, "tick {k}");
         assert_eq!(e.reference_n, Some(t.contact_n), "tick {k}");
     }

@@ -32,8 +32,9 @@ fn soft() -> SoftObject {
 /// holds the true force on at least 95 % of the hold's ticks.
 #[test]
 fn the_clamp_force_estimate_follows_the_true_squeeze_while_holding() {
-    let ticks = run_grasp(&params(false), soft(), &Grasp::default(), 11).unwrap();
-    let s = grasp_stats(&ticks);
+    let params = params(false);
+    let ticks = run_grasp(&params, soft(), &Grasp::default(), 11).unwrap();
+    let s = grasp_stats(&params.geometry, &ticks);
     eprintln!("{s:?}");
     assert_eq!(s.fault, None);
     assert!(s.hold_true_n > 1.0, "the jaws squeeze the object: {s:?}");
@@ -201,8 +202,9 @@ fn a_pair_with_a_fitted_pin_level_holds_the_true_force_at_its_set_point() {
 /// none of it and the bound is the force limit's.
 #[test]
 fn a_grasps_total_force_is_seen_across_the_pitch_axis_and_said_unseen_along_the_wrist() {
-    let ticks = run_grasp(&params(false), soft(), &Grasp::default(), 13).unwrap();
-    let s = grasp_stats(&ticks);
+    let params = params(false);
+    let ticks = run_grasp(&params, soft(), &Grasp::default(), 13).unwrap();
+    let s = grasp_stats(&params.geometry, &ticks);
     eprintln!("coverage {:?}, {:?}", s.hold_total_coverage, s.hold_total);
     let hold: Vec<_> = ticks.iter().filter(|(p, _)| *p == Phase::Hold).collect();
     let z_true = hold.iter().map(|(_, t)| t.total_true_n[2]).sum::<f64>() / hold.len() as f64;

@@ -400,7 +400,7 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
         run.setting.geometry.force_limit_n = limit;
     }
     let ticks = wrist_estimate::estimate(&run, model.as_ref());
-    let log = wrist_estimate::to_log(&ticks, run.rate_hz)?;
+    let log = wrist_estimate::to_log(&ticks, &run.setting.geometry, run.rate_hz)?;
     // The CSV and the figure are written together or not at all.
     let mut files = Outputs::new();
     log.stage(&mut files, &args.out)?;
@@ -421,7 +421,7 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
                 "none (no --eq3: the links and the joints' residual friction stay in)".to_owned(),
         }
     );
-    report_total(&ticks, run.setting.geometry.force_limit_n);
+    report_total(&ticks, &run.setting.geometry);
     match wrist_estimate::summary(&ticks) {
         Some(s) => report_summary(&s),
         None => crate::stdoutln!(
@@ -439,7 +439,7 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
 /// median bound width and the force limit's share of it, over the ticks
 /// the jaws hold at least [`wrist_estimate::HOLDING_N`] (by the reference,
 /// else by the clamp estimate).
-fn report_total(ticks: &[wrist_estimate::WristEstimate], force_limit_n: f32) {
+fn report_total(ticks: &[wrist_estimate::WristEstimate], g: &cable_joint::wrist::Geometry) {
     let holding = |t: &&wrist_estimate::WristEstimate| {
         t.reference_n.unwrap_or(t.force.clamp_n) >= wrist_estimate::HOLDING_N
     };
@@ -448,7 +448,9 @@ fn report_total(ticks: &[wrist_estimate::WristEstimate], force_limit_n: f32) {
     if n == 0 {
         return;
     }
-    let s = crate::wrist::TotalSpread::of(held.map(|t| &t.force.total));
+    let totals: Vec<_> = held.map(|t| t.force.total(g)).collect();
+    let s = crate::wrist::TotalSpread::of(&totals);
+    let force_limit_n = g.force_limit_n;
     let axis = |k: usize| {
         format!(
             "{} {:.3} N ({:.0} % the limit's)",

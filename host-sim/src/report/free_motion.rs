@@ -238,7 +238,7 @@ pub fn run_all(
             let seed = run_seed(base_seed, &label(&format!("grasp/{k}")));
             let grasp = |p: &WristParams| {
                 run_grasp(p, object(k), &Grasp::default(), seed)
-                    .map(|t| grasp_stats(&t))
+                    .map(|t| grasp_stats(&p.geometry, &t))
                     .with_context(|| label(&format!("grasp/{k}")))
             };
             grasps.push((grasp(&params)?, grasp(&with)?));

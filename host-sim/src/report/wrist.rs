@@ -130,7 +130,7 @@ pub fn run_all(
                         weighed,
                         stiffness_n_m: k,
                         target_n: target,
-                        stats: grasp_stats(&ticks),
+                        stats: grasp_stats(&params.geometry, &ticks),
                     });
                 }
             }

@@ -38,6 +38,8 @@ pub mod link;
 pub mod math;
 pub mod rtt;
 pub mod telemetry;
+#[cfg(test)]
+mod test_rng;
 pub mod units;
 
 // The paths from before the grouping, kept: `crate::dob` is `control::dob`,

@@ -745,13 +745,8 @@ mod tests {
     #[test]
     fn the_bounds_contain_every_force_the_torque_bounds_allow() {
         let g = Geometry::default();
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f32 / (1u64 << 53) as f32
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.unit() as f32;
         for _ in 0..500 {
             let (q2, q3a, q3b) = (next() * 2.0 - 1.0, next() - 0.5, next() - 0.5);
             let tau_a: [Interval; 3] = core::array::from_fn(|_| {
@@ -826,13 +821,8 @@ mod tests {
     fn eq5_the_total_force_bound_holds_the_true_total_of_both_jaws() {
         let g = Geometry::default();
         let limit = 5.0f32;
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        let mut next = || rng.unit();
         for _ in 0..2000 {
             let q = [
                 next() * 6.0 - 3.0,
@@ -900,13 +890,8 @@ mod tests {
     fn eq5_no_other_lambda_gives_a_narrower_total_force_bound() {
         use nalgebra::{Matrix4, SMatrix, Vector4, Vector6};
         let g = Geometry::default();
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f32 / (1u64 << 53) as f32
-        };
+        let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.unit() as f32;
         let mut gained = 0.0f32;
         for _ in 0..300 {
             let (q2, qa, qb) = (next() * 2.4 - 1.2, next() * 1.2 - 0.3, next() * 1.2 - 0.3);

@@ -586,25 +586,7 @@ impl<const N: usize> Rls<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// xorshift64*: a tiny deterministic generator for test noise.
-    struct Rng(u64);
-    impl Rng {
-        fn next_u64(&mut self) -> u64 {
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-        }
-        /// Uniform in [-1, 1).
-        fn uniform(&mut self) -> f64 {
-            (self.next_u64() >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        }
-        /// Approximately normal, unit variance (Irwin-Hall sum of 12).
-        fn normal(&mut self) -> f64 {
-            (0..12).map(|_| 0.5 * (self.uniform() + 1.0)).sum::<f64>() - 6.0
-        }
-    }
+    use crate::test_rng::Rng;
 
     fn close(a: f64, b: f64, rel: f64) -> bool {
         abs64(a - b) <= rel * abs64(b)

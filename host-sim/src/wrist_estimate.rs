@@ -10,8 +10,8 @@
 //! reference clamp force `(|F_a| + |F_b|) / 2` is written beside it and
 //! the estimate is judged against it ([`Summary`]).
 
-use anyhow::Result;
-use cable_joint::wrist::Geometry;
+use anyhow::{ensure, Result};
+use cable_joint::wrist;
 
 use crate::links::{no_load_stats, NoLoad};
 use crate::log::Log;
@@ -92,8 +92,15 @@ const JOINT_COLUMNS: [&str; 4] = ["tau_ext_nm", "tau_ext_lo_nm", "tau_ext_hi_nm"
 /// (`jaw_a_fy_lo_n`, ...), the clamp force and its bound, Eq. 5's total
 /// force per wrist-frame axis with the force limit's share of its bound
 /// (`total_x_lo_n`, `total_x_hi_n`, `total_x_limit_n`, ...; empty where
-/// unbounded), and the reference clamp force where the run has one.
-pub fn to_log(ticks: &[WristEstimate], g: &Geometry, rate_hz: f64) -> Result<Log> {
+/// unbounded; `totals[k]` is tick `k`'s [`WristForce::total`]), and the
+/// reference clamp force where the run has one.
+pub fn to_log(ticks: &[WristEstimate], totals: &[wrist::TotalForce], rate_hz: f64) -> Result<Log> {
+    ensure!(
+        totals.len() == ticks.len(),
+        "{} totals for {} ticks: one Eq. 5 total per tick",
+        totals.len(),
+        ticks.len()
+    );
     let with_reference = ticks.iter().any(|t| t.reference_n.is_some());
     let mut names: Vec<String> = vec!["t_s".to_owned()];
     for j in JOINT_NAMES {
@@ -112,7 +119,7 @@ pub fn to_log(ticks: &[WristEstimate], g: &Geometry, rate_hz: f64) -> Result<Log
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut log = Log::with_columns(&refs)?;
     let mut row: Vec<Option<f64>> = Vec::with_capacity(names.len());
-    for (k, t) in ticks.iter().enumerate() {
+    for (k, (t, total)) in ticks.iter().zip(totals).enumerate() {
         let f = &t.force;
         row.clear();
         row.push(Some(k as f64 / rate_hz));
@@ -132,7 +139,6 @@ pub fn to_log(ticks: &[WristEstimate], g: &Geometry, rate_hz: f64) -> Result<Log
             .map(Some),
         );
         // Empty where the total is unbounded.
-        let total = f.total(g);
         for (b, prior) in total.force_n.iter().zip(total.prior_n) {
             row.extend([b.lo, b.hi, prior].map(|v| v.is_finite().then_some(f64::from(v))));
         }

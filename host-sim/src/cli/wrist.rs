@@ -400,7 +400,11 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
         run.setting.geometry.force_limit_n = limit;
     }
     let ticks = wrist_estimate::estimate(&run, model.as_ref());
-    let log = wrist_estimate::to_log(&ticks, &run.setting.geometry, run.rate_hz)?;
+    // Eq. 5's total solves 210 small systems a tick: once, for the CSV and
+    // the summary.
+    let g = &run.setting.geometry;
+    let totals: Vec<_> = ticks.iter().map(|t| t.force.total(g)).collect();
+    let log = wrist_estimate::to_log(&ticks, &totals, run.rate_hz)?;
     // The CSV and the figure are written together or not at all.
     let mut files = Outputs::new();
     log.stage(&mut files, &args.out)?;
@@ -421,7 +425,7 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
                 "none (no --eq3: the links and the joints' residual friction stay in)".to_owned(),
         }
     );
-    report_total(&ticks, &run.setting.geometry);
+    report_total(&ticks, &totals, g.force_limit_n);
     match wrist_estimate::summary(&ticks) {
         Some(s) => report_summary(&s),
         None => crate::stdoutln!(
@@ -439,18 +443,22 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
 /// median bound width and the force limit's share of it, over the ticks
 /// the jaws hold at least [`wrist_estimate::HOLDING_N`] (by the reference,
 /// else by the clamp estimate).
-fn report_total(ticks: &[wrist_estimate::WristEstimate], g: &cable_joint::wrist::Geometry) {
-    let holding = |t: &&wrist_estimate::WristEstimate| {
-        t.reference_n.unwrap_or(t.force.clamp_n) >= wrist_estimate::HOLDING_N
-    };
-    let held = ticks.iter().filter(holding);
-    let n = held.clone().count();
+fn report_total(
+    ticks: &[wrist_estimate::WristEstimate],
+    totals: &[cable_joint::wrist::TotalForce],
+    force_limit_n: f32,
+) {
+    let held: Vec<_> = ticks
+        .iter()
+        .zip(totals)
+        .filter(|(t, _)| t.reference_n.unwrap_or(t.force.clamp_n) >= wrist_estimate::HOLDING_N)
+        .map(|(_, total)| *total)
+        .collect();
+    let n = held.len();
     if n == 0 {
         return;
     }
-    let totals: Vec<_> = held.map(|t| t.force.total(g)).collect();
-    let s = crate::wrist::TotalSpread::of(&totals);
-    let force_limit_n = g.force_limit_n;
+    let s = crate::wrist::TotalSpread::of(&held);
     let axis = |k: usize| {
         format!(
             "{} {:.3} N ({:.0} % the limit's)",

@@ -341,9 +341,10 @@ pub struct TotalForce {
     /// `z_2`), N; [`Interval::UNBOUNDED`] where neither the joints nor the
     /// force limit bound it.
     pub force_n: [Interval; 3],
-    /// The half-width of each bound that the force limit contributes, N:
-    /// zero where the four joints alone fix the component at this pose,
-    /// the whole bound where they see none of it.
+    /// The half-width of each bound that the force limit contributes, N
+    /// (the mean of its two ends' shares): zero where the four joints alone
+    /// fix the component at this pose, the whole bound where they see none
+    /// of it.
     pub prior_n: [f32; 3],
 }
 
@@ -357,12 +358,16 @@ pub struct TotalForce {
 /// enters with the other sign). A total component `c . f` is what the
 /// joints see of it, `lambda . tau`, plus what they do not, `(c - M^T
 /// lambda) . f`; `lambda` trades the joints' spread against the unseen
-/// part, chosen for the narrowest such bound (exactly: the least of a
-/// convex piecewise-linear function of `lambda`, at one of its 210
-/// vertices). The bound holds whenever each torque lies in
-/// its interval and every component of each jaw's force is within
-/// `±force_limit_n`; [`TotalForce::prior_n`] says how much of it that
-/// limit makes.
+/// part. Every `lambda` gives a bound that holds whenever each torque lies
+/// in its interval and every component of each jaw's force is within
+/// `±force_limit_n`; each end takes its own `lambda`, the tightest (the
+/// upper end is the least over `lambda` of a convex piecewise-linear
+/// function, found at one of its 210 vertices: by linear-programming
+/// duality the largest total any such forces give, exactly, and likewise
+/// the lower). Where no jaw forces within the limit give torques inside
+/// the intervals the ends would cross, and the narrowest bound centred on
+/// one `lambda` is kept instead. [`TotalForce::prior_n`] says how much of
+/// the bound the limit makes.
 ///
 /// What this gives at a pose: along `x_2` the pitch joint sees `w_a
 /// F_x^a + w_b F_x^b` (`w = l_2 + l_e cos q_3`), the total exactly when
@@ -406,16 +411,21 @@ pub fn total_force(
         }
     }
     let rows = total_rows(q_a_rad, q_b_rad);
+    // The narrowest symmetric bound, and each end on its own (with the
+    // limit's part of the half-width at that end's lambda).
     let mut force_n = [Interval::UNBOUNDED; 3];
     let mut prior_n = [f32::INFINITY; 3];
-    // A bound's half-width for a given lambda, `sum_i half_i |lambda_i| +
-    // limit sum_j |(c - M^T lambda)_j|`, is convex and piecewise linear in
-    // lambda: its least value lies where four of its ten pieces vanish
-    // together (`lambda_i = 0` for the joints left out, `(M^T lambda)_j =
-    // c_j` for as many force components). Every choice of four (210) is
-    // solved, and each component keeps its narrowest bound: the narrowest
-    // of this form, exactly (every lambda gives a bound that holds, so a
-    // choice solved roughly costs width, never the bound).
+    let mut hi = [(f32::INFINITY, f32::INFINITY); 3];
+    let mut lo = [(f32::NEG_INFINITY, f32::INFINITY); 3];
+    // A bound's upper end for a given lambda, `lambda . mid + sum_i half_i
+    // |lambda_i| + limit sum_j |(c - M^T lambda)_j|`, is convex and
+    // piecewise linear in lambda (its half-width likewise, without the
+    // first term, and the lower end mirrored): its least value lies where
+    // four of its ten pieces vanish together (`lambda_i = 0` for the joints
+    // left out, `(M^T lambda)_j = c_j` for as many force components).
+    // Every choice of four (210) is solved, and each component keeps its
+    // tightest ends (every lambda gives a bound that holds, so a choice
+    // solved roughly costs width, never the bound).
     for pieces in 0u16..1 << 10 {
         if pieces.count_ones() != 4 {
             continue;
@@ -462,7 +472,20 @@ pub fn total_force(
                     force_n[k] = Interval::new(point - reach, point + reach);
                     prior_n[k] = prior;
                 }
+                if point + reach < hi[k].0 {
+                    hi[k] = (point + reach, prior);
+                }
+                if point - reach > lo[k].0 {
+                    lo[k] = (point - reach, prior);
+                }
             }
+        }
+    }
+    for k in 0..3 {
+        if lo[k].0 <= hi[k].0 && hi[k].0 - lo[k].0 < force_n[k].width() {
+            let half_width = 0.5 * (hi[k].0 - lo[k].0);
+            force_n[k] = Interval::new(lo[k].0, hi[k].0);
+            prior_n[k] = half_width.min(0.5 * (lo[k].1 + hi[k].1));
         }
     }
     TotalForce { force_n, prior_n }
@@ -882,23 +905,38 @@ mod tests {
         assert_eq!(unlimited.force_n[0], Interval::UNBOUNDED);
     }
 
-    /// The total force's bound is the narrowest its form allows: no
-    /// `lambda` tried another way (zero, a ridge solve at weights from
-    /// 1e-4 to 1e4 as the estimator once used, random ones near those)
-    /// gives a narrower one, at random poses, torque bounds and limits.
+    /// Each end of the total force's bound is the tightest its form
+    /// allows: no `lambda` tried another way (zero, a ridge solve at
+    /// weights from 1e-4 to 1e4 as the estimator once used, random ones
+    /// near those) gives a lower upper end or a higher lower end, at random
+    /// poses, limits and jaw forces within them, each torque known to an
+    /// interval around its true value; nor a narrower bound where no force
+    /// within the limit explains the torques.
     #[test]
-    fn eq5_no_other_lambda_gives_a_narrower_total_force_bound() {
+    fn eq5_no_other_lambda_gives_a_tighter_total_force_bound() {
         use nalgebra::{Matrix4, SMatrix, Vector4, Vector6};
         let g = Geometry::default();
         let mut rng = crate::test_rng::Rng(0x2545_f491_4f6c_dd1d);
         let mut next = || rng.unit() as f32;
         let mut gained = 0.0f32;
-        for _ in 0..300 {
+        for case in 0..600 {
             let (q2, qa, qb) = (next() * 2.4 - 1.2, next() * 1.2 - 0.3, next() * 1.2 - 0.3);
             let limit = 1.0 + next() * 60.0;
-            let tau: [Interval; 4] = core::array::from_fn(|_| {
-                let at = (next() * 2.0 - 1.0) * 0.05;
+            // Half the cases from jaw forces within the limit, half drawn
+            // anyhow (mostly torques no force within the limit explains).
+            let consistent = case % 2 == 0;
+            let from_forces = {
+                let f = [(); 6].map(|_| f64::from((next() * 2.0 - 1.0) * limit));
+                let q = [0.0, f64::from(q2), f64::from(qa), f64::from(qb)];
+                grasp_torques(&g, q, [f[0], f[1], f[2]], [f[3], f[4], f[5]]).0
+            };
+            let tau: [Interval; 4] = core::array::from_fn(|i| {
                 let spread = next() * 5e-3;
+                let at = if consistent {
+                    from_forces[i] as f32 + (next() * 2.0 - 1.0) * spread
+                } else {
+                    (next() * 2.0 - 1.0) * 0.05
+                };
                 Interval::new(at - spread, at + spread)
             });
             let out = total_force(&g, q2, qa, qb, tau, limit);
@@ -907,7 +945,8 @@ mod tests {
             let mid = tau.map(|t| t.mid());
             let half = tau.map(|t| 0.5 * t.width());
             for (k, c) in total_rows(qa, qb).iter().enumerate() {
-                let width = out.force_n[k].width();
+                let b = out.force_n[k];
+                assert!(b.lo <= b.hi, "component {k}: a crossed bound {b:?}");
                 let mut tried = heapless::Vec::<Vector4<f32>, 32>::new();
                 tried.push(Vector4::zeros()).unwrap();
                 for e in -4..=4 {
@@ -926,14 +965,21 @@ mod tests {
                     tried.push(lambda.component_mul(&jiggle)).unwrap();
                 }
                 for lambda in &tried {
-                    let (_, joints, prior) =
+                    let (point, joints, prior) =
                         total_bound(&m, c, &(*lambda).into(), &mid, &half, limit).unwrap();
-                    let other = 2.0 * (joints + prior);
+                    let reach = joints + prior;
+                    let tol = 1e-4 * (reach + point.abs()) + 1e-6;
                     assert!(
-                        width <= other * (1.0 + 1e-4) + 1e-6,
-                        "component {k}: {width} N against {other} N at {lambda:?}"
+                        b.width() <= 2.0 * reach + tol,
+                        "component {k}: {b:?} wider than {point} +- {reach} at {lambda:?}"
                     );
-                    gained = gained.max(1.0 - width / other);
+                    if consistent {
+                        assert!(
+                            b.hi <= point + reach + tol && point - reach - tol <= b.lo,
+                            "component {k}: {b:?} not inside {point} +- {reach} at {lambda:?}"
+                        );
+                    }
+                    gained = gained.max(1.0 - b.width() / (2.0 * reach));
                 }
             }
         }

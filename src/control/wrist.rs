@@ -364,9 +364,9 @@ pub struct TotalForce {
 /// upper end is the least over `lambda` of a convex piecewise-linear
 /// function, found at one of its 210 vertices: by linear-programming
 /// duality the largest total any such forces give, exactly, and likewise
-/// the lower). Where no jaw forces within the limit give torques inside
-/// the intervals the ends would cross, and the narrowest bound centred on
-/// one `lambda` is kept instead. [`TotalForce::prior_n`] says how much of
+/// the lower). Where the ends cross (then no jaw forces within the limit
+/// give torques inside the intervals) the narrowest bound centred on one
+/// `lambda` is kept instead. [`TotalForce::prior_n`] says how much of
 /// the bound the limit makes.
 ///
 /// What this gives at a pose: along `x_2` the pitch joint sees `w_a

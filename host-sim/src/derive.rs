@@ -246,7 +246,25 @@ pub fn clock_noted(log: &Log, fill: CurrentFill) -> Result<(Clock, Vec<String>)>
         clock.rate_hz(),
         clock.source()
     )];
-    notes.extend(Holes::of(log.time_s()?, &clock).note(&clock, fill));
+    let holes = Holes::of(log.time_s()?, &clock);
+    let filled = holes
+        .missing
+        .saturating_mul(clock.decimation.max(1) as usize);
+    // A hole too long alone is the replay's to name (by its line).
+    let longest_alone = missing_ticks(holes.longest_s, clock.period_s) + 1 > MAX_FILLED_TICKS;
+    if filled > MAX_FILLED_TICKS && !longest_alone {
+        bail!(
+            "the log misses {} rows in {} holes ({filled} control ticks, {:.1} s in all; the \
+             longest {:.3} s at line {}): the replay fills at most {MAX_FILLED_TICKS} ticks \
+             of lost time in a log; split it into the recordings it joins",
+            holes.missing,
+            holes.count,
+            filled as f64 * clock.period_s,
+            holes.longest_s,
+            crate::log::line_of_row(holes.longest_row),
+        );
+    }
+    notes.extend(holes.note(&clock, fill));
     Ok((clock, notes))
 }
 
@@ -465,9 +483,10 @@ fn check_current_range(log: &Log, s: &cable_joint::units::Scales) -> Result<()> 
     Ok(())
 }
 
-/// Most control ticks the replay fills into one hole of a log: 1e6, some
-/// ten minutes at 2 kHz. A longer step of the time column is not a lost
-/// frame but another recording or a broken clock, and is refused.
+/// Most control ticks the replay fills into one hole of a log, and into
+/// all its holes together: 1e6, some eight minutes at 2 kHz. A longer step
+/// of the time column is not a lost frame but another recording or a
+/// broken clock, and is refused; so is a log that lost more in all.
 pub const MAX_FILLED_TICKS: usize = 1_000_000;
 
 /// Replay `log` (project schema) through the core; returns a log with `t_s`,

@@ -224,6 +224,7 @@ pub fn import_mrdlab(path: impl AsRef<Path>) -> Result<Log, LogError> {
 pub fn import_mrdlab_run(path: impl AsRef<Path>) -> Result<MrdlabRun, LogError> {
     let path = path.as_ref();
     let name = path.display().to_string();
+    crate::output::note_input(path);
     let file =
         std::fs::File::open(path).map_err(|e| LogError::new(name.as_str(), LogErrorKind::Io(e)))?;
     let gz = path

@@ -44,6 +44,10 @@ pub struct LogOptions<'a> {
     /// counter received and the host's wall clock then (Unix time, s).
     /// Not empty, the log gets [`HOST_CLOCK_COLUMN`] ([`host_clock_offset_s`]).
     pub arrivals: &'a [(u32, f64)],
+    /// Each record's line in the file it was read from
+    /// ([`parse_stream_lines`]), for the errors to name; empty for a live
+    /// stream.
+    pub lines: &'a [usize],
 }
 
 /// The host's wall clock at each tick (Unix time, s), estimated from when
@@ -70,7 +74,17 @@ pub fn host_clock_offset_s(arrivals: &[(u32, f64)], rate_hz: f64) -> Option<f64>
 /// Read every telemetry record of a decoded defmt text. `name` is used in
 /// error messages.
 pub fn parse_stream(reader: impl Read, name: &str) -> anyhow::Result<Vec<Record>> {
+    parse_stream_lines(reader, name).map(|(records, _)| records)
+}
+
+/// [`parse_stream`], with each record's line in the input (1-based), for
+/// [`LogOptions::lines`].
+pub fn parse_stream_lines(
+    reader: impl Read,
+    name: &str,
+) -> anyhow::Result<(Vec<Record>, Vec<usize>)> {
     let mut out = Vec::new();
+    let mut lines = Vec::new();
     for (i, line) in BufReader::new(reader).lines().enumerate() {
         let line = line.with_context(|| format!("{name}:{}: reading", i + 1))?;
         if let Some(rec) = parse_line(&line) {
@@ -86,9 +100,10 @@ pub fn parse_stream(reader: impl Read, name: &str) -> anyhow::Result<Vec<Record>
                 }
             }
             out.push(rec);
+            lines.push(i + 1);
         }
     }
-    Ok(out)
+    Ok((out, lines))
 }
 
 /// The first real-valued field of a tick record that is NaN or infinite.
@@ -107,13 +122,15 @@ fn non_finite_field(t: &TickRecord) -> Option<(&'static str, f32)> {
     .find(|(_, v)| !v.is_finite())
 }
 
-/// Read a stream from a file (`-` for standard input).
-pub fn read_stream(path: &Path) -> anyhow::Result<Vec<Record>> {
+/// Read a stream from a file (`-` for standard input), with each record's
+/// line ([`parse_stream_lines`]).
+pub fn read_stream(path: &Path) -> anyhow::Result<(Vec<Record>, Vec<usize>)> {
     if path == Path::new("-") {
-        parse_stream(std::io::stdin().lock(), "<stdin>")
+        parse_stream_lines(std::io::stdin().lock(), "<stdin>")
     } else {
+        crate::output::note_input(path);
         let f = File::open(path).with_context(|| format!("opening {}", path.display()))?;
-        parse_stream(f, &path.display().to_string())
+        parse_stream_lines(f, &path.display().to_string())
     }
 }
 
@@ -361,12 +378,21 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
     // Start-up seen since the last running tick, and an origin record
     // since then (homing ends with one).
     let (mut starting, mut origin_seen) = (false, false);
-    for rec in records {
+    // Where record `i` is, for an error: its line in the file, if known.
+    let at = |i: usize| {
+        opts.lines
+            .get(i)
+            .map_or_else(String::new, |l| format!("line {l}: "))
+    };
+    for (i, rec) in records.iter().enumerate() {
         match rec {
             Record::Start(_) => {
                 starts += 1;
                 if starts > 1 {
-                    bail!("a second start record: the firmware restarted; split the file there");
+                    bail!(
+                        "{}a second start record: the firmware restarted; split the file there",
+                        at(i)
+                    );
                 }
             }
             Record::Origin(o) => {
@@ -379,8 +405,9 @@ pub fn to_log(records: &[Record], config: &Config, opts: &LogOptions) -> anyhow:
                 if let Some(prev) = last_tick {
                     if t.tick <= prev {
                         bail!(
-                            "tick {} after tick {prev}: the firmware restarted or the \
+                            "{}tick {} after tick {prev}: the firmware restarted or the \
                              stream is out of order",
+                            at(i),
                             t.tick
                         );
                     }

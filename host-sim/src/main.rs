@@ -68,6 +68,8 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // No output of the command may replace one of its inputs.
+    host_sim::output::track_inputs();
     let result: anyhow::Result<()> = match cli.command {
         None => host_sim::cli::report::run(host_sim::cli::report::ReportArgs::default()),
         Some(Command::Import(args)) => host_sim::cli::import::run(args),

@@ -20,6 +20,12 @@
 //!
 //! [`write_atomic`] is the one-output case.
 //!
+//! An output never replaces one of the command's own inputs: the readers
+//! note each file they open ([`note_input`]) and staging refuses a target
+//! that is one of them (the same file by any path), once `main` has asked
+//! for it ([`track_inputs`]; library callers, the tests among them, run
+//! several commands' steps in one process and are not tracked).
+//!
 //! What a command prints on standard output goes through [`stdout!`](crate::stdout) and
 //! [`stdoutln!`](crate::stdoutln): a reader that goes away early (`host-sim
 //! residual ... | head`) ends the printing, not the command, so the files
@@ -41,6 +47,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
 
 /// An output that could not be written: which target, and why.
 #[derive(Debug)]
@@ -79,6 +86,91 @@ impl fmt::Display for OutputError {
 /// The I/O error is part of the message (not a `source`), so that an error
 /// chain prints it once.
 impl std::error::Error for OutputError {}
+
+/// The files this process has read, once [`track_inputs`] has been
+/// called: each as its canonical path and, on Unix, its device and inode
+/// (a hard link is the same file by another path).
+static INPUTS: Mutex<Option<Vec<FileId>>> = Mutex::new(None);
+
+/// One file, however it is named.
+#[derive(Clone, Debug, PartialEq)]
+struct FileId {
+    canonical: PathBuf,
+    #[cfg(unix)]
+    inode: (u64, u64),
+}
+
+impl FileId {
+    /// `None` where `path` does not name an existing file.
+    fn of(path: &Path) -> Option<Self> {
+        let canonical = fs::canonicalize(path).ok()?;
+        #[cfg(unix)]
+        let inode = {
+            use std::os::unix::fs::MetadataExt;
+            let m = fs::metadata(&canonical).ok()?;
+            (m.dev(), m.ino())
+        };
+        Some(Self {
+            canonical,
+            #[cfg(unix)]
+            inode,
+        })
+    }
+
+    fn same_file(&self, other: &Self) -> bool {
+        #[cfg(unix)]
+        if self.inode == other.inode {
+            return true;
+        }
+        self.canonical == other.canonical
+    }
+}
+
+/// From now on, note the files the readers open and refuse to stage an
+/// output over any of them (`main` calls it once, before the command).
+pub fn track_inputs() {
+    let mut inputs = INPUTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    inputs.get_or_insert_with(Vec::new);
+}
+
+/// Note that the command reads `path` (every reader of the project's files
+/// calls it before opening one); nothing happens unless [`track_inputs`]
+/// was called, or where `path` is not an existing file (standard input).
+pub fn note_input(path: &Path) {
+    let mut inputs = INPUTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some(v) = inputs.as_mut() {
+        if let Some(id) = FileId::of(path) {
+            if !v.iter().any(|x| x.same_file(&id)) {
+                v.push(id);
+            }
+        }
+    }
+}
+
+/// An error if `target` is a file the command has read.
+fn refuse_input(named: &Path, target: &Path) -> Result<(), OutputError> {
+    let inputs = INPUTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let Some(v) = inputs.as_ref() else {
+        return Ok(());
+    };
+    match FileId::of(target) {
+        Some(id) if v.iter().any(|x| x.same_file(&id)) => Err(OutputError::new(
+            named,
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "is also an input of this command: writing it would replace what was read; \
+                 name another output",
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
 
 /// A staged output: the complete temporary file and where it goes.
 struct Staged {
@@ -271,6 +363,7 @@ impl Outputs {
     ) -> Result<(), OutputError> {
         let err = |e| OutputError::new(path, e);
         let (target, meta) = resolve(path)?;
+        refuse_input(path, &target)?;
         if self.staged.iter().any(|s| s.target == target) {
             return Err(err(io::Error::new(
                 io::ErrorKind::InvalidInput,
@@ -358,6 +451,7 @@ impl Outputs {
                     return Err(OutputError::refused(&s.named, what));
                 }
             }
+            refuse_input(&s.named, &s.target)?;
         }
         // Keep every file about to be replaced under a hard link, to put it
         // back if a later rename fails.
@@ -435,6 +529,33 @@ pub fn check_dir_target(dir: &Path) -> Result<(), OutputError> {
         ));
     }
     Ok(())
+}
+
+/// Refuse an output file that cannot be written, before a command that
+/// cannot be repeated (a rig's run) does its work: `path` exists and is not
+/// a regular file, is one of the command's inputs, or its directory does
+/// not take a new file (it is missing, not a directory, not writable). A
+/// probe file is created there and removed again.
+///
+/// # Errors
+/// The first of those found, naming `path`.
+pub fn check_file_target(path: &Path) -> Result<(), OutputError> {
+    let (target, _) = resolve(path)?;
+    refuse_input(path, &target)?;
+    let dir = parent_dir(&target);
+    tempfile::Builder::new()
+        .prefix(".host-sim-")
+        .tempfile_in(dir)
+        .map(drop)
+        .map_err(|e| {
+            OutputError::new(
+                path,
+                io::Error::new(
+                    e.kind(),
+                    format!("cannot create a file in {}: {e}", dir.display()),
+                ),
+            )
+        })
 }
 
 /// Write `bytes` to `path` atomically (see the module documentation).

@@ -105,6 +105,126 @@ fn residual_writes_neither_output_when_one_cannot_be_written() {
 /// An output directory that is a file is refused with that reason (not
 /// the system's "File exists"), before the command's work (the report's
 /// minutes), and the file is left as it was.
+/// An output named as one of the command's own inputs (by the same path,
+/// another spelling of it, or a hard link) is refused before anything is
+/// written, and the input is kept byte for byte: a log, a configuration,
+/// a telemetry stream and a measured run.
+#[test]
+fn an_output_that_is_one_of_the_commands_inputs_is_refused_and_the_input_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulated(dir.path(), "jae-ident", 3.0, "run.csv");
+    let config = dir.path().join("c.toml");
+    run_ok(
+        host_sim()
+            .args(["identify", "--procedure", "jae", "--log"])
+            .arg(&log)
+            .arg("--config-out")
+            .arg(&config),
+    );
+    let stream = dir.path().join("tlm.txt");
+    std::fs::write(&stream, telemetry_text(2000.0, 20)).unwrap();
+    let measured = dir.path().join("00.TXT");
+    let t_s: Vec<f64> = (0..20).map(|k| f64::from(k) * 1e-3).collect();
+    std::fs::write(&measured, mrdlab_text(&["run"], &t_s)).unwrap();
+    let linked = dir.path().join("linked.csv");
+    std::fs::hard_link(&log, &linked).unwrap();
+    let respelled = dir.path().join(".").join("run.csv");
+    let cases: Vec<(Vec<std::ffi::OsString>, &Path)> = vec![
+        (
+            vec![
+                "estimate".into(),
+                "--log".into(),
+                log.clone().into(),
+                "--out".into(),
+                log.clone().into(),
+            ],
+            &log,
+        ),
+        (
+            vec![
+                "estimate".into(),
+                "--log".into(),
+                log.clone().into(),
+                "--out".into(),
+                respelled.into(),
+            ],
+            &log,
+        ),
+        (
+            vec![
+                "estimate".into(),
+                "--log".into(),
+                log.clone().into(),
+                "--out".into(),
+                linked.into(),
+            ],
+            &log,
+        ),
+        (
+            vec![
+                "estimate".into(),
+                "--log".into(),
+                log.clone().into(),
+                "--config".into(),
+                config.clone().into(),
+                "--out".into(),
+                config.clone().into(),
+            ],
+            &config,
+        ),
+        (
+            vec![
+                "identify".into(),
+                "--procedure".into(),
+                "jae".into(),
+                "--log".into(),
+                log.clone().into(),
+                "--config-out".into(),
+                log.clone().into(),
+            ],
+            &log,
+        ),
+        (
+            vec![
+                "ingest".into(),
+                stream.clone().into(),
+                "--out".into(),
+                stream.clone().into(),
+            ],
+            &stream,
+        ),
+        (
+            vec![
+                "import".into(),
+                "mrdlab".into(),
+                measured.clone().into(),
+                "--out".into(),
+                measured.clone().into(),
+            ],
+            &measured,
+        ),
+    ];
+    for (args, input) in &cases {
+        let before = std::fs::read(input).unwrap();
+        let listing = dir_entries(dir.path());
+        let err = run_err(host_sim().args(args));
+        assert!(
+            err.contains("is also an input of this command"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(
+            std::fs::read(input).unwrap(),
+            before,
+            "{args:?} changed its input"
+        );
+        assert_eq!(
+            dir_entries(dir.path()),
+            listing,
+            "{args:?} left a file behind"
+        );
+    }
+}
+
 #[test]
 fn an_output_directory_that_is_a_file_is_refused_with_that_reason() {
     let dir = tempfile::tempdir().unwrap();
@@ -382,7 +502,7 @@ fn a_huge_cell_is_not_copied_into_the_message() {
 // --- Durations, rates and numeric options --------------------------------
 
 #[test]
-fn simulate_and_trace_refuse_a_duration_beyond_the_tick_limit() {
+fn simulate_and_trace_refuse_a_duration_beyond_the_tick_limit_or_too_short_for_a_log() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("run.csv");
     let err = run_err(
@@ -417,6 +537,24 @@ fn simulate_and_trace_refuse_a_duration_beyond_the_tick_limit() {
         err.contains("--duration-scale") && err.contains("at most 1000000 ticks"),
         "{err}"
     );
+    // Too short for a log the other commands read: refused, naming the
+    // option, however short (down to a duration that scales to nothing).
+    for (opt, value, says) in [
+        ("--duration", "1e-9", "a log needs at least 10 rows"),
+        ("--duration", "5e-324", "too short a part of the scenario's"),
+        ("--duration-scale", "1e-9", "a log needs at least 10 rows"),
+    ] {
+        let err = run_err(
+            host_sim()
+                .args(["simulate", "--scenario", "track-jae", opt, value])
+                .arg("--out")
+                .arg(&csv),
+        );
+        assert!(
+            err.contains(opt) && err.contains(says),
+            "{opt} {value}: {err}"
+        );
+    }
     let bin = dir.path().join("trace.bin");
     for opt in ["--duration-s", "--relax-s"] {
         let err = run_err(host_sim().args(["trace", opt, "1e12", "--out"]).arg(&bin));
@@ -476,6 +614,41 @@ fn ingest_refuses_an_impossible_rate_and_a_log_too_short_to_read() {
     std::fs::write(&input, telemetry_text(2000.0, 20)).unwrap();
     run_ok(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
     assert_eq!(host_sim::log::Log::read(&csv).unwrap().len(), 20);
+}
+
+/// A stream out of order or restarted is refused naming the line of the
+/// record where it goes wrong.
+#[test]
+fn ingest_names_the_line_of_a_tick_out_of_order_and_of_a_second_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("tlm.txt");
+    let csv = dir.path().join("run.csv");
+    // Line 1 a message, line 2 the start record, lines 3 to 22 ticks 1 to 20.
+    let text = telemetry_text(2000.0, 20);
+    let mut lines: Vec<&str> = text.lines().collect();
+    // Tick 10 (line 12) moved after tick 15: line 17.
+    let late = lines.remove(11);
+    lines.insert(16, late);
+    std::fs::write(&input, lines.join("\n") + "\n").unwrap();
+    let err = run_err(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert!(
+        err.contains(&format!(
+            "{}: line 17: tick 10 after tick 15",
+            input.display()
+        )),
+        "{err}"
+    );
+    let restarted = format!("{text}{}\n", text.lines().nth(1).unwrap());
+    std::fs::write(&input, restarted).unwrap();
+    let err = run_err(host_sim().arg("ingest").arg(&input).arg("--out").arg(&csv));
+    assert!(
+        err.contains(&format!(
+            "{}: line 23: a second start record",
+            input.display()
+        )),
+        "{err}"
+    );
+    assert!(!csv.exists());
 }
 
 #[test]
@@ -959,6 +1132,42 @@ fn estimate_names_the_input_cell_beyond_the_drives_range() {
         err.contains("bad.csv")
             && err.contains("line 3002: column \"i_ref_a\" = 1e308 A is beyond")
             && !err.contains("est.csv"),
+        "{err}"
+    );
+    assert!(!est.exists(), "nothing written");
+}
+
+/// Holes each short enough to fill but together longer than the replay
+/// fills in a log (three of 300 s at 2 kHz: 1.8 million ticks) are refused
+/// in a second, naming the longest, not replayed for minutes.
+#[test]
+fn estimate_refuses_holes_longer_in_all_than_the_replay_fills() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = simulated(dir.path(), "jae-ident", 1.0, "fit.csv");
+    let mut l = host_sim::log::Log::read(&fit).unwrap();
+    let t: Vec<f64> = l
+        .col_required("t_s")
+        .unwrap()
+        .iter()
+        .enumerate()
+        .map(|(k, t)| t + 300.0 * (k / 500) as f64)
+        .collect();
+    l.set_col("t_s", t).unwrap();
+    let holes = dir.path().join("holes.csv");
+    l.write(&holes).unwrap();
+    let est = dir.path().join("est.csv");
+    let err = run_err(
+        host_sim()
+            .args(["estimate", "--log"])
+            .arg(&holes)
+            .arg("--out")
+            .arg(&est),
+    );
+    assert!(
+        err.contains("holes.csv")
+            && err.contains("misses 1800000 rows in 3 holes")
+            && err.contains("at line 502")
+            && err.contains("split it"),
         "{err}"
     );
     assert!(!est.exists(), "nothing written");

@@ -533,3 +533,37 @@ fn a_scenario_started_at_a_wall_clock_time_starts_its_motion_then() {
         "{stderr}"
     );
 }
+
+/// A recording that could not be written (its directory missing, or the
+/// path a directory) is refused before the link opens: a rig's run is not
+/// spent only to lose its records at the end.
+#[test]
+fn a_recording_that_cannot_be_written_is_refused_before_the_link_opens() {
+    let dir = tempfile::tempdir().unwrap();
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    for record in [
+        dir.path().join("missing").join("run.csv"),
+        dir.path().to_owned(),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
+            .args(["--duration-s", "10", "--record"])
+            .arg(&record)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{stderr}");
+        assert!(
+            stderr.contains(&format!("--record {}", record.display()))
+                && stderr.contains("nothing was sent to the firmware"),
+            "{stderr}"
+        );
+    }
+    // No connection waits to be accepted: the link never opened.
+    listener.set_nonblocking(true).unwrap();
+    assert_eq!(
+        listener.accept().map(|_| ()).unwrap_err().kind(),
+        std::io::ErrorKind::WouldBlock
+    );
+}

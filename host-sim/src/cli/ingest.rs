@@ -32,7 +32,7 @@ pub struct IngestArgs {
 /// `host-sim ingest`.
 pub fn run(args: IngestArgs) -> anyhow::Result<()> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
-    let records = read_stream(&args.file)?;
+    let (records, lines) = read_stream(&args.file)?;
     let ticks: Vec<TickRecord> = records
         .iter()
         .filter_map(|r| match r {
@@ -48,6 +48,7 @@ pub fn run(args: IngestArgs) -> anyhow::Result<()> {
     }
     let opts = LogOptions {
         magnetic: args.magnetic,
+        lines: &lines,
         ..LogOptions::default()
     };
     let log =

@@ -173,6 +173,12 @@ const FORCE_SCENARIOS: [&str; 2] = ["loading", "grip"];
 pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
     let excitation = args.excitation.as_deref().map(excite::load).transpose()?;
+    // A rig's run cannot be repeated: a recording that could not be
+    // written is refused before the link opens, not after the run.
+    if let Some(path) = &args.record {
+        crate::output::check_file_target(path)
+            .map_err(|e| anyhow::anyhow!("--record {e}: nothing was sent to the firmware"))?;
+    }
     let scenario = args
         .scenario
         .as_deref()
@@ -406,6 +412,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         &LogOptions {
             magnetic: args.magnetic,
             arrivals: &arrivals,
+            ..LogOptions::default()
         },
     );
     let lost = log

@@ -706,6 +706,7 @@ pub fn to_toml(design: &Design) -> Result<String> {
 /// [`Trajectory::validate`] and its duration is within (0, 1e5] s, or the
 /// error names the file and what is wrong.
 pub fn load(path: &Path) -> Result<Design> {
+    crate::output::note_input(path);
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading the excitation {}", path.display()))?;
     let design: Design = toml::from_str(&text)

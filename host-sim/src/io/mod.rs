@@ -10,6 +10,7 @@ use anyhow::{Context, Result};
 /// should have been (`what`, e.g. "an Eq. 3 model of `host-sim
 /// identify-wrist --out`") and, for a parse error, the line and key.
 pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
+    crate::output::note_input(path);
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     toml::from_str(&text).map_err(|e| {

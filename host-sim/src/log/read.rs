@@ -23,6 +23,7 @@ impl Log {
     pub fn read_with(path: impl AsRef<Path>, schema: &Schema) -> Result<Self, LogError> {
         let path = path.as_ref();
         let name = path.display().to_string();
+        crate::output::note_input(path);
         let file = File::open(path).map_err(|e| LogError::io(&name, e))?;
         if is_gz(path) {
             Self::from_reader(flate2::read::MultiGzDecoder::new(file), &name, schema)

@@ -73,6 +73,10 @@ impl SimulateOptions {
             anyhow::ensure!(d > 0.0, "--duration must be > 0");
             let full = plan(&self.scenario, &opts)?.duration_s();
             opts.duration_scale = d / full;
+            anyhow::ensure!(
+                opts.duration_scale > 0.0,
+                "--duration {d}: too short a part of the scenario's {full} s to run"
+            );
         }
         Ok(opts)
     }
@@ -107,12 +111,18 @@ pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> R
         (None, Some(s)) => format!("--duration-scale {s}"),
         (None, None) => format!("scenario {name}"),
     };
-    check_ticks(
-        &what,
-        plan(name, &scenario_opts)?.duration_s(),
-        f64::from(config.control_rate_hz),
-    )
-    .map_err(|e| {
+    let duration_s = plan(name, &scenario_opts)?.duration_s();
+    let rate_hz = f64::from(config.control_rate_hz);
+    // A log the other commands read has at least this many rows.
+    let min_ticks = crate::log::DEFAULT_MIN_ROWS;
+    anyhow::ensure!(
+        duration_s * rate_hz >= min_ticks as f64,
+        "{what}: {duration_s} s is {:.3} control ticks at {rate_hz} Hz; a log needs at least \
+         {min_ticks} rows ({} s at this rate): lengthen it",
+        duration_s * rate_hz,
+        min_ticks as f64 / rate_hz
+    );
+    check_ticks(&what, duration_s, rate_hz).map_err(|e| {
         let part = if name == "loading" {
             ", or run one part of it (`--angle-deg`, `--mass-g`, `--direction`)"
         } else {

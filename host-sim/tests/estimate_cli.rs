@@ -320,6 +320,47 @@ fn a_configuration_that_sets_only_a_1khz_rate_runs_and_says_what_was_derived() {
     );
 }
 
+/// A configuration made for 1 kHz replaying a 2 kHz log: the log's rate
+/// is taken, the settings the file leaves out are derived at it (the
+/// estimates are those of a file that gives no rate), and a warning says
+/// the file was made for another rate. A file that gives no rate is taken
+/// at the log's without a warning.
+#[test]
+fn a_configuration_made_for_another_rate_is_taken_at_the_logs_rate_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("run.csv");
+    let exe = env!("CARGO_BIN_EXE_host-sim");
+    let out = Command::new(exe)
+        .args(["simulate", "--tuned-gains", "--scenario", "jae-ident"])
+        .args(["--duration", "3", "--out"])
+        .arg(&log)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let estimate_with = |config: &str, name: &str| {
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, config).unwrap();
+        let est = dir.path().join(format!("{name}.csv"));
+        let o = run_estimate_with(&log, &est, &["--config".as_ref(), path.as_os_str()]);
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        (std::fs::read_to_string(&est).unwrap(), stderr)
+    };
+    let (made_for_1khz, stderr) = estimate_with("control_rate_hz = 1000.0\n", "c1k");
+    assert!(
+        stderr
+            .contains("warning: control_rate_hz = 1000 in the file, but the log runs at 2000.0 Hz"),
+        "{stderr}"
+    );
+    let (no_rate, stderr) = estimate_with("", "none");
+    assert!(!stderr.contains("warning: control_rate_hz"), "{stderr}");
+    assert_eq!(made_for_1khz, no_rate, "the 1 kHz file's estimates differ");
+}
+
 /// The seed's motor-side tracking run (±30° at 0.5 Hz), `duration_scale`
 /// of its length, simulated with the magnetic encoder fitted.
 fn tracking_log(config: &Config, duration_scale: f64) -> Log {

@@ -36,8 +36,25 @@ pub struct EstimateArgs {
 
 /// `host-sim estimate`.
 pub fn run(args: EstimateArgs) -> Result<()> {
+    let name = args.log.display().to_string();
+    let log = crate::ingest::read_for_replay(
+        &args.log,
+        args.ticks_per_row,
+        "estimate",
+        crate::ingest::ReplayEnd::LastRow,
+    )?;
+    // The configuration at the log's rate (the firmware ran at it).
     let config = match &args.config {
-        Some(p) => crate::io::config::load_config(p)?,
+        Some(p) => {
+            let rate_hz = crate::derive::log_clock(&log)
+                .with_context(|| format!("the control rate of {name}"))?
+                .rate_hz();
+            let (config, notes) = crate::io::config::load_config_for_rate(p, rate_hz)?;
+            for n in notes {
+                eprintln!("estimate: {}: {n}", p.display());
+            }
+            config
+        }
         None => Config::default(),
     };
     let what = args.config.as_ref().map_or_else(
@@ -47,13 +64,6 @@ pub fn run(args: EstimateArgs) -> Result<()> {
     if let Some(w) = crate::io::config::datasheet_force_warning(&config, &what) {
         eprintln!("estimate: {w}");
     }
-    let name = args.log.display().to_string();
-    let log = crate::ingest::read_for_replay(
-        &args.log,
-        args.ticks_per_row,
-        "estimate",
-        crate::ingest::ReplayEnd::LastRow,
-    )?;
     let (out, s) = estimate(&log, &config).with_context(|| format!("replaying {name}"))?;
     for d in &s.derived {
         eprintln!("estimate: {d}");

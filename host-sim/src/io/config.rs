@@ -32,12 +32,44 @@ pub fn load_config(path: impl AsRef<Path>) -> Result<Config> {
 /// kept as given. An unknown key, a type error or a value that
 /// [`Config::validate`] rejects is an error naming the file and the field.
 pub fn load_config_noted(path: impl AsRef<Path>) -> Result<(Config, Vec<String>)> {
-    let path = path.as_ref();
+    load_config_at(path.as_ref(), None)
+}
+
+/// [`load_config_noted`] for a log recorded at `rate_hz`: where the file's
+/// `control_rate_hz` is another (by more than 1 %), the log's rate is
+/// taken instead and the settings the file leaves out are derived at it,
+/// with a warning among the notes where the file gives its rate (the
+/// settings the file gives are kept, and checked at the log's rate).
+pub fn load_config_for_rate(path: &Path, rate_hz: f64) -> Result<(Config, Vec<String>)> {
+    load_config_at(path, Some(rate_hz))
+}
+
+fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<String>)> {
+    crate::output::note_input(path);
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading configuration {}", path.display()))?;
     let parse_err = |e: toml::de::Error| anyhow!("{}: {}", path.display(), toml_error(&text, &e));
     let mut table: toml::Table = toml::from_str(&text).map_err(parse_err)?;
-    let config: Config = toml::from_str(&text).map_err(parse_err)?;
+    let mut config: Config = toml::from_str(&text).map_err(parse_err)?;
+    let mut notes = Vec::new();
+    if let Some(log_hz) = log_rate_hz {
+        let file_hz = f64::from(config.control_rate_hz);
+        if (file_hz - log_hz).abs() > 0.01 * log_hz {
+            if has_key(&table, "control_rate_hz") {
+                notes.push(format!(
+                    "warning: control_rate_hz = {file_hz} in the file, but the log runs at \
+                     {log_hz:.1} Hz: taken at {log_hz:.1} Hz, the rate-dependent settings the \
+                     file leaves out derived at it (the file was made for another rate: check \
+                     the ones it gives)"
+                ));
+            }
+            set_key(&mut table, "control_rate_hz", toml::Value::Float(log_hz));
+            config = table
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| anyhow!("{}: {e}", path.display()))?;
+        }
+    }
     let rate_hz = config.control_rate_hz;
     let (_, changes) = config.at_rate(rate_hz);
     // The rate-dependent settings the file itself gives (kept as given).
@@ -45,11 +77,11 @@ pub fn load_config_noted(path: impl AsRef<Path>) -> Result<(Config, Vec<String>)
         .into_iter()
         .filter(|f| has_key(&table, f))
         .collect();
-    let mut notes = Vec::new();
     let missing: Vec<_> = changes
         .iter()
         .filter(|a| !has_key(&table, a.field))
         .collect();
+    let missing_none = missing.is_empty();
     for a in missing {
         let value = if a.flag {
             toml::Value::Boolean(a.to != 0.0)
@@ -64,7 +96,7 @@ pub fn load_config_noted(path: impl AsRef<Path>) -> Result<(Config, Vec<String>)
             a.from_text()
         ));
     }
-    let config: Config = if notes.is_empty() {
+    let config: Config = if missing_none {
         config
     } else {
         table
@@ -174,6 +206,7 @@ pub fn load_plant(path: Option<&Path>) -> Result<PlantParams> {
     let Some(path) = path else {
         return Ok(PlantParams::default());
     };
+    crate::output::note_input(path);
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading plant parameters {}", path.display()))?;
     PlantParams::from_toml_str(&text).with_context(|| path.display().to_string())

@@ -207,6 +207,28 @@ fn bad_input_names_file_line_column() {
         msg.contains("2-vibrations_wrench.csv line 500") && msg.contains("NaN or infinity"),
         "{msg}"
     );
+
+    // An orientation row that is not a rotation (a corrupt r11, then an
+    // all-zero row) is refused naming the file and line, not taken as a
+    // motion (the wrench file restored).
+    std::fs::write(&wrench, &wrench_text).unwrap();
+    let orient = tmp.path().join("2-vibrations_orientations.csv");
+    let orient_text = std::fs::read_to_string(&orient).unwrap();
+    for value in ["1e300", "0"] {
+        let mut bad = with_cell(&orient_text, 100, 1, value);
+        if value == "0" {
+            for col in 2..=9 {
+                bad = with_cell(&bad, 100, col, "0");
+            }
+        }
+        std::fs::write(&orient, bad).unwrap();
+        let msg = format!("{:#}", load_run(tmp.path(), "2-vibrations").unwrap_err());
+        assert!(
+            msg.contains("2-vibrations_orientations.csv: line 100: r11..r33 is not a rotation"),
+            "{value}: {msg}"
+        );
+    }
+    std::fs::write(&orient, orient_text).unwrap();
 }
 
 /// A library caller of `analyse` gets the checks of the command line's

@@ -112,6 +112,7 @@ pub fn load_run(dir: &Path, prefix: &str) -> Result<Run> {
     let (tw, w) = read_columns(&p("wrench"), WRENCH_COLS, Some("t"), 10)?;
     let (ta, a) = read_columns(&p("accel"), ACCEL_COLS, Some("t"), 10)?;
     let (to, o) = read_columns(&p("orientations"), ORIENT_COLS, Some("t"), 10)?;
+    check_rotations(&p("orientations"), &o)?;
     let (tw, ta, to) = (
         tw.unwrap_or_default(),
         ta.unwrap_or_default(),
@@ -133,6 +134,41 @@ pub fn load_run(dir: &Path, prefix: &str) -> Result<Run> {
             v: o,
         },
     })
+}
+
+/// Largest departure of an orientation row from a rotation that is taken
+/// as rounding: `|R^T R - I|` per entry and `|det R - 1|`. The data set's
+/// rows depart by about 1.4e-6 (six decimals); a row beyond this is not an
+/// orientation at all (a corrupt cell, a zero matrix).
+pub const ROTATION_TOLERANCE: f64 = 1e-3;
+
+/// Each row `r11..r33` of `path` is a rotation within
+/// [`ROTATION_TOLERANCE`]; the error names the file, the line and how far
+/// the row is from one.
+fn check_rotations(path: &Path, rows: &[[f64; 9]]) -> Result<()> {
+    for (k, r) in rows.iter().enumerate() {
+        let m = |i: usize, j: usize| r[3 * i + j];
+        let mut off = 0.0f64;
+        for i in 0..3 {
+            for j in 0..3 {
+                let dot: f64 = (0..3).map(|k| m(k, i) * m(k, j)).sum();
+                off = off.max((dot - if i == j { 1.0 } else { 0.0 }).abs());
+            }
+        }
+        let det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1))
+            - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0))
+            + m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
+        // Not `>`: a NaN (an overflowed product) is refused as well.
+        if !(off <= ROTATION_TOLERANCE && (det - 1.0).abs() <= ROTATION_TOLERANCE) {
+            bail!(
+                "{}: line {}: r11..r33 is not a rotation (|R^T R - I| up to {off:.3e}, det \
+                 {det:.6e}; a rotation's are 0 and 1 within {ROTATION_TOLERANCE:e})",
+                path.display(),
+                crate::log::line_of_row(k)
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Times in µs to s since `t0_us` (the first wrench sample).
@@ -182,6 +218,7 @@ pub fn load_static_poses(path: &Path) -> Result<StaticPoses> {
     let (_, accel_g) = read_columns(path, ACCEL_COLS, None, 6)?;
     let (_, gravity_m_s2) = read_columns(path, ["gx", "gy", "gz"], None, 6)?;
     let (_, orient) = read_columns(path, ORIENT_COLS, None, 6)?;
+    check_rotations(path, &orient)?;
     Ok(StaticPoses {
         wrench,
         accel_g,

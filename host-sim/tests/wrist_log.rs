@@ -442,10 +442,12 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
     assert!(dir.path().join("sign.png").is_file());
     // A grasp recorded the same way; its forces estimated with the model,
     // judged on the jaws' true contact force (`f_ext_n`).
+    // (Its directory's name has a space, as a user's may.)
+    let grasp = d("a grasp");
     let o = host_sim(&[
         "simulate-wrist",
         "--out",
-        &d("grasp"),
+        &grasp,
         "--grasp",
         "2",
         "--seed",
@@ -453,22 +455,50 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // The next step's command as `simulate-wrist` prints it runs as printed
-    // (its `--gravity` starts with a minus), `[--eq3 ...]` left out and its
-    // output put in the test's directory; each estimate below adds to it.
+    // in a shell (its `--gravity` starts with a minus, its directory is
+    // quoted), `[--eq3 ...]` left out and its output put in the test's
+    // directory; each estimate below adds to it.
     let stdout = String::from_utf8_lossy(&o.stdout);
     let printed = stdout
         .split('`')
         .find(|s| s.starts_with("host-sim estimate-wrist "))
-        .unwrap_or_else(|| panic!("no estimate-wrist command in {stdout}"));
+        .unwrap_or_else(|| panic!("no estimate-wrist command in {stdout}"))
+        .replace(" [--eq3 eq3.toml]", "");
+    let word = |p: &str| host_sim::cli::shell_word(std::path::Path::new(p));
+    let as_printed = printed
+        .replacen("host-sim", &word(env!("CARGO_BIN_EXE_host-sim")), 1)
+        .replace(
+            "--out forces.csv",
+            &format!("--out {}", word(&d("printed.csv"))),
+        );
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(&as_printed)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{printed}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(dir.path().join("printed.csv").is_file());
+    // Its arguments, the quoted directory as one.
     let mut next: Vec<String> = printed
-        .replace(" [--eq3 eq3.toml]", "")
+        .replace(&word(&grasp), "GRASP")
         .split_whitespace()
         .skip(1)
-        .map(str::to_owned)
+        .map(|a| {
+            if a == "GRASP" {
+                grasp.clone()
+            } else {
+                a.to_owned()
+            }
+        })
         .collect();
     let out_at = next.iter().position(|a| a == "--out").unwrap();
     assert_eq!(next.split_off(out_at).len(), 2, "{printed}");
     assert!(next.iter().any(|a| a == "--gravity"), "{printed}");
+    assert!(next.contains(&grasp), "{printed}");
     let estimate = |extra: &[&str], out: &str| {
         let out = d(out);
         let mut args: Vec<&str> = next.iter().map(String::as_str).collect();
@@ -476,13 +506,6 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
         args.extend(["--out", &out]);
         host_sim(&args)
     };
-    let o = estimate(&[], "printed.csv");
-    assert!(
-        o.status.success(),
-        "{printed}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    assert!(dir.path().join("printed.csv").is_file());
     let eq3 = d("eq3.toml");
     let o = estimate(&["--eq3", &eq3, "--plot", &d("forces.csv")], "forces.csv");
     let stdout = String::from_utf8_lossy(&o.stdout);
@@ -580,10 +603,10 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
             wrist_log::read(&dir.path().join(run).join("jaw_a.csv"), None, "test").unwrap();
         log.col("x1_m").unwrap().to_vec()
     };
-    assert_ne!(x1("grasp"), x1("grasp-soft"));
+    assert_ne!(x1("a grasp"), x1("grasp-soft"));
     // Not a model: refused by name, nothing written.
     refused(
-        &estimate(&["--eq3", &d("grasp/roll.toml")], "not.csv"),
+        &estimate(&["--eq3", &d("a grasp/roll.toml")], "not.csv"),
         &dir.path().join("not.csv"),
         &["roll.toml", "not an Eq. 3 model"],
     );

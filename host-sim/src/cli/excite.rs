@@ -202,8 +202,9 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     write_atomic(&args.out, excite::to_toml(&design)?.as_bytes())
         .with_context(|| format!("writing {}", args.out.display()))?;
     crate::stdoutln!(
-        "wrote {}: `host-sim simulate --scenario excite --excitation {0} --out run.csv`, on the rig `host-sim link ... --scenario excite --excitation {0} --magnetic --record run.csv`",
-        args.out.display()
+        "wrote {}: `host-sim simulate --scenario excite --excitation {1} --out run.csv`, on the rig `host-sim link ... --scenario excite --excitation {1} --magnetic --record run.csv`",
+        args.out.display(),
+        crate::cli::shell_word(&args.out)
     );
     Ok(())
 }
@@ -275,6 +276,8 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
          prints its width), and measures a higher condition number (README, \"Eq. 3's designed excitation\")"
     );
     let stem = args.out.with_extension("");
+    let mut files = crate::output::Outputs::new();
+    let mut roll = PathBuf::new();
     for (j, name) in JOINT_NAMES.iter().enumerate() {
         // `with_extension` would take a dot in the stem (`w.v2`) for one.
         let mut path = stem.clone().into_os_string();
@@ -289,15 +292,19 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
             objective: design.condition.log10(),
             evaluations: design.evaluations,
         };
-        write_atomic(&path, excite::to_toml(&joint)?.as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
+        files.bytes(&path, excite::to_toml(&joint)?.as_bytes())?;
+        if j == 0 {
+            roll = path;
+        }
     }
-    write_atomic(&args.out, toml::to_string_pretty(&design)?.as_bytes())
-        .with_context(|| format!("writing {}", args.out.display()))?;
+    files.bytes(&args.out, toml::to_string_pretty(&design)?.as_bytes())?;
+    // The design and its joints' files are written together or not at all.
+    files.commit()?;
     crate::stdoutln!(
-        "wrote {} and one file per joint ({}.roll.toml, ...): on a joint's controller `host-sim link ... --scenario excite --excitation {1}.roll.toml --magnetic --record roll.csv`",
+        "wrote {} and one file per joint ({}.roll.toml, ...): on a joint's controller `host-sim link ... --scenario excite --excitation {} --magnetic --record roll.csv`",
         args.out.display(),
-        stem.display()
+        stem.display(),
+        crate::cli::shell_word(&roll)
     );
     Ok(())
 }

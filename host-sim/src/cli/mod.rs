@@ -36,6 +36,27 @@ use std::fmt::Display;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
+/// `path` as one word of a POSIX shell command, for the commands a tool
+/// prints for its user to run next: as it is where it has only characters
+/// a shell leaves alone, else in single quotes (a quote inside as `'\''`).
+///
+/// ```
+/// use std::path::Path;
+/// use host_sim::cli::shell_word;
+/// assert_eq!(shell_word(Path::new("runs/w1.csv")), "runs/w1.csv");
+/// assert_eq!(shell_word(Path::new("my run")), "'my run'");
+/// assert_eq!(shell_word(Path::new("it's")), "'it'\\''s'");
+/// ```
+pub fn shell_word(path: &Path) -> String {
+    let text = path.to_string_lossy();
+    let plain = |c: char| c.is_ascii_alphanumeric() || "_-./,:=+@%".contains(c);
+    if !text.is_empty() && text.chars().all(plain) {
+        text.into_owned()
+    } else {
+        format!("'{}'", text.replace('\'', "'\\''"))
+    }
+}
+
 /// Why a validation log must not be a fitted one.
 const VALIDATION_UNSEEN: &str = "validation needs data the fit did not see";
 /// Why a test log must not be a fitted one.

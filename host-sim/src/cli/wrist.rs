@@ -273,7 +273,7 @@ pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
     };
     let next = format!(
         "{what} with `host-sim {command} --run {} --gravity {gx:.3},{gy:.3},{gz:.3} --jaw-open-deg {} {out}`",
-        args.out.display(),
+        crate::cli::shell_word(&args.out),
         params.jaw_open_rad.to_degrees().round()
     );
     crate::stdoutln!(

@@ -129,85 +129,38 @@ fn an_output_that_is_one_of_the_commands_inputs_is_refused_and_the_input_kept() 
     let linked = dir.path().join("linked.csv");
     std::fs::hard_link(&log, &linked).unwrap();
     let respelled = dir.path().join(".").join("run.csv");
-    let cases: Vec<(Vec<std::ffi::OsString>, &Path)> = vec![
+    // Each command as its words (the temporary paths have no spaces).
+    let (l, c, s, m) = (
+        log.display(),
+        config.display(),
+        stream.display(),
+        measured.display(),
+    );
+    let cases: Vec<(String, &Path)> = vec![
+        (format!("estimate --log {l} --out {l}"), &log),
         (
-            vec![
-                "estimate".into(),
-                "--log".into(),
-                log.clone().into(),
-                "--out".into(),
-                log.clone().into(),
-            ],
+            format!("estimate --log {l} --out {}", respelled.display()),
             &log,
         ),
         (
-            vec![
-                "estimate".into(),
-                "--log".into(),
-                log.clone().into(),
-                "--out".into(),
-                respelled.into(),
-            ],
+            format!("estimate --log {l} --out {}", linked.display()),
             &log,
         ),
         (
-            vec![
-                "estimate".into(),
-                "--log".into(),
-                log.clone().into(),
-                "--out".into(),
-                linked.into(),
-            ],
-            &log,
-        ),
-        (
-            vec![
-                "estimate".into(),
-                "--log".into(),
-                log.clone().into(),
-                "--config".into(),
-                config.clone().into(),
-                "--out".into(),
-                config.clone().into(),
-            ],
+            format!("estimate --log {l} --config {c} --out {c}"),
             &config,
         ),
         (
-            vec![
-                "identify".into(),
-                "--procedure".into(),
-                "jae".into(),
-                "--log".into(),
-                log.clone().into(),
-                "--config-out".into(),
-                log.clone().into(),
-            ],
+            format!("identify --procedure jae --log {l} --config-out {l}"),
             &log,
         ),
-        (
-            vec![
-                "ingest".into(),
-                stream.clone().into(),
-                "--out".into(),
-                stream.clone().into(),
-            ],
-            &stream,
-        ),
-        (
-            vec![
-                "import".into(),
-                "mrdlab".into(),
-                measured.clone().into(),
-                "--out".into(),
-                measured.clone().into(),
-            ],
-            &measured,
-        ),
+        (format!("ingest {s} --out {s}"), &stream),
+        (format!("import mrdlab {m} --out {m}"), &measured),
     ];
     for (args, input) in &cases {
         let before = std::fs::read(input).unwrap();
         let listing = dir_entries(dir.path());
-        let err = run_err(host_sim().args(args));
+        let err = run_err(host_sim().args(args.split(' ')));
         assert!(
             err.contains("is also an input of this command"),
             "{args:?}: {err}"

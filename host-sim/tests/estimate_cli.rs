@@ -361,6 +361,51 @@ fn a_configuration_made_for_another_rate_is_taken_at_the_logs_rate_with_a_warnin
     assert_eq!(made_for_1khz, no_rate, "the 1 kHz file's estimates differ");
 }
 
+/// A rig at 1 kHz identified without a configuration: the configuration
+/// written is for 1 kHz (the board that recorded the logs refuses
+/// another rate), says so, and replays its log without a rate warning.
+#[test]
+fn identify_writes_a_configuration_at_the_rate_its_logs_were_recorded_at() {
+    let dir = tempfile::tempdir().unwrap();
+    let c1k = dir.path().join("c1k.toml");
+    std::fs::write(&c1k, "control_rate_hz = 1000.0\n").unwrap();
+    let log = dir.path().join("jae.csv");
+    let exe = env!("CARGO_BIN_EXE_host-sim");
+    let o = Command::new(exe)
+        .args(["simulate", "--tuned-gains", "--scenario", "jae-ident"])
+        .args(["--duration", "3", "--config"])
+        .arg(&c1k)
+        .arg("--out")
+        .arg(&log)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let written = dir.path().join("identified.toml");
+    let o = Command::new(exe)
+        .args(["identify", "--procedure", "jae", "--log"])
+        .arg(&log)
+        .arg("--config-out")
+        .arg(&written)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the logs run at 1000.0 Hz: the configuration written is for that rate"),
+        "{stderr}"
+    );
+    let config = host_sim::io::config::load_config(&written).unwrap();
+    assert_eq!(config.control_rate_hz, 1000.0);
+    let o = run_estimate_with(
+        &log,
+        &dir.path().join("est.csv"),
+        &["--config".as_ref(), written.as_os_str()],
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(!stderr.contains("warning: control_rate_hz"), "{stderr}");
+}
+
 /// The seed's motor-side tracking run (±30° at 0.5 Hz), `duration_scale`
 /// of its length, simulated with the magnetic encoder fitted.
 fn tracking_log(config: &Config, duration_scale: f64) -> Log {

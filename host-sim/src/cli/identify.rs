@@ -303,6 +303,7 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
         super::refuse_copies(&named(&logs), &named(&val_logs), &[])?;
         read.push((p, logs, val_logs));
     }
+    let config = at_the_logs_rate(config, read.iter().flat_map(|(_, f, v)| f.iter().chain(v)))?;
     let runs = |p: Procedure| {
         read.iter().find(|(q, _, _)| *q == p).map(|(_, f, v)| Runs {
             fit: refs(f),
@@ -316,6 +317,59 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
         config,
         &opts,
     )
+}
+
+/// `config` at the control rate the logs were recorded at, so that the
+/// configuration written is one the board that recorded them takes (its
+/// firmware refuses another rate): where every log runs at one rate (within
+/// 1 %) and the configuration's is another, the configuration is moved to
+/// it ([`Config::at_rate`], a note for each setting derived); logs at
+/// different rates keep the configuration's, with a warning.
+fn at_the_logs_rate<'a>(
+    config: Config,
+    logs: impl IntoIterator<Item = &'a (String, Log)>,
+) -> Result<Config> {
+    let mut rates: Vec<(&str, f64)> = Vec::new();
+    for (name, log) in logs {
+        let rate_hz = crate::derive::log_clock(log)
+            .with_context(|| format!("the control rate of {name}"))?
+            .rate_hz();
+        rates.push((name.as_str(), rate_hz));
+    }
+    let Some(&(first, rate_hz)) = rates.first() else {
+        return Ok(config);
+    };
+    let same = |r: f64| (r - rate_hz).abs() <= 0.01 * rate_hz;
+    if let Some(&(other, other_hz)) = rates.iter().find(|(_, r)| !same(*r)) {
+        eprintln!(
+            "warning: the logs run at different control rates ({first} at {rate_hz:.1} Hz, \
+             {other} at {other_hz:.1} Hz): the configuration written keeps control_rate_hz = {}",
+            config.control_rate_hz
+        );
+        return Ok(config);
+    }
+    let given_hz = f64::from(config.control_rate_hz);
+    if same(given_hz) {
+        return Ok(config);
+    }
+    let (moved, changes) = config.at_rate(rate_hz as f32);
+    moved
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{e} (at the logs' control rate, {rate_hz:.1} Hz)"))?;
+    eprintln!(
+        "note: the logs run at {rate_hz:.1} Hz: the configuration written is for that rate \
+         (control_rate_hz = {}, not {given_hz}; the board that recorded them refuses another)",
+        moved.control_rate_hz
+    );
+    for a in &changes {
+        eprintln!(
+            "note: {} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
+            a.field,
+            a.to_text(),
+            a.from_text()
+        );
+    }
+    Ok(moved)
 }
 
 fn fmt_num(v: f64) -> String {

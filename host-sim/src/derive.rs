@@ -270,7 +270,7 @@ pub fn clock_noted(log: &Log, fill: CurrentFill) -> Result<(Clock, Vec<String>)>
 
 /// `config` at `clock`'s control rate, with a line for every setting
 /// derived from the rate.
-fn config_at_clock(clock: &Clock, config: &Config) -> Result<(Config, Vec<String>)> {
+pub(crate) fn config_at_clock(clock: &Clock, config: &Config) -> Result<(Config, Vec<String>)> {
     let rate_hz = clock.rate_hz();
     let (c, changes) = config.at_rate(rate_hz as f32);
     c.validate()

@@ -329,21 +329,22 @@ fn at_the_logs_rate<'a>(
     config: Config,
     logs: impl IntoIterator<Item = &'a (String, Log)>,
 ) -> Result<Config> {
-    let mut rates: Vec<(&str, f64)> = Vec::new();
+    let mut clocks: Vec<(&str, crate::derive::Clock)> = Vec::new();
     for (name, log) in logs {
-        let rate_hz = crate::derive::log_clock(log)
-            .with_context(|| format!("the control rate of {name}"))?
-            .rate_hz();
-        rates.push((name.as_str(), rate_hz));
+        let clock =
+            crate::derive::log_clock(log).with_context(|| format!("the control rate of {name}"))?;
+        clocks.push((name.as_str(), clock));
     }
-    let Some(&(first, rate_hz)) = rates.first() else {
+    let Some((first, clock)) = clocks.first() else {
         return Ok(config);
     };
+    let rate_hz = clock.rate_hz();
     let same = |r: f64| (r - rate_hz).abs() <= 0.01 * rate_hz;
-    if let Some(&(other, other_hz)) = rates.iter().find(|(_, r)| !same(*r)) {
+    if let Some((other, c)) = clocks.iter().find(|(_, c)| !same(c.rate_hz())) {
         eprintln!(
             "warning: the logs run at different control rates ({first} at {rate_hz:.1} Hz, \
-             {other} at {other_hz:.1} Hz): the configuration written keeps control_rate_hz = {}",
+             {other} at {:.1} Hz): the configuration written keeps control_rate_hz = {}",
+            c.rate_hz(),
             config.control_rate_hz
         );
         return Ok(config);
@@ -352,22 +353,14 @@ fn at_the_logs_rate<'a>(
     if same(given_hz) {
         return Ok(config);
     }
-    let (moved, changes) = config.at_rate(rate_hz as f32);
-    moved
-        .validate()
-        .map_err(|e| anyhow::anyhow!("{e} (at the logs' control rate, {rate_hz:.1} Hz)"))?;
+    let (moved, notes) = crate::derive::config_at_clock(clock, &config)?;
     eprintln!(
         "note: the logs run at {rate_hz:.1} Hz: the configuration written is for that rate \
          (control_rate_hz = {}, not {given_hz}; the board that recorded them refuses another)",
         moved.control_rate_hz
     );
-    for a in &changes {
-        eprintln!(
-            "note: {} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
-            a.field,
-            a.to_text(),
-            a.from_text()
-        );
+    for n in notes {
+        eprintln!("note: {n}");
     }
     Ok(moved)
 }

@@ -98,6 +98,22 @@ pub struct ReferenceErrors {
 
 /// Replay `log` with `config` (rate derived from the log) and summarise.
 pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
+    // The reference force is judged against the core's f32 estimates: one
+    // beyond their range is a corrupt cell, and would make every statistic
+    // of the summary infinite.
+    if let Some(reference) = log.col("f_ext_n") {
+        if let Some(k) = reference
+            .iter()
+            .position(|v| v.is_finite() && v.abs() > f64::from(f32::MAX))
+        {
+            bail!(
+                "line {}: column \"f_ext_n\" = {:e} N is beyond the core's f32 range: not a \
+                 reference force",
+                crate::log::line_of_row(k),
+                reference[k]
+            );
+        }
+    }
     let (out, clock, derived) = derive_noted(log, config)?;
     check_finite(log, &out)?;
     let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);

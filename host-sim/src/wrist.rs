@@ -510,10 +510,11 @@ impl WristSim {
             let mut p = *p;
             p.integration.step_hz = substeps as f64 / period_s;
             let seed_j = seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1));
-            plants.push(Plant::new(p, seed_j).with_context(|| format!("wrist joint {j}"))?);
+            let name = crate::wrist_log::JOINT_NAMES[j];
+            plants.push(Plant::new(p, seed_j).with_context(|| format!("wrist joint {name}"))?);
             controllers.push(
                 Controller::new(*c)
-                    .map_err(|e| anyhow::anyhow!("wrist joint {j}'s configuration: {e}"))?,
+                    .map_err(|e| anyhow::anyhow!("wrist joint {name}'s configuration: {e}"))?,
             );
         }
         let mut plants: [Plant; 4] = plants
@@ -565,9 +566,13 @@ impl WristSim {
 
     /// Give joint `j` a command (refused while a fault is latched).
     pub fn set_command(&mut self, j: usize, command: Command) -> Result<()> {
-        self.joints
-            .set_command(j, command)
-            .map_err(|e| anyhow::anyhow!("wrist joint {j}: command refused: {e:?}"))
+        self.joints.set_command(j, command).map_err(|e| {
+            let name = crate::wrist_log::JOINT_NAMES
+                .get(j)
+                .copied()
+                .unwrap_or("(none)");
+            anyhow::anyhow!("wrist joint {name}: command refused: {e:?}")
+        })
     }
 
     /// A wrist for a grasp or a grip: `object` checked to fit between the
@@ -902,13 +907,13 @@ pub fn grip_stats(ticks: &[(Phase, WristTick)], set_n: f64, pair: bool) -> GripS
     }
 }
 
-/// The first fault any joint latched in a run, as "joint j: fault".
+/// The first fault any joint latched in a run, as "joint NAME: fault".
 fn first_fault(ticks: &[(Phase, WristTick)]) -> Option<String> {
     ticks.iter().find_map(|(_, t)| {
-        t.outputs
-            .iter()
-            .enumerate()
-            .find_map(|(j, o)| o.fault.map(|f| format!("joint {j}: {f}")))
+        t.outputs.iter().enumerate().find_map(|(j, o)| {
+            o.fault
+                .map(|f| format!("joint {}: {f}", crate::wrist_log::JOINT_NAMES[j]))
+        })
     })
 }
 

@@ -1069,7 +1069,7 @@ fn a_generic_fit_with_an_empty_input_cell_loses_that_row_only_and_says_so() {
 /// range (and so beyond the DAC's) names the input file, line and cell,
 /// not the output file.
 #[test]
-fn estimate_names_the_input_cell_beyond_the_drives_range() {
+fn estimate_names_a_current_beyond_the_drives_range_and_a_reference_beyond_f32() {
     let dir = tempfile::tempdir().unwrap();
     let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
     let bad = with_cell(&fit, "i_ref_a", 3000, Some(1e308), "bad.csv");
@@ -1085,6 +1085,22 @@ fn estimate_names_the_input_cell_beyond_the_drives_range() {
         err.contains("bad.csv")
             && err.contains("line 3002: column \"i_ref_a\" = 1e308 A is beyond")
             && !err.contains("est.csv"),
+        "{err}"
+    );
+    assert!(!est.exists(), "nothing written");
+    // A reference force beyond the core's f32 range: not a force.
+    let bad = with_cell(&fit, "f_ext_n", 100, Some(1e300), "bad_ref.csv");
+    let err = run_err(
+        host_sim()
+            .args(["estimate", "--log"])
+            .arg(&bad)
+            .arg("--out")
+            .arg(&est),
+    );
+    assert!(
+        err.contains("bad_ref.csv")
+            && err
+                .contains("line 102: column \"f_ext_n\" = 1e300 N is beyond the core's f32 range"),
         "{err}"
     );
     assert!(!est.exists(), "nothing written");

@@ -66,7 +66,7 @@ impl LossNotes {
                 })
                 .unwrap_or_default();
             format!(
-                "the replay latched {name} at line {} (t = {} s){cause}",
+                "the replay latched {name} at line {} (t = {:.4} s){cause}",
                 crate::log::line_of_row(k),
                 t[tick]
             )

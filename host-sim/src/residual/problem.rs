@@ -536,7 +536,7 @@ fn drop_faulted_rows(name: &str, replay: &TickReplay, target: &mut [f64]) {
                 .count()
         };
         eprintln!(
-            "warning: {name}: the replay latched {what} at line {} (t = {} s): {} of {} rows \
+            "warning: {name}: the replay latched {what} at line {} (t = {:.4} s): {} of {} rows \
              are neither fitted nor judged",
             crate::log::line_of_row(replay.log_row(k)),
             t_s[k],

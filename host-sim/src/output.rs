@@ -370,23 +370,7 @@ impl Outputs {
                 "named twice as an output of the same command",
             )));
         }
-        let dir = parent_dir(&target);
-        // The temporary name ends with the target's name: an encoder that
-        // picks the format by extension sees the target's.
-        let suffix = target
-            .file_name()
-            .map(|n| format!(".{}", n.to_string_lossy()))
-            .unwrap_or_default();
-        let tmp = tempfile::Builder::new()
-            .prefix(".host-sim-")
-            .suffix(&suffix)
-            .tempfile_in(dir)
-            .map_err(|e| {
-                err(io::Error::new(
-                    e.kind(),
-                    format!("cannot create a temporary file in {}: {e}", dir.display()),
-                ))
-            })?;
+        let tmp = temp_beside(path, &target)?;
         write(&tmp).map_err(err)?;
         // The writer may have replaced the file at the temporary path (an
         // image encoder creates its file): reopen it to be sure what is
@@ -542,17 +526,29 @@ pub fn check_dir_target(dir: &Path) -> Result<(), OutputError> {
 pub fn check_file_target(path: &Path) -> Result<(), OutputError> {
     let (target, _) = resolve(path)?;
     refuse_input(path, &target)?;
-    let dir = parent_dir(&target);
+    temp_beside(path, &target).map(drop)
+}
+
+/// A new temporary file in `target`'s directory (so the final rename never
+/// crosses a file system), its name ending with the target's: an encoder
+/// that picks the format by extension sees the target's. Errors name
+/// `named`, the path as the caller gave it.
+fn temp_beside(named: &Path, target: &Path) -> Result<tempfile::NamedTempFile, OutputError> {
+    let dir = parent_dir(target);
+    let suffix = target
+        .file_name()
+        .map(|n| format!(".{}", n.to_string_lossy()))
+        .unwrap_or_default();
     tempfile::Builder::new()
         .prefix(".host-sim-")
+        .suffix(&suffix)
         .tempfile_in(dir)
-        .map(drop)
         .map_err(|e| {
             OutputError::new(
-                path,
+                named,
                 io::Error::new(
                     e.kind(),
-                    format!("cannot create a file in {}: {e}", dir.display()),
+                    format!("cannot create a temporary file in {}: {e}", dir.display()),
                 ),
             )
         })

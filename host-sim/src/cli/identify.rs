@@ -323,7 +323,8 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
 /// configuration written is one the board that recorded them takes (its
 /// firmware refuses another rate): where every log runs at one rate (within
 /// 1 %) and the configuration's is another, the configuration is moved to
-/// it ([`Config::at_rate`], a note for each setting derived); logs at
+/// it (as the replay does, `derive::config_at_clock`, a note for each
+/// setting derived); logs at
 /// different rates keep the configuration's, with a warning.
 fn at_the_logs_rate<'a>(
     config: Config,

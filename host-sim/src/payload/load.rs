@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Result};
+use nalgebra::Matrix3;
 
 use crate::log::{Log, Schema};
 
@@ -147,17 +148,9 @@ pub const ROTATION_TOLERANCE: f64 = 1e-3;
 /// the row is from one.
 fn check_rotations(path: &Path, rows: &[[f64; 9]]) -> Result<()> {
     for (k, r) in rows.iter().enumerate() {
-        let m = |i: usize, j: usize| r[3 * i + j];
-        let mut off = 0.0f64;
-        for i in 0..3 {
-            for j in 0..3 {
-                let dot: f64 = (0..3).map(|k| m(k, i) * m(k, j)).sum();
-                off = off.max((dot - if i == j { 1.0 } else { 0.0 }).abs());
-            }
-        }
-        let det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1))
-            - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0))
-            + m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
+        let m = super::calib::mat(r);
+        let off = (m.transpose() * m - Matrix3::identity()).abs().max();
+        let det = m.determinant();
         // Not `>`: a NaN (an overflowed product) is refused as well.
         if !(off <= ROTATION_TOLERANCE && (det - 1.0).abs() <= ROTATION_TOLERANCE) {
             bail!(

@@ -361,6 +361,86 @@ fn a_configuration_made_for_another_rate_is_taken_at_the_logs_rate_with_a_warnin
     assert_eq!(made_for_1khz, no_rate, "the 1 kHz file's estimates differ");
 }
 
+/// `residual` and `estimate-wrist` take a configuration made for another
+/// rate as `estimate` does: at their logs' rate, with the warning, and
+/// with the same results as a file that gives no rate (the wrist's
+/// estimates byte for byte; before, the wrist's replay kept the 1 kHz
+/// file's derived settings on a 2 kHz run and its CSV differed).
+#[test]
+fn residual_and_estimate_wrist_take_a_configuration_made_for_another_rate_at_their_logs_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let exe = env!("CARGO_BIN_EXE_host-sim");
+    let run = |args: &[&std::ffi::OsStr]| {
+        let o = Command::new(exe).args(args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        stderr
+    };
+    let log = d.join("run.csv");
+    let grasp = d.join("grasp");
+    run(&[
+        "simulate".as_ref(),
+        "--tuned-gains".as_ref(),
+        "--scenario".as_ref(),
+        "jae-ident".as_ref(),
+        "--duration".as_ref(),
+        "3".as_ref(),
+        "--out".as_ref(),
+        log.as_os_str(),
+    ]);
+    run(&[
+        "simulate-wrist".as_ref(),
+        "--grasp".as_ref(),
+        "2".as_ref(),
+        "--out".as_ref(),
+        grasp.as_os_str(),
+    ]);
+    let warning = "warning: control_rate_hz = 1000 in the file, but the log runs at 2000.0 Hz";
+    let mut outputs = Vec::new();
+    for (name, text) in [("c1k", "control_rate_hz = 1000.0\n"), ("none", "")] {
+        let config = d.join(format!("{name}.toml"));
+        std::fs::write(&config, text).unwrap();
+        let json = d.join(format!("{name}.json"));
+        let forces = d.join(format!("{name}_forces.csv"));
+        let residual = run(&[
+            "residual".as_ref(),
+            "--model".as_ref(),
+            "tension".as_ref(),
+            "--log".as_ref(),
+            log.as_os_str(),
+            "--config".as_ref(),
+            config.as_os_str(),
+            "--json".as_ref(),
+            json.as_os_str(),
+        ]);
+        let wrist = run(&[
+            "estimate-wrist".as_ref(),
+            "--run".as_ref(),
+            grasp.as_os_str(),
+            "--gravity=-8.496,-4.905,0".as_ref(),
+            "--jaw-open-deg".as_ref(),
+            "20".as_ref(),
+            "--config".as_ref(),
+            config.as_os_str(),
+            "--out".as_ref(),
+            forces.as_os_str(),
+        ]);
+        let warned = name == "c1k";
+        assert_eq!(residual.contains(warning), warned, "residual: {residual}");
+        assert_eq!(wrist.contains(warning), warned, "estimate-wrist: {wrist}");
+        outputs.push((
+            std::fs::read_to_string(&json).unwrap(),
+            std::fs::read_to_string(&forces).unwrap(),
+        ));
+    }
+    assert!(outputs[0].0 == outputs[1].0, "residual's JSON differs");
+    assert!(
+        outputs[0].1 == outputs[1].1,
+        "estimate-wrist's forces differ with the 1 kHz file"
+    );
+}
+
 /// A rig at 1 kHz identified without a configuration: the configuration
 /// written is for 1 kHz (the board that recorded the logs refuses
 /// another rate), says so, and replays its log without a rate warning.

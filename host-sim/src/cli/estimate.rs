@@ -46,10 +46,7 @@ pub fn run(args: EstimateArgs) -> Result<()> {
     // The configuration at the log's rate (the firmware ran at it).
     let config = match &args.config {
         Some(p) => {
-            let rate_hz = crate::derive::log_clock(&log)
-                .with_context(|| format!("the control rate of {name}"))?
-                .rate_hz();
-            let (config, notes) = crate::io::config::load_config_for_rate(p, rate_hz)?;
+            let (config, notes) = crate::io::config::load_config_for_logs(p, &[(&name, &log)])?;
             for n in notes {
                 eprintln!("estimate: {}: {n}", p.display());
             }

@@ -122,10 +122,6 @@ pub fn run(args: ResidualArgs) -> Result<()> {
     if args.config_out.is_some() && matches!(kind, ModelKind::Generic { .. }) {
         bail!("--config-out needs --model jae, tension or force");
     }
-    let config = match &args.config {
-        Some(p) => crate::io::config::load_config(p)?,
-        None => Config::default(),
-    };
     let project = !matches!(kind, ModelKind::Generic { .. });
     let zero = if args.mrdlab_first_zero {
         MrdlabZero::FirstSample
@@ -148,6 +144,23 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         logs.iter().map(|l| (l.name.as_str(), &l.log)).collect()
     }
     super::refuse_copies(&named(&fit), &named(&validate), &named(&test))?;
+    // A project model's configuration at the logs' control rate (the
+    // firmware ran at it), as `estimate` takes it.
+    let config = match &args.config {
+        Some(p) if project => {
+            let all: Vec<_> = [&fit, &validate, &test]
+                .into_iter()
+                .flat_map(|l| named(l))
+                .collect();
+            let (config, notes) = crate::io::config::load_config_for_logs(p, &all)?;
+            for n in notes {
+                eprintln!("residual: {}: {n}", p.display());
+            }
+            config
+        }
+        Some(p) => crate::io::config::load_config(p)?,
+        None => Config::default(),
+    };
     let options = SelectOptions {
         max_terms: args.max_terms.unwrap_or(kind.max_terms().0),
         min_gain: args.min_gain,

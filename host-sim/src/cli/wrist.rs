@@ -559,20 +559,35 @@ fn read_run(
         .map_err(|_| anyhow::anyhow!("four joints' logs"))
 }
 
-/// The four joints' configurations for the run in `dir`: `config` for
-/// all, else the file beside each joint's log, else the datasheet
-/// values; with what each one is.
-fn configs(config: Option<&Path>, dir: &Path) -> Result<[(Config, String); 4]> {
+/// The four joints' configurations for the run in `dir` (its `logs`):
+/// `config` for all, else the file beside each joint's log, else the
+/// datasheet values; with what each one is. A file is taken at its log's
+/// control rate (`io::config::load_config_for_logs`), what that changed
+/// printed after `command: `.
+fn configs(
+    config: Option<&Path>,
+    dir: &Path,
+    logs: &[(String, crate::log::Log); 4],
+    command: &str,
+) -> Result<[(Config, String); 4]> {
+    let load = |p: &Path, logs: &[(&str, &crate::log::Log)]| -> Result<Config> {
+        let (c, notes) = crate::io::config::load_config_for_logs(p, logs)?;
+        for n in notes {
+            eprintln!("{command}: {}: {n}", p.display());
+        }
+        Ok(c)
+    };
     if let Some(p) = config {
-        let c = crate::io::config::load_config(p)?;
+        let named: Vec<_> = logs.iter().map(|(n, l)| (n.as_str(), l)).collect();
+        let c = load(p, &named)?;
         return Ok([0; 4].map(|_| (c, p.display().to_string())));
     }
     let mut out = Vec::with_capacity(4);
-    for name in JOINT_NAMES {
+    for (name, (log_name, log)) in JOINT_NAMES.iter().zip(logs) {
         let path = dir.join(format!("{name}.toml"));
         out.push(if path.is_file() {
             (
-                crate::io::config::load_config(&path)?,
+                load(&path, &[(log_name.as_str(), log)])?,
                 path.display().to_string(),
             )
         } else {
@@ -596,14 +611,14 @@ fn replay_run(
     on_fault: OnFault,
     command: &str,
 ) -> Result<([(String, crate::log::Log); 4], WristRun)> {
-    let configs = configs(args.config.as_deref(), dir)?;
+    let logs = read_run(dir, args.ticks_per_row, command)?;
+    let configs = configs(args.config.as_deref(), dir, &logs, command)?;
     for (name, (_, what)) in JOINT_NAMES.iter().zip(&configs) {
         eprintln!(
             "{command}: {}: {name}'s configuration: {what}",
             dir.display()
         );
     }
-    let logs = read_run(dir, args.ticks_per_row, command)?;
     let run = wrist_log::replay(&logs, &configs.map(|c| c.0), holding, on_fault)
         .with_context(|| format!("the run in {}", dir.display()))?;
     for n in &run.notes {

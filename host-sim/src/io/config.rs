@@ -44,6 +44,39 @@ pub fn load_config_for_rate(path: &Path, rate_hz: f64) -> Result<(Config, Vec<St
     load_config_at(path, Some(rate_hz))
 }
 
+/// [`load_config_for_rate`] at the control rate of the first of `logs`
+/// (name, log), the one a command fits or replays first; a note where
+/// another of them runs at another rate (the replay then derives, at each
+/// log's own rate, the settings that do not fit it).
+pub fn load_config_for_logs(
+    path: &Path,
+    logs: &[(&str, &crate::log::Log)],
+) -> Result<(Config, Vec<String>)> {
+    let mut rates = Vec::with_capacity(logs.len());
+    for (name, log) in logs {
+        let clock =
+            crate::derive::log_clock(log).with_context(|| format!("the control rate of {name}"))?;
+        rates.push((*name, clock.rate_hz()));
+    }
+    let Some(&(first, rate_hz)) = rates.first() else {
+        return load_config_noted(path);
+    };
+    let (config, mut notes) = load_config_for_rate(path, rate_hz)?;
+    let others: Vec<String> = rates
+        .iter()
+        .filter(|(_, r)| (r - rate_hz).abs() > 0.01 * rate_hz)
+        .map(|(n, r)| format!("{n} at {r:.1} Hz"))
+        .collect();
+    if !others.is_empty() {
+        notes.push(format!(
+            "taken at {first}'s {rate_hz:.1} Hz, but {} run at another rate: for each of \
+             them the replay derives the rate-dependent settings that do not fit its rate",
+            others.join(", ")
+        ));
+    }
+    Ok((config, notes))
+}
+
 fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<String>)> {
     crate::output::note_input(path);
     let text = std::fs::read_to_string(path)

@@ -122,15 +122,26 @@ fn non_finite_field(t: &TickRecord) -> Option<(&'static str, f32)> {
     .find(|(_, v)| !v.is_finite())
 }
 
-/// Read a stream from a file (`-` for standard input), with each record's
-/// line ([`parse_stream_lines`]).
-pub fn read_stream(path: &Path) -> anyhow::Result<(Vec<Record>, Vec<usize>)> {
+/// What messages call the stream at `path`: the path, or "standard
+/// input" for `-`.
+pub fn source_name(path: &Path) -> String {
     if path == Path::new("-") {
-        parse_stream_lines(std::io::stdin().lock(), "<stdin>")
+        "standard input".to_owned()
+    } else {
+        path.display().to_string()
+    }
+}
+
+/// Read a stream from a file (`-` for standard input), with each record's
+/// line ([`parse_stream_lines`]); messages name it by [`source_name`].
+pub fn read_stream(path: &Path) -> anyhow::Result<(Vec<Record>, Vec<usize>)> {
+    let name = source_name(path);
+    if path == Path::new("-") {
+        parse_stream_lines(std::io::stdin().lock(), &name)
     } else {
         crate::output::note_input(path);
-        let f = File::open(path).with_context(|| format!("opening {}", path.display()))?;
-        parse_stream_lines(f, &path.display().to_string())
+        let f = File::open(path).with_context(|| format!("opening {name}"))?;
+        parse_stream_lines(f, &name)
     }
 }
 

@@ -602,6 +602,35 @@ fn ingest_names_the_line_of_a_tick_out_of_order_and_of_a_second_start() {
         "{err}"
     );
     assert!(!csv.exists());
+    // From standard input (`-`), the same line and the stream named as
+    // such in every message.
+    let piped = |text: &str| {
+        let mut child = host_sim()
+            .args(["ingest", "-", "--out"])
+            .arg(&csv)
+            .stdin(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        use std::io::Write;
+        child
+            .stdin
+            .take()
+            .unwrap()
+            .write_all(text.as_bytes())
+            .unwrap();
+        let out = child.wait_with_output().unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = piped(&(lines.join("\n") + "\n"));
+    assert!(
+        err.contains("standard input: line 17: tick 10 after tick 15"),
+        "{err}"
+    );
+    let err = piped("no record here\n");
+    assert!(err.contains("standard input: no telemetry record"), "{err}");
+    assert!(!csv.exists());
 }
 
 #[test]

@@ -48,16 +48,21 @@ pub fn summary(run: &MrdlabRun) -> String {
             }
         }
     }
+    // Each column in its own (SI) unit, and where that reads poorly in
+    // the unit a person would use.
     for (name, unit, scale) in [
-        ("phi_rad", "rad", 1.0),
-        ("theta_rad", "deg", DEG_PER_RAD),
-        ("i_meas_a", "A", 1.0),
-        ("tau_in_nm", "mN·m", 1e3),
-        ("tau_ext_nm", "mN·m", 1e3),
+        ("phi_rad", "", 1.0),
+        ("theta_rad", "°", DEG_PER_RAD),
+        ("i_meas_a", "", 1.0),
+        ("tau_in_nm", " mN·m", 1e3),
+        ("tau_ext_nm", " mN·m", 1e3),
     ] {
         if let Some(c) = log.col(name) {
             let (lo, hi) = range(c);
-            let _ = write!(s, "; {name} {:.3}..{:.3} {unit}", lo * scale, hi * scale);
+            let _ = write!(s, "; {name} {lo:.4}..{hi:.4}");
+            if !unit.is_empty() {
+                let _ = write!(s, " ({:.1}..{:.1}{unit})", lo * scale, hi * scale);
+            }
         }
     }
     s

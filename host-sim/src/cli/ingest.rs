@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use cable_joint::telemetry::{Record, TickRecord};
 
-use crate::ingest::{cycle_stats, read_stream, to_log, LogOptions};
+use crate::ingest::{cycle_stats, read_stream, source_name, to_log, LogOptions};
 use crate::log::DEFAULT_MIN_ROWS;
 
 /// Arguments of `host-sim ingest`.
@@ -33,6 +33,7 @@ pub struct IngestArgs {
 pub fn run(args: IngestArgs) -> anyhow::Result<()> {
     let config = crate::io::config::load_or_default(args.config.as_deref())?;
     let (records, lines) = read_stream(&args.file)?;
+    let name = source_name(&args.file);
     let ticks: Vec<TickRecord> = records
         .iter()
         .filter_map(|r| match r {
@@ -41,29 +42,24 @@ pub fn run(args: IngestArgs) -> anyhow::Result<()> {
         })
         .collect();
     if ticks.is_empty() {
-        bail!(
-            "{}: no telemetry record (`tlm [..]` lines) found",
-            args.file.display()
-        );
+        bail!("{name}: no telemetry record (`tlm [..]` lines) found");
     }
     let opts = LogOptions {
         magnetic: args.magnetic,
         lines: &lines,
         ..LogOptions::default()
     };
-    let log =
-        to_log(&records, &config, &opts).with_context(|| format!("{}", args.file.display()))?;
+    let log = to_log(&records, &config, &opts).with_context(|| name.clone())?;
     anyhow::ensure!(
         log.len() >= DEFAULT_MIN_ROWS,
         "{}: {} tick records; a log needs at least {DEFAULT_MIN_ROWS} rows (the other commands \
          would refuse it)",
-        args.file.display(),
+        name,
         log.len()
     );
     log.write(&args.out)?;
     eprintln!(
-        "{}: {} tick records -> {}",
-        args.file.display(),
+        "{name}: {} tick records -> {}",
         ticks.len(),
         args.out.display()
     );

@@ -96,24 +96,53 @@ pub struct ReferenceErrors {
     pub faulted: usize,
 }
 
+/// Most tip force a reference may give, as a multiple of the squeeze the
+/// joint's drive holds at its current limit
+/// ([`cable_joint::wrist::drive_squeeze_limit_n`]: 54.6 N with the
+/// datasheet's values): a hundred times that pulls its cable with some
+/// 27 kN, far past what a surgical instrument's cable carries before it
+/// breaks, so such a cell is not a force in newtons (another unit, a
+/// corrupt cell) and would swamp every statistic of the summary.
+pub const REFERENCE_FORCE_LIMIT_DRIVES: f32 = 100.0;
+
+/// The log's reference force (`f_ext_n`) within
+/// [`REFERENCE_FORCE_LIMIT_DRIVES`] times the drive's squeeze; blank and
+/// non-finite cells are left to the log's own checks.
+fn check_reference_force(log: &Log, machine: &cable_joint::config::Machine) -> Result<()> {
+    let Some(reference) = log.col("f_ext_n") else {
+        return Ok(());
+    };
+    let drive_n = cable_joint::wrist::drive_squeeze_limit_n(
+        machine,
+        machine.pulley_radius_m,
+        machine.gripper_length_m,
+    );
+    let limit_n = f64::from(REFERENCE_FORCE_LIMIT_DRIVES * drive_n);
+    if let Some(k) = reference
+        .iter()
+        .position(|v| v.is_finite() && v.abs() > limit_n)
+    {
+        let v = reference[k];
+        let value = if v.abs() < 1e6 {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        };
+        bail!(
+            "line {}: column \"f_ext_n\" = {value} N is beyond any tip force the joint can \
+             carry ({REFERENCE_FORCE_LIMIT_DRIVES} times the {drive_n:.1} N its drive holds at \
+             machine.current_limit_a = {} A, {limit_n:.0} N): not a reference force in newtons; \
+             check the log's units",
+            crate::log::line_of_row(k),
+            machine.current_limit_a
+        );
+    }
+    Ok(())
+}
+
 /// Replay `log` with `config` (rate derived from the log) and summarise.
 pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
-    // The reference force is judged against the core's f32 estimates: one
-    // beyond their range is a corrupt cell, and would make every statistic
-    // of the summary infinite.
-    if let Some(reference) = log.col("f_ext_n") {
-        if let Some(k) = reference
-            .iter()
-            .position(|v| v.is_finite() && v.abs() > f64::from(f32::MAX))
-        {
-            bail!(
-                "line {}: column \"f_ext_n\" = {:e} N is beyond the core's f32 range: not a \
-                 reference force",
-                crate::log::line_of_row(k),
-                reference[k]
-            );
-        }
-    }
+    check_reference_force(log, &config.machine)?;
     let (out, clock, derived) = derive_noted(log, config)?;
     check_finite(log, &out)?;
     let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);

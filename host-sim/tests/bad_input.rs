@@ -1096,9 +1096,12 @@ fn a_generic_fit_with_an_empty_input_cell_loses_that_row_only_and_says_so() {
 
 /// `estimate` on a log whose current command is beyond the core's `f32`
 /// range (and so beyond the DAC's) names the input file, line and cell,
-/// not the output file.
+/// not the output file; so on a reference force beyond any the joint can
+/// carry (a hundred times its drive's 54.6 N squeeze: 1e300 N, 1e30 N,
+/// 6 kN), while a large but possible one (500 N, the joint back-driven)
+/// is taken.
 #[test]
-fn estimate_names_a_current_beyond_the_drives_range_and_a_reference_beyond_f32() {
+fn estimate_names_a_current_beyond_the_drives_range_and_a_reference_beyond_any_force_carried() {
     let dir = tempfile::tempdir().unwrap();
     let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
     let bad = with_cell(&fit, "i_ref_a", 3000, Some(1e308), "bad.csv");
@@ -1117,22 +1120,32 @@ fn estimate_names_a_current_beyond_the_drives_range_and_a_reference_beyond_f32()
         "{err}"
     );
     assert!(!est.exists(), "nothing written");
-    // A reference force beyond the core's f32 range: not a force.
-    let bad = with_cell(&fit, "f_ext_n", 100, Some(1e300), "bad_ref.csv");
-    let err = run_err(
-        host_sim()
-            .args(["estimate", "--log"])
-            .arg(&bad)
-            .arg("--out")
-            .arg(&est),
-    );
-    assert!(
-        err.contains("bad_ref.csv")
-            && err
-                .contains("line 102: column \"f_ext_n\" = 1e300 N is beyond the core's f32 range"),
-        "{err}"
-    );
-    assert!(!est.exists(), "nothing written");
+    for (value, text) in [(1e300, "1e300"), (1e30, "1e30"), (-6000.0, "-6000")] {
+        let bad = with_cell(&fit, "f_ext_n", 100, Some(value), "bad_ref.csv");
+        let err = run_err(
+            host_sim()
+                .args(["estimate", "--log"])
+                .arg(&bad)
+                .arg("--out")
+                .arg(&est),
+        );
+        assert!(
+            err.contains("bad_ref.csv")
+                && err.contains(&format!(
+                    "line 102: column \"f_ext_n\" = {text} N is beyond any tip force the joint \
+                     can carry (100 times the 54.6 N its drive holds"
+                )),
+            "{err}"
+        );
+        assert!(!est.exists(), "nothing written");
+    }
+    let large = with_cell(&fit, "f_ext_n", 100, Some(500.0), "large_ref.csv");
+    let out = run(host_sim()
+        .args(["estimate", "--log"])
+        .arg(&large)
+        .arg("--out")
+        .arg(&est));
+    assert!(out.status.success(), "{}", stderr(&out));
 }
 
 /// Holes each short enough to fill but together longer than the replay

@@ -250,6 +250,17 @@ fn resolve(path: &Path) -> Result<(PathBuf, Option<fs::Metadata>), OutputError> 
     match fs::metadata(&target) {
         Ok(m) => match not_regular(&m) {
             Some(what) => Err(OutputError::refused(path, what)),
+            // A file whose owner took its write permission away (a
+            // measured run kept safe) is not replaced by a rename, which
+            // the directory's permission alone would allow.
+            None if m.permissions().readonly() => Err(OutputError::new(
+                path,
+                io::Error::new(
+                    io::ErrorKind::PermissionDenied,
+                    "exists and is read-only: not replacing it (make it writable, or \
+                     choose another name)",
+                ),
+            )),
             None => Ok((target, Some(m))),
         },
         Err(e) if e.kind() == io::ErrorKind::NotFound => Ok((target, None)),
@@ -669,6 +680,26 @@ mod tests {
         assert_eq!(mode(&old), 0o640);
         assert_eq!(fs::read(&old).unwrap(), b"replaced\n");
         assert_eq!(entries(dir.path()), ["new.txt", "old.txt"]);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_read_only_file_is_not_replaced() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let kept = dir.path().join("run.csv");
+        fs::write(&kept, "measured\n").unwrap();
+        fs::set_permissions(&kept, fs::Permissions::from_mode(0o444)).unwrap();
+        let e = write_atomic(&kept, b"replaced\n").unwrap_err();
+        assert!(
+            e.to_string().contains("run.csv: exists and is read-only"),
+            "{e}"
+        );
+        let e = check_file_target(&kept).unwrap_err();
+        assert!(e.to_string().contains("read-only"), "{e}");
+        assert_eq!(fs::read(&kept).unwrap(), b"measured\n");
+        assert_eq!(mode(&kept), 0o444);
+        assert_eq!(entries(dir.path()), ["run.csv"]);
     }
 
     #[cfg(unix)]

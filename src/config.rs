@@ -662,6 +662,79 @@ impl fmt::Display for ConfigError {
     }
 }
 
+impl crate::units::Scales {
+    /// Check the board's scales (the `scales` table of a configuration, or
+    /// a simulated board's); the error names the field under `scales.`.
+    ///
+    /// # Errors
+    /// The first field out of its range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let s = self;
+        positive("scales.grating_m_per_count", s.grating_m_per_count)?;
+        if s.motor_counts_per_rev == 0 {
+            return Err(ConfigError {
+                field: "scales.motor_counts_per_rev",
+                expected: "> 0",
+            });
+        }
+        if s.magnetic_counts_per_rev == 0 {
+            return Err(ConfigError {
+                field: "scales.magnetic_counts_per_rev",
+                expected: "> 0",
+            });
+        }
+        if s.motor_counts_per_rev > 1_000_000 || s.magnetic_counts_per_rev > 1_000_000 {
+            return Err(ConfigError {
+                field: if s.motor_counts_per_rev > 1_000_000 {
+                    "scales.motor_counts_per_rev"
+                } else {
+                    "scales.magnetic_counts_per_rev"
+                },
+                expected: "at most 1000000 counts per revolution",
+            });
+        }
+        within(
+            "scales.grating_m_per_count",
+            s.grating_m_per_count,
+            1e-9..=1e-3,
+            "between 1 nm and 1 mm per count",
+        )?;
+        within(
+            "scales.adc_a_per_code",
+            s.adc_a_per_code,
+            1e-6..=1.0,
+            "between 1e-6 and 1 A per code",
+        )?;
+        within(
+            "scales.dac_a_per_code",
+            s.dac_a_per_code,
+            1e-6..=1.0,
+            "between 1e-6 and 1 A per code",
+        )?;
+        // A wider band would flag ordinary currents as a rail (and beyond
+        // half the range the band's arithmetic would wrap).
+        if s.adc_rail_margin_codes > 1023 {
+            return Err(ConfigError {
+                field: "scales.adc_rail_margin_codes",
+                expected: "at most 1023 (a quarter of the 12-bit range)",
+            });
+        }
+        within(
+            "scales.adc_zero_code",
+            s.adc_zero_code,
+            0.0..=4095.0,
+            "within 0..=4095",
+        )?;
+        within(
+            "scales.dac_zero_code",
+            s.dac_zero_code,
+            0.0..=4095.0,
+            "within 0..=4095",
+        )?;
+        Ok(())
+    }
+}
+
 fn positive(field: &'static str, v: f32) -> Result<(), ConfigError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
@@ -961,68 +1034,8 @@ impl Config {
             within(field, v, lo..=hi, expected)?;
         }
 
+        self.scales.validate()?;
         let s = &self.scales;
-        positive("scales.grating_m_per_count", s.grating_m_per_count)?;
-        if s.motor_counts_per_rev == 0 {
-            return Err(ConfigError {
-                field: "scales.motor_counts_per_rev",
-                expected: "> 0",
-            });
-        }
-        if s.magnetic_counts_per_rev == 0 {
-            return Err(ConfigError {
-                field: "scales.magnetic_counts_per_rev",
-                expected: "> 0",
-            });
-        }
-        if s.motor_counts_per_rev > 1_000_000 || s.magnetic_counts_per_rev > 1_000_000 {
-            return Err(ConfigError {
-                field: if s.motor_counts_per_rev > 1_000_000 {
-                    "scales.motor_counts_per_rev"
-                } else {
-                    "scales.magnetic_counts_per_rev"
-                },
-                expected: "at most 1000000 counts per revolution",
-            });
-        }
-        within(
-            "scales.grating_m_per_count",
-            s.grating_m_per_count,
-            1e-9..=1e-3,
-            "between 1 nm and 1 mm per count",
-        )?;
-        within(
-            "scales.adc_a_per_code",
-            s.adc_a_per_code,
-            1e-6..=1.0,
-            "between 1e-6 and 1 A per code",
-        )?;
-        within(
-            "scales.dac_a_per_code",
-            s.dac_a_per_code,
-            1e-6..=1.0,
-            "between 1e-6 and 1 A per code",
-        )?;
-        // A wider band would flag ordinary currents as a rail (and beyond
-        // half the range the band's arithmetic would wrap).
-        if s.adc_rail_margin_codes > 1023 {
-            return Err(ConfigError {
-                field: "scales.adc_rail_margin_codes",
-                expected: "at most 1023 (a quarter of the 12-bit range)",
-            });
-        }
-        within(
-            "scales.adc_zero_code",
-            s.adc_zero_code,
-            0.0..=4095.0,
-            "within 0..=4095",
-        )?;
-        within(
-            "scales.dac_zero_code",
-            s.dac_zero_code,
-            0.0..=4095.0,
-            "within 0..=4095",
-        )?;
 
         let nyquist = 0.5 * self.control_rate_hz;
         let d = &self.differentiators;
@@ -1074,6 +1087,10 @@ impl Config {
                 expected,
             });
         }
+
+        // The fault limits first: the cascade's and the counters' checks
+        // below read them, and a bad limit is named as itself.
+        self.limits.validate()?;
 
         let c = &self.cascade;
         non_negative("cascade.kp_pos_1_s", c.kp_pos_1_s)?;
@@ -1309,8 +1326,7 @@ impl Config {
             0.1..=self.control_rate_hz / (2.0 * crate::probe::BLOCKS as f32),
             "between 0.1 Hz and a sixteenth of the control rate",
         )?;
-
-        self.limits.validate()
+        Ok(())
     }
 }
 
@@ -1388,6 +1404,54 @@ mod tests {
     #[test]
     fn defaults_are_valid() {
         Config::default().validate().unwrap();
+    }
+
+    /// An added term's bad parameter, signal or coefficient is refused as
+    /// what it is, and `term_error` names the term.
+    #[test]
+    fn an_added_terms_fault_is_named_as_itself() {
+        use crate::effects::{EffectError, EffectKind, Term};
+        use crate::model::sig;
+        let with = |term: Term, coef: f32| {
+            let mut c = Config::default();
+            assert!(c
+                .jae
+                .added
+                .push(Term::new(EffectKind::Linear, sig::X2_M), 1.0));
+            assert!(c.jae.added.push(term, coef));
+            c
+        };
+        let stop = |half_width: f32| Term::new(EffectKind::Stop { half_width }, sig::X2_M);
+        let e = with(stop(-1.0), 1.0).validate().unwrap_err();
+        assert_eq!(e.field, "jae.added");
+        assert_eq!(e.expected, "terms whose parameters are finite and positive");
+        assert!(matches!(
+            with(stop(f32::NAN), 1.0).jae.added.term_error(),
+            Some(EffectError::BadParameter { term: 1, .. })
+        ));
+        let e = with(Term::new(EffectKind::Linear, 200), 1.0)
+            .validate()
+            .unwrap_err();
+        assert_eq!(e.expected, "terms that read the run-time signals only");
+        let e = with(stop(1e-5), f32::NAN).validate().unwrap_err();
+        assert_eq!(e.expected, "terms with finite coefficients");
+        assert_eq!(with(stop(1e-5), f32::NAN).jae.added.term_error(), None);
+        with(stop(1e-5), 1.0).validate().unwrap();
+    }
+
+    /// A bad fault limit is named as itself, not as the counter or
+    /// cascade check that reads it.
+    #[test]
+    fn a_bad_limit_is_named_before_the_checks_that_read_it() {
+        for v in [f32::NAN, -1.0] {
+            let mut c = Config::default();
+            c.limits.max_motor_speed_rad_s = v;
+            assert_eq!(
+                c.validate().unwrap_err().field,
+                "limits.max_motor_speed_rad_s",
+                "{v}"
+            );
+        }
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //! in [`sig`]; the host tool uses the same names ([`SIGNAL_NAMES`]) for the
 //! columns of a log, so a term fitted on a log means the same thing here.
 
-use crate::effects::{Term, TermState};
+use crate::effects::{EffectError, Term, TermState};
 
 /// Most terms one estimator can carry.
 pub const MAX_TERMS: usize = 8;
@@ -128,20 +128,35 @@ impl AddedTerms {
         &self.terms[..(self.len as usize).min(MAX_TERMS)]
     }
 
-    /// Check lengths, indices and coefficients.
+    /// Check lengths, indices, parameters and coefficients; the error says
+    /// what a valid bank is (a configuration error's `expected`), and
+    /// [`AddedTerms::term_error`] which term breaks it.
     pub fn validate(&self) -> Result<(), &'static str> {
         if self.len as usize > MAX_TERMS {
-            return Err("len exceeds the maximum number of terms (8)");
+            return Err("at most 8 terms (`len` is larger)");
         }
         for (k, t) in self.active().iter().enumerate() {
-            if t.validate(k, sig::COUNT).is_err() {
-                return Err("a term reads a signal index outside the run-time signals");
+            match t.validate(k, sig::COUNT) {
+                Err(EffectError::BadParameter { .. }) => {
+                    return Err("terms whose parameters are finite and positive");
+                }
+                Err(_) => return Err("terms that read the run-time signals only"),
+                Ok(()) => {}
             }
             if !self.coef[k].is_finite() {
-                return Err("a coefficient is not finite");
+                return Err("terms with finite coefficients");
             }
         }
         Ok(())
+    }
+
+    /// The first term whose signals or parameters [`AddedTerms::validate`]
+    /// refuses, with why (its position counted from 0).
+    pub fn term_error(&self) -> Option<EffectError> {
+        self.active()
+            .iter()
+            .enumerate()
+            .find_map(|(k, t)| t.validate(k, sig::COUNT).err())
     }
 
     /// Put the active terms' state back at rest (`state[..len]`). The slots

@@ -145,10 +145,32 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
                 path.display()
             )
         } else {
-            anyhow!("{}: {e}", path.display())
+            anyhow!("{}: {e}{}", path.display(), added_term_detail(&config, e.field))
         }
     })?;
     Ok((config, notes))
+}
+
+/// Which term of an added-term bank (`field` `jae.added` or
+/// `tension.added`) the configuration's check refused, and why: ": term K
+/// ..." (counted from 0, the order of `[[FIELD.kind]]` in the file), or
+/// nothing for another field.
+fn added_term_detail(config: &Config, field: &str) -> String {
+    let bank = match field {
+        "jae.added" => &config.jae.added,
+        "tension.added" => &config.tension.added,
+        _ => return String::new(),
+    };
+    if let Some(e) = bank.term_error() {
+        return format!(": {e}");
+    }
+    bank.active()
+        .iter()
+        .zip(&bank.coef)
+        .position(|(_, c)| !c.is_finite())
+        .map_or_else(String::new, |k| {
+            format!(": term {k}: `coef` is {}", bank.coef[k])
+        })
 }
 
 /// Whether the dotted `field` (`cascade.kp_vel_a_s_rad`) is set in `table`.
@@ -242,7 +264,11 @@ pub fn load_plant(path: Option<&Path>) -> Result<PlantParams> {
     crate::output::note_input(path);
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading plant parameters {}", path.display()))?;
-    PlantParams::from_toml_str(&text).with_context(|| path.display().to_string())
+    let plant = PlantParams::from_toml_str(&text).with_context(|| path.display().to_string())?;
+    plant
+        .validate()
+        .with_context(|| path.display().to_string())?;
+    Ok(plant)
 }
 
 /// `config` as the TOML text [`write_config`] writes: every number the

@@ -565,24 +565,17 @@ impl PlantParams {
         pos("joint.range_rad", j.range_rad)?;
         pos("spring.stiffness_n_m", self.spring.stiffness_n_m)?;
         nonneg("spring.preload_n", self.spring.preload_n)?;
-        let s = &self.sensors.scales;
-        pos(
-            "sensors.scales.grating_m_per_count",
-            s.grating_m_per_count as f64,
-        )?;
+        // The simulated board's scales, checked as a configuration's.
+        self.sensors
+            .scales
+            .validate()
+            .map_err(|e| anyhow::anyhow!("plant.sensors.{} must be {}", e.field, e.expected))?;
+        // Above 1e7 Hz a second of a run is over ten million steps: a
+        // typing error, not a finer model.
         anyhow::ensure!(
-            s.motor_counts_per_rev > 0,
-            "plant.sensors.scales.motor_counts_per_rev must be > 0"
-        );
-        anyhow::ensure!(
-            s.magnetic_counts_per_rev > 0,
-            "plant.sensors.scales.magnetic_counts_per_rev must be > 0"
-        );
-        pos("sensors.scales.adc_a_per_code", s.adc_a_per_code as f64)?;
-        pos("sensors.scales.dac_a_per_code", s.dac_a_per_code as f64)?;
-        anyhow::ensure!(
-            self.integration.step_hz.is_finite() && self.integration.step_hz >= 20_000.0,
-            "plant.integration.step_hz must be >= 20000 Hz, got {}",
+            self.integration.step_hz.is_finite()
+                && (20_000.0..=1e7).contains(&self.integration.step_hz),
+            "plant.integration.step_hz must be between 20000 and 1e7 Hz, got {}",
             self.integration.step_hz
         );
         pos("integration.max_omega_dt", self.integration.max_omega_dt)?;

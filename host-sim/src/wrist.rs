@@ -561,17 +561,17 @@ impl WristSim {
     pub fn set_pair(&mut self, pair: bool) -> Result<()> {
         self.joints
             .set_pair(pair.then_some((JAW_A, JAW_B)))
-            .map_err(|e| anyhow::anyhow!("wrist: pair refused: {e:?}"))
+            .map_err(|e| anyhow::anyhow!("wrist: pair refused: {}", refused_text(e)))
     }
 
     /// Give joint `j` a command (refused while a fault is latched).
     pub fn set_command(&mut self, j: usize, command: Command) -> Result<()> {
         self.joints.set_command(j, command).map_err(|e| {
-            let name = crate::wrist_log::JOINT_NAMES
-                .get(j)
-                .copied()
-                .unwrap_or("(none)");
-            anyhow::anyhow!("wrist joint {name}: command refused: {e:?}")
+            anyhow::anyhow!(
+                "wrist joint {}: command refused: {}",
+                joint_name(j),
+                refused_text(e)
+            )
         })
     }
 
@@ -1035,6 +1035,30 @@ pub fn grasp_stats(g: &Geometry, ticks: &[(Phase, WristTick)]) -> GraspStats {
             .map(|(_, t)| t.clamp_n.abs())
             .fold(0.0, f64::max),
         fault: first_fault(ticks),
+    }
+}
+
+/// Joint `j`'s name ([`crate::wrist_log::JOINT_NAMES`]), or what it is.
+fn joint_name(j: usize) -> String {
+    crate::wrist_log::JOINT_NAMES
+        .get(j)
+        .map_or_else(|| format!("{j} (no such joint)"), |n| (*n).to_owned())
+}
+
+/// Why the wrist's joints refused a command, for a person.
+fn refused_text(e: cable_joint::joints::Refused) -> String {
+    use cable_joint::joints::Refused;
+    match e {
+        Refused::NoSuchJoint(j) => format!("no joint {j}"),
+        Refused::NotAPair(j) => format!("joint {} cannot pair with itself", joint_name(j)),
+        Refused::Faulted { joint, fault } => format!(
+            "joint {} has latched a fault: {fault} (no drive runs until it is cleared)",
+            joint_name(joint)
+        ),
+        Refused::CausePersists(j) => format!(
+            "joint {}'s fault cannot be cleared while its cause persists",
+            joint_name(j)
+        ),
     }
 }
 

@@ -355,6 +355,32 @@ pub fn load_eq3(path: &Path, gravity_m_s2: [f64; 3], command: &str) -> Result<Eq
             body.params[k]
         );
     }
+    if let Some(k) = body
+        .std_dev
+        .iter()
+        .position(|s| !(s.is_finite() && *s >= 0.0))
+    {
+        anyhow::bail!(
+            "{}: fit.body.std_dev of {} is {}: a standard deviation, finite and not negative",
+            path.display(),
+            PARAM_NAMES[k],
+            body.std_dev[k]
+        );
+    }
+    if let Some(j) = body
+        .sign_speed_rad_s
+        .iter()
+        .position(|v| !(v.is_finite() && *v > 0.0))
+    {
+        anyhow::bail!(
+            "{}: fit.body.sign_speed_rad_s of joint {} is {}: the speed at which its friction's \
+             sign is tanh 1, a positive number of rad/s (zero, negative or not a number would \
+             flip or break every friction torque)",
+            path.display(),
+            JOINT_NAMES[j],
+            body.sign_speed_rad_s[j]
+        );
+    }
     ensure!(
         file.fit.motion_bandwidth_hz.is_finite() && file.fit.motion_bandwidth_hz > 0.0,
         "{}: fit.motion_bandwidth_hz is {}: a positive bandwidth, Hz",
@@ -379,6 +405,43 @@ pub fn load_eq3(path: &Path, gravity_m_s2: [f64; 3], command: &str) -> Result<Eq
     })
 }
 
+/// Most torque Eq. 3's model may put on a joint, as a multiple of what
+/// the joint's drive holds at its current limit (the jaws' squeeze limit
+/// at their length): a model that reaches a hundred times that on a run is
+/// not a model of this wrist (a corrupt or hand-edited parameter), and its
+/// torque would swamp every force and empty Eq. 5's total-force bound.
+const EQ3_TORQUE_LIMIT_DRIVES: f64 = 100.0;
+
+/// Eq. 3's torque on `run` (in `ticks`) within [`EQ3_TORQUE_LIMIT_DRIVES`]
+/// times a joint's drive torque.
+fn check_eq3_torque(
+    path: &Path,
+    ticks: &[wrist_estimate::WristEstimate],
+    rate_hz: f64,
+    drive_nm: f64,
+) -> Result<()> {
+    let limit_nm = EQ3_TORQUE_LIMIT_DRIVES * drive_nm;
+    for (k, t) in ticks.iter().enumerate() {
+        if let Some(j) = t
+            .links_hat_nm
+            .iter()
+            .position(|v| !v.is_finite() || f64::from(*v).abs() > limit_nm)
+        {
+            anyhow::bail!(
+                "{}: Eq. 3's torque on joint {} is {:e} N·m at t = {:.4} s of the run, beyond a \
+                 hundred times the {drive_nm:.3} N·m a joint's drive holds ({limit_nm:.0} N·m): \
+                 not a model of this wrist (check its parameters, or fit it again with \
+                 `identify-wrist`)",
+                path.display(),
+                JOINT_NAMES[j],
+                t.links_hat_nm[j],
+                k as f64 / rate_hz
+            );
+        }
+    }
+    Ok(())
+}
+
 /// `host-sim estimate-wrist`.
 pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
     const COMMAND: &str = "estimate-wrist";
@@ -396,10 +459,19 @@ pub fn run_estimate(args: EstimateWristArgs) -> Result<()> {
     }
     let dir = &args.run.run;
     let (_, mut run) = replay_run(dir, &args.run, &holding, OnFault::Cut, COMMAND)?;
+    // A joint's drive torque: the jaws' squeeze at their current limit, at
+    // their length (their configurations'; before --force-limit-n).
+    let drive_nm = {
+        let g = &run.setting.geometry;
+        f64::from(g.force_limit_n) * f64::from(g.jaw_length_m)
+    };
     if let Some(limit) = args.force_limit_n {
         run.setting.geometry.force_limit_n = limit;
     }
     let ticks = wrist_estimate::estimate(&run, model.as_ref());
+    if let (Some(p), Some(_)) = (&args.eq3, &model) {
+        check_eq3_torque(p, &ticks, run.rate_hz, drive_nm)?;
+    }
     // Eq. 5's total solves 210 small systems a tick: once, for the CSV and
     // the summary.
     let g = &run.setting.geometry;
@@ -549,8 +621,13 @@ fn read_run(
         let path = dir.join(format!("{name}.csv"));
         ensure!(
             path.is_file(),
-            "{}: no log of joint {name} (the run needs {})",
+            "{}: {}no log of joint {name} (the run needs {})",
             path.display(),
+            if path.exists() {
+                "not a regular file: "
+            } else {
+                ""
+            },
             JOINT_NAMES.map(|n| format!("{n}.csv")).join(", ")
         );
         logs.push(wrist_log::read(&path, ticks_per_row, command)?);

@@ -198,15 +198,34 @@ fn bad_input_names_file_line_column() {
     let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
     assert!(msg.contains("2-vibrations"), "{msg}");
 
-    // A finite reading the core's f32 cannot hold (accel file restored):
-    // refused where the estimate meets it, with the wrench file's line.
-    std::fs::write(&path, text).unwrap();
-    std::fs::write(&wrench, with_cell(&wrench_text, 500, 1, "1e300")).unwrap();
-    let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
-    assert!(
-        msg.contains("2-vibrations_wrench.csv line 500") && msg.contains("NaN or infinity"),
-        "{msg}"
-    );
+    // A finite reading beyond any sensor's range (accel file restored),
+    // in each file that holds readings: refused naming the file, the line
+    // and the column, not taken into the fit (1e30 N in the fit run had
+    // identified a mass of -3.7e25 kg).
+    std::fs::write(&path, &text).unwrap();
+    for (file, column, unit) in [
+        ("2-vibrations_wrench.csv", "fx", "N"),
+        ("2-vibrations_accel.csv", "ax", "g"),
+        ("0-calibration_fts-accel.csv", "fx", "N"),
+        ("0-steady-state_wrench.csv", "fx", "N"),
+    ] {
+        let bad = tmp.path().join(file);
+        let good = std::fs::read_to_string(&bad).unwrap();
+        let header: Vec<&str> = good.lines().next().unwrap().split(',').collect();
+        let col = header.iter().position(|h| *h == column).unwrap();
+        for value in ["1e300", "1e30"] {
+            std::fs::write(&bad, with_cell(&good, 5, col, value)).unwrap();
+            let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
+            assert!(
+                msg.contains(&format!(
+                    "{file}: line 5: column \"{column}\" = {value} {unit} is beyond any sensor's range"
+                )),
+                "{file} {value}: {msg}"
+            );
+        }
+        std::fs::write(&bad, good).unwrap();
+    }
+    analyse(&a).expect("every file restored");
 
     // An orientation row that is not a rotation (a corrupt r11, then an
     // all-zero row) is refused naming the file and line, not taken as a
@@ -298,4 +317,24 @@ fn analyse_checks_its_options() {
         );
     }
     assert!(PayloadOptions::default().check().is_ok());
+}
+
+/// A no-contact window (`--tare-s`) longer than half a run is refused
+/// naming the run (100 s on runs of about 6 s had tared the contact away
+/// silently: the contact run's peak fell from 17.6 to 12.2 N); half a run
+/// is taken.
+#[test]
+fn a_tare_window_longer_than_half_a_run_is_refused() {
+    let msg = format!(
+        "{:#}",
+        analyse(&args(&["--tare-s", "100"]))
+            .err()
+            .expect("must fail")
+    );
+    assert!(
+        msg.contains("--tare-s 100: run 1-baseline lasts 6.267 s")
+            && msg.contains("at most half of it (3.134 s)"),
+        "{msg}"
+    );
+    analyse(&args(&["--tare-s", "3"])).expect("half a run is a window");
 }

@@ -147,6 +147,16 @@ pub fn run(args: PayloadArgs) -> Result<()> {
     }
     let (report, estimates) = analyse(&args.options())?;
     crate::stdout!("{}", format_report(&report));
+    for (name, from_s, _) in &report.contact_intervals {
+        if *from_s < args.tare_s {
+            eprintln!(
+                "warning: {name}: contact from {from_s:.2} s, inside the {} s no-contact window \
+                 (--tare-s): the tare took part of the contact for the sensor's offset; give a \
+                 window that ends before it",
+                args.tare_s
+            );
+        }
+    }
     // Every output is written, or none is.
     let mut out = Outputs::new();
     if let Some(path) = &args.json {

@@ -32,6 +32,28 @@ fn ident_config(inertia: bool, weight: [f64; 6], comp: CompConfig) -> IdentConfi
     }
 }
 
+/// The tare window (`--tare-s`, no contact at the start of each run) at
+/// most half of every run's wrench: a longer one would take the contact
+/// it is meant to find for the sensor's offset.
+fn check_tare_window<'a>(tare_s: f64, runs: impl Iterator<Item = &'a Run>) -> Result<()> {
+    for run in runs {
+        let t = &run.wrench.t_s;
+        let length_s = match (t.first(), t.last()) {
+            (Some(a), Some(b)) => b - a,
+            _ => continue,
+        };
+        anyhow::ensure!(
+            tare_s <= 0.5 * length_s,
+            "--tare-s {tare_s}: run {} lasts {length_s:.3} s; the no-contact window at its start \
+             can be at most half of it ({:.3} s), or it takes the contact for the sensor's \
+             offset",
+            run.name,
+            0.5 * length_s
+        );
+    }
+    Ok(())
+}
+
 /// Run the whole analysis (no output files): the calibration files, the
 /// runs, the IMU lag, the filtered runs' kinematics, the base model, the
 /// creep/drift candidates and the selected one, and every run through the
@@ -44,6 +66,7 @@ pub fn analyse(opts: &PayloadOptions) -> Result<(Report, Vec<RunEstimates>)> {
     opts.check()?;
     let c = calibrate(&opts.dir)?;
     let (fit_run, val_runs) = load_runs(opts)?;
+    check_tare_window(opts.tare_s, std::iter::once(&fit_run).chain(&val_runs))?;
     let (lag_s, lag_curve) = imu_lag(opts, &fit_run, &c)?;
     let kin_opts = KinOptions {
         gravity: opts.gravity,

@@ -114,6 +114,8 @@ pub fn load_run(dir: &Path, prefix: &str) -> Result<Run> {
     let (ta, a) = read_columns(&p("accel"), ACCEL_COLS, Some("t"), 10)?;
     let (to, o) = read_columns(&p("orientations"), ORIENT_COLS, Some("t"), 10)?;
     check_rotations(&p("orientations"), &o)?;
+    check_wrench(&p("wrench"), &w)?;
+    check_accel(&p("accel"), &a)?;
     let (tw, ta, to) = (
         tw.unwrap_or_default(),
         ta.unwrap_or_default(),
@@ -135,6 +137,59 @@ pub fn load_run(dir: &Path, prefix: &str) -> Result<Run> {
             v: o,
         },
     })
+}
+
+/// Largest magnitude a force cell may have, N: beyond the range of any
+/// six-axis force sensor made for a robot's wrist (the largest reach tens
+/// of kilonewtons), so a cell past it is another unit or a corrupt cell.
+pub const MAX_FORCE_N: f64 = 1e5;
+/// Largest magnitude of a torque cell, N·m (as [`MAX_FORCE_N`]).
+pub const MAX_TORQUE_NM: f64 = 1e4;
+/// Largest magnitude of an accelerometer cell, g (MEMS accelerometers
+/// reach a few hundred g).
+pub const MAX_ACCEL_G: f64 = 1e3;
+/// Largest magnitude of a gravity cell of the static poses, m/s².
+pub const MAX_GRAVITY_M_S2: f64 = 100.0;
+
+/// Every cell of `rows` (columns `names`) within `limit` in magnitude;
+/// the error names the file, the line and the column.
+fn check_magnitudes<const N: usize>(
+    path: &Path,
+    names: [&str; N],
+    rows: &[[f64; N]],
+    limit: impl Fn(usize) -> (f64, &'static str),
+) -> Result<()> {
+    for (k, r) in rows.iter().enumerate() {
+        for (c, v) in r.iter().enumerate() {
+            let (max, unit) = limit(c);
+            if v.abs() > max {
+                bail!(
+                    "{}: line {}: column \"{}\" = {v:e} {unit} is beyond any sensor's range \
+                     (at most {max:e} {unit}): check the file's units, or a corrupt cell",
+                    path.display(),
+                    crate::log::line_of_row(k),
+                    names[c]
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// [`check_magnitudes`] for a wrench (forces then torques).
+fn check_wrench(path: &Path, rows: &[[f64; 6]]) -> Result<()> {
+    check_magnitudes(path, WRENCH_COLS, rows, |c| {
+        if c < 3 {
+            (MAX_FORCE_N, "N")
+        } else {
+            (MAX_TORQUE_NM, "N·m")
+        }
+    })
+}
+
+/// [`check_magnitudes`] for an accelerometer, g.
+fn check_accel(path: &Path, rows: &[[f64; 3]]) -> Result<()> {
+    check_magnitudes(path, ACCEL_COLS, rows, |_| (MAX_ACCEL_G, "g"))
 }
 
 /// Largest departure of an orientation row from a rotation that is taken
@@ -212,6 +267,11 @@ pub fn load_static_poses(path: &Path) -> Result<StaticPoses> {
     let (_, gravity_m_s2) = read_columns(path, ["gx", "gy", "gz"], None, 6)?;
     let (_, orient) = read_columns(path, ORIENT_COLS, None, 6)?;
     check_rotations(path, &orient)?;
+    check_wrench(path, &wrench)?;
+    check_accel(path, &accel_g)?;
+    check_magnitudes(path, ["gx", "gy", "gz"], &gravity_m_s2, |_| {
+        (MAX_GRAVITY_M_S2, "m/s²")
+    })?;
     Ok(StaticPoses {
         wrench,
         accel_g,
@@ -225,6 +285,7 @@ pub fn load_static_poses(path: &Path) -> Result<StaticPoses> {
 /// cells) is an error naming the file and the column.
 pub fn steady_state_noise(path: &Path) -> Result<[f64; 6]> {
     let (_, w) = read_columns(path, WRENCH_COLS, None, 10)?;
+    check_wrench(path, &w)?;
     let n = w.len() as f64;
     let sd: [f64; 6] = std::array::from_fn(|k| {
         let m = w.iter().map(|r| r[k]).sum::<f64>() / n;

@@ -1300,3 +1300,219 @@ fn a_scenario_too_long_for_one_run_is_refused_with_the_way_to_shorten_it() {
     );
     assert!(!out.exists());
 }
+
+/// `estimate-wrist` refuses an Eq. 3 model whose friction sign speed is
+/// not positive (a negative one flipped every friction torque, exit 0)
+/// and one whose torque on the run goes beyond a hundred times a joint's
+/// drive (a Coulomb parameter of 1e30 emptied Eq. 5's total-force bound,
+/// exit 0), each naming the file and what is wrong; nothing is written.
+/// The model as fitted is taken.
+#[test]
+fn estimate_wrist_refuses_an_eq3_model_no_wrist_could_have() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p);
+    run_ok(host_sim().args(["simulate-wrist", "--out"]).arg(d("free")));
+    run_ok(
+        host_sim()
+            .args(["simulate-wrist", "--grasp", "2", "--out"])
+            .arg(d("grasp")),
+    );
+    let wrist = ["--gravity=-8.496,-4.905,0", "--jaw-open-deg", "20"];
+    run_ok(
+        host_sim()
+            .args(["identify-wrist", "--run"])
+            .arg(d("free"))
+            .args(wrist)
+            .arg("--out")
+            .arg(d("eq3.toml")),
+    );
+    let fitted: toml::Value =
+        toml::from_str(&std::fs::read_to_string(d("eq3.toml")).unwrap()).unwrap();
+    let edited = |name: &str, key: &str, k: usize, v: f64| {
+        let mut t = fitted.clone();
+        t["fit"]["body"][key].as_array_mut().unwrap()[k] = toml::Value::Float(v);
+        std::fs::write(d(name), toml::to_string(&t).unwrap()).unwrap();
+        d(name)
+    };
+    let estimate = |eq3: &Path| {
+        let mut c = host_sim();
+        c.args(["estimate-wrist", "--run"])
+            .arg(d("grasp"))
+            .args(wrist)
+            .arg("--eq3")
+            .arg(eq3)
+            .arg("--out")
+            .arg(d("forces.csv"));
+        c
+    };
+    let flipped = edited("flipped.toml", "sign_speed_rad_s", 0, -1.0);
+    let err = run_err(&mut estimate(&flipped));
+    assert!(
+        err.contains("flipped.toml: fit.body.sign_speed_rad_s of joint roll is -1"),
+        "{err}"
+    );
+    // Pitch's Coulomb friction (the grasp moves the pitch, not the roll).
+    let huge = edited("huge.toml", "params", 9, 1e30);
+    let err = run_err(&mut estimate(&huge));
+    assert!(
+        err.contains("huge.toml: Eq. 3's torque on joint pitch is")
+            && err.contains("beyond a hundred times the 1.092 N·m a joint's drive holds"),
+        "{err}"
+    );
+    assert!(!d("forces.csv").exists(), "nothing written");
+    run_ok(&mut estimate(&d("eq3.toml")));
+}
+
+/// Options that leave nothing to do are refused before any work and
+/// nothing is written: an excitation the limits leave unidentifiable
+/// (condition number inf had been written, and run), a trace too short
+/// for a log (a header-only trace had been written), an unknown effect
+/// for the report (found after seconds of work), `--effect` with
+/// `--no-effects`, `undeclared` at a rate the core refuses or with a plant
+/// twice.
+#[test]
+fn options_that_leave_nothing_to_do_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p);
+    let cases: Vec<(Vec<std::ffi::OsString>, &str, PathBuf)> = vec![
+        (
+            [
+                "excite",
+                "--max-vel-deg-s",
+                "1e-6",
+                "--restarts",
+                "1",
+                "--out",
+            ]
+            .map(Into::into)
+            .into_iter()
+            .chain([d("x.toml").into()])
+            .collect(),
+            "predicted condition number inf): nothing written",
+            d("x.toml"),
+        ),
+        (
+            ["trace", "--duration-s", "1e-9", "--out"]
+                .map(Into::into)
+                .into_iter()
+                .chain([d("t.bin").into(), "--csv".into(), d("t.csv").into()])
+                .collect(),
+            "0 control ticks at 2000 Hz; a trace needs at least 10",
+            d("t.bin"),
+        ),
+        (
+            ["report", "--effect", "creep,bogus", "--out"]
+                .map(Into::into)
+                .into_iter()
+                .chain([d("r").into()])
+                .collect(),
+            "unknown effect `bogus`",
+            d("r"),
+        ),
+        (
+            ["report", "--no-effects", "--effect", "creep", "--out"]
+                .map(Into::into)
+                .into_iter()
+                .chain([d("r").into()])
+                .collect(),
+            "cannot be used with",
+            d("r"),
+        ),
+        (
+            ["undeclared", "--rate", "99.5", "--out"]
+                .map(Into::into)
+                .into_iter()
+                .chain([d("u").into()])
+                .collect(),
+            "99.5 is outside [100, 20000]",
+            d("u"),
+        ),
+        (
+            ["undeclared", "--draw", "31", "31", "--out"]
+                .map(Into::into)
+                .into_iter()
+                .chain([d("u").into()])
+                .collect(),
+            "--draw 31 is given twice",
+            d("u"),
+        ),
+    ];
+    for (args, message, output) in cases {
+        let err = run_err(host_sim().args(&args));
+        assert!(err.contains(message), "{args:?}: {err}");
+        assert!(!output.exists(), "{args:?}: {} written", output.display());
+    }
+    assert!(!d("t.csv").exists());
+}
+
+/// A plant file is checked as a configuration is, naming the file: the
+/// board's zero codes (NaN, -1 and 1e30 had been taken, to latch a
+/// current-monitor fault), and an integration step so fine that a run
+/// never ends (1e30 Hz had hung `simulate`).
+#[test]
+fn a_plant_file_with_scales_no_board_has_or_an_endless_step_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let plant = dir.path().join("plant.toml");
+    let out = dir.path().join("run.csv");
+    for (text, message) in [
+        (
+            "[sensors.scales]\ndac_zero_code = nan\n",
+            "plant.sensors.scales.dac_zero_code must be within 0..=4095",
+        ),
+        (
+            "[sensors.scales]\nadc_zero_code = -1.0\n",
+            "plant.sensors.scales.adc_zero_code must be within 0..=4095",
+        ),
+        (
+            "[integration]\nstep_hz = 1e30\n",
+            "plant.integration.step_hz must be between 20000 and 1e7 Hz",
+        ),
+    ] {
+        std::fs::write(&plant, text).unwrap();
+        let err = run_err(
+            host_sim()
+                .args(["simulate", "--scenario", "jae-ident", "--duration", "1"])
+                .arg("--plant")
+                .arg(&plant)
+                .arg("--out")
+                .arg(&out),
+        );
+        assert!(
+            err.contains("plant.toml") && err.contains(message),
+            "{text}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}
+
+/// `identify --procedure bm` refuses a run with the cable attached (grating
+/// 1 follows the motor): it had fitted the cable's tension as damping,
+/// B_m twice the true one, and written it. A tag with no file is named.
+#[test]
+fn identify_bm_refuses_a_run_with_the_cable_attached_and_a_tag_without_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let coupled = simulated(dir.path(), "jae-ident", 3.0, "jae.csv");
+    let config = dir.path().join("bm.toml");
+    let err = run_err(
+        host_sim()
+            .args(["identify", "--procedure", "bm", "--log"])
+            .arg(&coupled)
+            .arg("--config-out")
+            .arg(&config),
+    );
+    assert!(
+        err.contains("grating 1 moves") && err.contains("the cable is attached"),
+        "{err}"
+    );
+    assert!(!config.exists());
+    let err = run_err(
+        host_sim()
+            .args(["identify", "--procedure", "all", "--log"])
+            .arg(format!("jae={}", coupled.display()))
+            .arg(format!("tension={}", coupled.display()))
+            .arg("bm=")
+            .arg("--config-out")
+            .arg(&config),
+    );
+    assert!(err.contains("`bm=` names no file"), "{err}");
+}

@@ -92,6 +92,14 @@ fn show(e: &Envelope) -> String {
     )
 }
 
+/// Why a design of condition number `condition` (not finite) is refused.
+fn no_excitation(condition: f64, hint: &str) -> String {
+    format!(
+        "the limits leave no motion that identifies every parameter (predicted condition \
+         number {condition}): nothing written; {hint}"
+    )
+}
+
 /// Run the subcommand.
 pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     if args.wrist {
@@ -154,6 +162,14 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
         }
         None => excite::design_over_frequencies(&opts, duration_s)?,
     };
+    ensure!(
+        design.condition.is_finite(),
+        "{}",
+        no_excitation(
+            design.condition,
+            "widen --max-angle-deg, --max-vel-deg-s or --max-acc-deg-s2"
+        )
+    );
     let run = plan(
         "excite",
         &ScenarioOptions {
@@ -246,6 +262,14 @@ fn run_wrist(args: &ExciteArgs) -> anyhow::Result<()> {
         })?,
         None => excite_wrist::design_over_frequencies(&opts, duration_s)?,
     };
+    ensure!(
+        design.condition.is_finite(),
+        "{}",
+        no_excitation(
+            design.condition,
+            "lengthen --duration-s or choose another --base-freq-hz"
+        )
+    );
     crate::stdoutln!(
         "designed: {:.1} s; predicted condition number {:.2} ({:.2}x the hand-made run's), {} evaluations",
         design.duration_s,

@@ -106,6 +106,15 @@ pub struct IdentifyArgs {
     pub ticks_per_row: Option<u32>,
 }
 
+impl Procedure {
+    /// The name `--procedure` takes.
+    fn name(self) -> String {
+        use clap::ValueEnum;
+        self.to_possible_value()
+            .map_or_else(String::new, |v| v.get_name().to_owned())
+    }
+}
+
 /// Split `--log`/`--validate` arguments by procedure.
 fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, PathBuf)>> {
     let order = [Procedure::Bm, Procedure::Jae, Procedure::Tension];
@@ -137,8 +146,14 @@ fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, Path
     for f in files {
         match tagged(f) {
             Some((p, path)) => {
+                if path.as_os_str().is_empty() {
+                    bail!("`{f}` names no file: tag a log as TAG=FILE");
+                }
                 if procedure != Procedure::All && p != procedure {
-                    bail!("`{f}` is tagged for another procedure than {procedure:?}");
+                    bail!(
+                        "`{f}` is tagged for another procedure than {}",
+                        procedure.name()
+                    );
                 }
                 out.push((p, path));
             }
@@ -293,7 +308,7 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
             continue;
         }
         if logs.is_empty() {
-            bail!("no log for the {p:?} procedure");
+            bail!("no log for the {} procedure", p.name());
         }
         let val_logs = read_logs(&vals, p, args.ticks_per_row)?;
         // One run under two names passes the path checks; its data do not.

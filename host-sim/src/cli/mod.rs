@@ -222,6 +222,14 @@ pub fn f64_above(
     move |s| parse_in(s, lo, true, hi)
 }
 
+/// Parser of an `f32` option in `[lo, hi]`, finite.
+pub fn f32_in(
+    lo: f32,
+    hi: f32,
+) -> impl Fn(&str) -> Result<f32, String> + Clone + Send + Sync + 'static {
+    move |s| parse_in(s, lo, false, hi)
+}
+
 /// Parser of an `f32` option in `(lo, hi]`, finite.
 pub fn f32_above(
     lo: f32,

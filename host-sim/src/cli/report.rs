@@ -27,7 +27,7 @@ pub struct ReportArgs {
     pub no_effects: bool,
     /// Effects switched on in step 7, comma separated (default: all of
     /// presliding, creep, thermal, spring, drift).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', conflicts_with = "no_effects", value_parser = effect_name)]
     pub effect: Vec<String>,
     /// Run on one thread.
     #[arg(long)]
@@ -120,6 +120,14 @@ impl ReportArgs {
             payout_stop: self.payout_stop,
         }
     }
+}
+
+/// An effect's name `--effect` takes, checked before any work.
+fn effect_name(s: &str) -> Result<String, String> {
+    crate::plant::Effects::default()
+        .enable(s)
+        .map(|()| s.trim().to_owned())
+        .map_err(|e| e.to_string())
 }
 
 /// Run the subcommand.

@@ -111,6 +111,15 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
     let rec = record_watched(plant, &opts, config, &mut NoInjection, &mut |k, n, o| {
         watch.tick(k, n, o)
     })?;
+    let min_ticks = crate::log::DEFAULT_MIN_ROWS;
+    anyhow::ensure!(
+        rec.samples.len() >= min_ticks,
+        "--duration-s {}: {} control ticks at {} Hz; a trace needs at least {min_ticks} (a log \
+         of it does, for every command that reads one): lengthen it",
+        args.run.duration_s,
+        rec.samples.len(),
+        rec.control_rate_hz
+    );
     // The trace and the CSV log are written together, or neither is.
     let mut out = Outputs::new();
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -134,12 +143,15 @@ pub fn run(args: TraceArgs) -> anyhow::Result<()> {
         .find_map(|o| o.origin)
         .map(|o| o.tick);
     eprintln!(
-        "wrote {} ({} ticks at {} Hz, probing {}; homed at tick {:?})",
+        "wrote {} ({} ticks at {} Hz, probing {}; {})",
         args.out.display(),
         rec.samples.len(),
         rec.control_rate_hz,
         if rec.probing { "on" } else { "off" },
-        homed
+        homed.map_or_else(
+            || "not homed".to_owned(),
+            |tick| format!("homed at tick {tick}")
+        )
     );
     if let Some(csv) = &args.csv {
         eprintln!("wrote {}", csv.display());

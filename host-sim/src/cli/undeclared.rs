@@ -34,7 +34,7 @@ pub struct UndeclaredArgs {
     pub draws: Vec<u64>,
     /// Control rates, Hz.
     #[arg(allow_negative_numbers = true, long = "rate", num_args = 1.., default_values_t = [2000.0f32, 1000.0],
-          value_parser = cli::f32_above(99.0, 20_000.0))]
+          value_parser = cli::f32_in(100.0, 20_000.0))]
     pub rates_hz: Vec<f32>,
     /// Effect sizes.
     #[arg(long = "size", num_args = 1.., value_enum, default_values_t = [Size::Datasheet, Size::Upper])]
@@ -62,6 +62,20 @@ pub struct UndeclaredArgs {
 /// A run or an analysis that fails, or an output that cannot be written.
 pub fn run(args: UndeclaredArgs) -> Result<()> {
     crate::output::check_dir_target(&args.out)?;
+    // The same plant or rate twice would count its runs twice.
+    if let Some(d) = repeated(&args.draws) {
+        anyhow::bail!("--draw {d} is given twice: each plant once");
+    }
+    if let Some(r) = repeated(&args.rates_hz) {
+        anyhow::bail!("--rate {r} is given twice: each rate once");
+    }
+    if let Some(s) = repeated(&args.sizes) {
+        use clap::ValueEnum;
+        let name = s
+            .to_possible_value()
+            .map_or_else(String::new, |v| v.get_name().to_owned());
+        anyhow::bail!("--size {name} is given twice: each size once");
+    }
     let opts = ProgrammeOptions {
         draws: args.draws,
         rates_hz: args.rates_hz,
@@ -84,4 +98,13 @@ pub fn run(args: UndeclaredArgs) -> Result<()> {
     }
     crate::stdoutln!("wrote {} and {}", md.display(), json.display());
     Ok(())
+}
+
+/// The first value `values` holds twice, if any.
+fn repeated<T: PartialEq + Copy>(values: &[T]) -> Option<T> {
+    values
+        .iter()
+        .enumerate()
+        .find(|(k, v)| values[..*k].contains(v))
+        .map(|(_, v)| *v)
 }

@@ -28,6 +28,9 @@ pub fn identify_bm_with(
     config: &Config,
     opts: &IdentOptions,
 ) -> Result<BmResult> {
+    for (label, log) in logs {
+        check_unhooked(label, log, config)?;
+    }
     let preps = prepare_all(logs, &decoupled(config), opts)?;
     let fit_with = |terms: &[ModelTerm]| {
         fit_terms(
@@ -60,6 +63,41 @@ pub fn identify_bm_with(
     })
 }
 
+/// A no-load run has its rope wheel unhooked: grating 1 (on cable 1)
+/// stays where it is while the motor turns. Where it moves by more than a
+/// tenth of the cable the motor winds (and by more than ten counts), the
+/// cable is attached, the motor current carries its tension, and the fit
+/// would call that tension damping.
+fn check_unhooked(label: &str, log: &Log, config: &Config) -> Result<()> {
+    let span = |name: &str| {
+        let c = log.col(name)?;
+        let (lo, hi) = c
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            });
+        (hi >= lo).then_some(hi - lo)
+    };
+    let (Some(phi_rad), Some(x1_m)) = (span("phi_rad"), span("x1_m")) else {
+        return Ok(());
+    };
+    let m = &config.machine;
+    let wound_m = phi_rad * f64::from(m.rope_wheel_radius_m / m.gear_ratio);
+    let counts = x1_m / f64::from(config.scales.grating_m_per_count);
+    if x1_m > 0.1 * wound_m && counts > 10.0 {
+        bail!(
+            "{label}: grating 1 moves {:.3} mm while the motor winds {:.3} mm of cable: the \
+             cable is attached, so the motor current carries its tension. B_m needs the \
+             no-load motor run (rope wheel unhooked); give this log to the jae or tension \
+             procedure",
+            x1_m * 1e3,
+            wound_m * 1e3
+        );
+    }
+    Ok(())
+}
+
 /// Errors of an identified `B_m` model on another no-load log (N·m).
 pub fn validate_bm(
     result: &BmResult,
@@ -67,6 +105,7 @@ pub fn validate_bm(
     config: &Config,
     opts: &IdentOptions,
 ) -> Result<ErrorStats> {
+    check_unhooked("validation", log, config)?;
     let preps = prepare_all(&[("validation", log)], &decoupled(config), opts)?;
     evaluate(&result.fit, &preps, Target::MotorTorque, opts, 1.0, "N·m")
 }

@@ -58,6 +58,7 @@ const ACC_STEP_S: f64 = 1e-3;
 /// Peak magnitudes of a run's reference: its angle from the start angle,
 /// its velocity and its acceleration.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Envelope {
     /// Largest `|theta - theta(0)|`, rad.
     pub angle_rad: f64,
@@ -414,6 +415,7 @@ impl DesignOptions {
 
 /// A designed excitation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Design {
     /// The series, starting at 0 rad at rest.
     pub trajectory: Trajectory,

@@ -196,6 +196,7 @@ impl WristDesignOptions {
 
 /// A designed wrist excitation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct WristDesign {
     /// Each joint's series (roll, pitch, jaw A, jaw B), starting at 0 rad
     /// at rest.

@@ -180,13 +180,14 @@ pub fn run(args: ExciteArgs) -> anyhow::Result<()> {
     let run_references = run.references();
     let after = excite::condition(&run_references, PREDICTION_RATE_HZ);
     crate::stdoutln!(
-        "excite: {:.1} s ({:.1} s of {:.3} Hz, 1 s hold, 1 s return), {}; predicted condition number {after:.1} ({:.2}x {}), {} evaluations",
+        "excite: {:.1} s ({:.1} s of {:.3} Hz, 1 s hold, 1 s return), {}; predicted condition number {after:.1} ({:.2}x {}; the series alone, the file's `condition`, {:.2}), {} evaluations",
         run.duration_s(),
         design.duration_s,
         design.trajectory_base_freq_hz(),
         show(&design.envelope),
         after / before,
         args.like,
+        design.condition,
         design.evaluations
     );
     let (a, b) = (

@@ -421,7 +421,8 @@ pub struct Design {
     pub trajectory: Trajectory,
     /// Its length (whole periods), s.
     pub duration_s: f64,
-    /// Predicted condition number over the run ([`condition`]).
+    /// Predicted condition number over the series alone ([`condition`];
+    /// the scenario's hold and return after it are not counted).
     pub condition: f64,
     /// Its envelope: the tightest limit is reached.
     pub envelope: Envelope,

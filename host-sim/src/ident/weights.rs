@@ -159,9 +159,12 @@ pub fn parse_reference_steps(spec: &str) -> Result<Vec<(f64, f64)>> {
         };
         if let Some(&(before, _)) = steps.last() {
             if t <= before {
-                bail!(
-                    "the reference steps `{spec}` go back in time at `{part}` (after {before} s)"
-                );
+                let how = if t == before {
+                    "repeat a time"
+                } else {
+                    "go back in time"
+                };
+                bail!("the reference steps `{spec}` {how} at `{part}` (after {before} s)");
             }
         }
         steps.push((t, f));
@@ -642,7 +645,8 @@ mod tests {
             ("0=0,5", "is not TIME_S=FORCE_N"),
             ("0=0,x=1", "is not TIME_S=FORCE_N"),
             ("0=0,inf=1", "is not TIME_S=FORCE_N"),
-            ("1=0,1=2", "go back in time"),
+            ("1=0,1=2", "repeat a time at `1=2`"),
+            ("2=0,1=2", "go back in time at `1=2`"),
         ] {
             let e = parse_reference_steps(bad).unwrap_err().to_string();
             assert!(e.contains(says), "{bad}: {e}");

@@ -464,11 +464,7 @@ fn check_current_range(log: &Log, s: &cable_joint::units::Scales) -> Result<()> 
             .position(|v| v.is_finite() && !(lo..=hi).contains(v))
         {
             let v = col[k];
-            let value = if v.abs() < 1e6 {
-                format!("{v}")
-            } else {
-                format!("{v:e}")
-            };
+            let value = crate::log::value_text(v);
             bail!(
                 "line {}: column {} = {value} A is beyond the current the board's DAC can \
                  command, {:.3} to {:.3} A (scales.dac_a_per_code, scales.dac_zero_code): check \

@@ -123,11 +123,7 @@ fn check_reference_force(log: &Log, machine: &cable_joint::config::Machine) -> R
         .position(|v| v.is_finite() && v.abs() > limit_n)
     {
         let v = reference[k];
-        let value = if v.abs() < 1e6 {
-            format!("{v}")
-        } else {
-            format!("{v:e}")
-        };
+        let value = crate::log::value_text(v);
         bail!(
             "line {}: column \"f_ext_n\" = {value} N is beyond any tip force the joint can \
              carry ({REFERENCE_FORCE_LIMIT_DRIVES} times the {drive_n:.1} N its drive holds at \

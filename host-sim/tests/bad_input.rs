@@ -1374,67 +1374,60 @@ fn estimate_wrist_refuses_an_eq3_model_no_wrist_could_have() {
 fn options_that_leave_nothing_to_do_are_refused_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
     let d = |p: &str| dir.path().join(p);
-    let cases: Vec<(Vec<std::ffi::OsString>, &str, PathBuf)> = vec![
-        (
-            [
-                "excite",
-                "--max-vel-deg-s",
-                "1e-6",
-                "--restarts",
-                "1",
-                "--out",
-            ]
+    // The command's words, then its output path.
+    let line = |words: &[&str], out: &Path| -> Vec<std::ffi::OsString> {
+        words
+            .iter()
             .map(Into::into)
-            .into_iter()
-            .chain([d("x.toml").into()])
-            .collect(),
+            .chain([out.as_os_str().to_owned()])
+            .collect()
+    };
+    let (x, t, r, u) = (d("x.toml"), d("t.bin"), d("r"), d("u"));
+    let mut trace = line(&["trace", "--duration-s", "1e-9", "--out"], &t);
+    trace.extend(["--csv".into(), d("t.csv").into()]);
+    let cases = [
+        (
+            line(
+                &[
+                    "excite",
+                    "--max-vel-deg-s",
+                    "1e-6",
+                    "--restarts",
+                    "1",
+                    "--out",
+                ],
+                &x,
+            ),
             "predicted condition number inf): nothing written",
-            d("x.toml"),
+            &x,
         ),
         (
-            ["trace", "--duration-s", "1e-9", "--out"]
-                .map(Into::into)
-                .into_iter()
-                .chain([d("t.bin").into(), "--csv".into(), d("t.csv").into()])
-                .collect(),
+            trace,
             "0 control ticks at 2000 Hz; a trace needs at least 10",
-            d("t.bin"),
+            &t,
         ),
         (
-            ["report", "--effect", "creep,bogus", "--out"]
-                .map(Into::into)
-                .into_iter()
-                .chain([d("r").into()])
-                .collect(),
+            line(&["report", "--effect", "creep,bogus", "--out"], &r),
             "unknown effect `bogus`",
-            d("r"),
+            &r,
         ),
         (
-            ["report", "--no-effects", "--effect", "creep", "--out"]
-                .map(Into::into)
-                .into_iter()
-                .chain([d("r").into()])
-                .collect(),
+            line(
+                &["report", "--no-effects", "--effect", "creep", "--out"],
+                &r,
+            ),
             "cannot be used with",
-            d("r"),
+            &r,
         ),
         (
-            ["undeclared", "--rate", "99.5", "--out"]
-                .map(Into::into)
-                .into_iter()
-                .chain([d("u").into()])
-                .collect(),
+            line(&["undeclared", "--rate", "99.5", "--out"], &u),
             "99.5 is outside [100, 20000]",
-            d("u"),
+            &u,
         ),
         (
-            ["undeclared", "--draw", "31", "31", "--out"]
-                .map(Into::into)
-                .into_iter()
-                .chain([d("u").into()])
-                .collect(),
+            line(&["undeclared", "--draw", "31", "31", "--out"], &u),
             "--draw 31 is given twice",
-            d("u"),
+            &u,
         ),
     ];
     for (args, message, output) in cases {

@@ -132,6 +132,22 @@ pub fn quoted(text: &str) -> String {
     }
 }
 
+/// A number for a message: as written below a million, in exponent form
+/// above (a corrupt cell's 1e300 is not printed with its 301 digits).
+///
+/// ```
+/// use host_sim::log::value_text;
+/// assert_eq!(value_text(-6000.0), "-6000");
+/// assert_eq!(value_text(1e300), "1e300");
+/// ```
+pub fn value_text(v: f64) -> String {
+    if v.abs() < 1e6 {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// Most characters of a TOML error's message, and of the line it quotes,
 /// that [`toml_error`] keeps.
 pub const MAX_TOML_CHARS: usize = 160;

@@ -89,7 +89,9 @@ mod error;
 mod read;
 mod write;
 
-pub use error::{quoted, toml_error, LogError, LogErrorKind, MAX_QUOTED_CHARS, MAX_TOML_CHARS};
+pub use error::{
+    quoted, toml_error, value_text, LogError, LogErrorKind, MAX_QUOTED_CHARS, MAX_TOML_CHARS,
+};
 
 /// One column: values (NaN where not measured) and, if any cell is not
 /// measured, the mask of measured cells.

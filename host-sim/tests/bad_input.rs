@@ -1509,3 +1509,42 @@ fn identify_bm_refuses_a_run_with_the_cable_attached_and_a_tag_without_a_file() 
     );
     assert!(err.contains("`bm=` names no file"), "{err}");
 }
+
+/// A configuration's refused value is echoed with the field that refused
+/// it (the range alone left the user to find what the file gave), and a
+/// bad fault limit is named as itself, not as a check that reads it.
+#[test]
+fn a_refused_configuration_value_is_named_with_what_the_file_gives() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("c.toml");
+    let out = dir.path().join("run.csv");
+    for (text, message) in [
+        (
+            "[limits]\nmax_motor_speed_rad_s = -1.0\n",
+            "`limits.max_motor_speed_rad_s` must be between 1 and 5000 rad/s (the file gives -1.0)",
+        ),
+        (
+            "[limits]\nmax_motor_speed_rad_s = nan\n",
+            "`limits.max_motor_speed_rad_s` must be between 1 and 5000 rad/s (the file gives nan)",
+        ),
+        (
+            "[scales]\nadc_zero_code = 5000.0\n",
+            "`scales.adc_zero_code` must be within 0..=4095 (the file gives 5000.0)",
+        ),
+    ] {
+        std::fs::write(&config, text).unwrap();
+        let err = run_err(
+            host_sim()
+                .args(["simulate", "--scenario", "jae-ident", "--duration", "1"])
+                .arg("--config")
+                .arg(&config)
+                .arg("--out")
+                .arg(&out),
+        );
+        assert!(
+            err.contains("c.toml") && err.contains(message),
+            "{text}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}

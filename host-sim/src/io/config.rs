@@ -133,6 +133,7 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
         config
     } else {
         table
+            .clone()
             .try_into()
             .map_err(|e: toml::de::Error| anyhow!("{}: {e}", path.display()))?
     };
@@ -145,7 +146,12 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
                 path.display()
             )
         } else {
-            anyhow!("{}: {e}{}", path.display(), added_term_detail(&config, e.field))
+            anyhow!(
+                "{}: {e}{}{}",
+                path.display(),
+                given_value(&table, e.field),
+                added_term_detail(&config, e.field)
+            )
         }
     })?;
     Ok((config, notes))
@@ -175,16 +181,32 @@ fn added_term_detail(config: &Config, field: &str) -> String {
 
 /// Whether the dotted `field` (`cascade.kp_vel_a_s_rad`) is set in `table`.
 fn has_key(table: &toml::Table, field: &str) -> bool {
+    get_key(table, field).is_some()
+}
+
+/// The value of the dotted `field` in `table`, if it is set.
+fn get_key<'a>(table: &'a toml::Table, field: &str) -> Option<&'a toml::Value> {
     let mut t = table;
     let mut parts = field.split('.').peekable();
     while let Some(p) = parts.next() {
         match (t.get(p), parts.peek()) {
-            (Some(_), None) => return true,
+            (Some(v), None) => return Some(v),
             (Some(toml::Value::Table(sub)), Some(_)) => t = sub,
-            _ => return false,
+            _ => return None,
         }
     }
-    false
+    None
+}
+
+/// ", the file gives VALUE" for a number or flag the file sets at `field`
+/// (what a range error refused), else nothing.
+fn given_value(table: &toml::Table, field: &str) -> String {
+    match get_key(table, field) {
+        Some(v @ (toml::Value::Float(_) | toml::Value::Integer(_) | toml::Value::Boolean(_))) => {
+            format!(" (the file gives {v})")
+        }
+        _ => String::new(),
+    }
 }
 
 /// Set the dotted `field` in `table`, creating the tables on its way.

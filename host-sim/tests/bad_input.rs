@@ -1548,3 +1548,42 @@ fn a_refused_configuration_value_is_named_with_what_the_file_gives() {
         assert!(!out.exists());
     }
 }
+
+/// An excitation whose angle leaves the configuration's joint-angle limit
+/// (an offset of 3 rad: the run had latched AngleRange and recorded a
+/// faulted run, exit 0) is refused before the run, naming the file; the
+/// designed one runs.
+#[test]
+fn an_excitation_beyond_the_joint_angle_limit_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p);
+    run_ok(
+        host_sim()
+            .args(["excite", "--restarts", "1", "--out"])
+            .arg(d("ex.toml")),
+    );
+    let text = std::fs::read_to_string(d("ex.toml")).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("offset_rad = "))
+        .expect("the series' offset");
+    std::fs::write(d("off.toml"), text.replace(line, "offset_rad = 3.0")).unwrap();
+    let simulate = |excitation: &Path| {
+        let mut c = host_sim();
+        c.args(["simulate", "--scenario", "excite", "--duration", "2"])
+            .arg("--excitation")
+            .arg(excitation)
+            .arg("--out")
+            .arg(d("run.csv"));
+        c
+    };
+    let err = run_err(&mut simulate(&d("off.toml")));
+    assert!(
+        err.contains("the excitation")
+            && err.contains("off.toml: its angle reaches")
+            && err.contains("beyond the configuration's limits.max_joint_angle_rad"),
+        "{err}"
+    );
+    assert!(!d("run.csv").exists());
+    run_ok(&mut simulate(&d("ex.toml")));
+}

@@ -1367,7 +1367,8 @@ fn estimate_wrist_refuses_an_eq3_model_no_wrist_could_have() {
 /// nothing is written: an excitation the limits leave unidentifiable
 /// (condition number inf had been written, and run), a trace too short
 /// for a log (a header-only trace had been written), an unknown effect
-/// for the report (found after seconds of work), `--effect` with
+/// for the report (found after seconds of work), an object at 0° (its
+/// message had given another range than the option's), `--effect` with
 /// `--no-effects`, `undeclared` at a rate the core refuses or with a plant
 /// twice.
 #[test]
@@ -1404,6 +1405,12 @@ fn options_that_leave_nothing_to_do_are_refused_before_any_work() {
         (
             trace,
             "0 control ticks at 2000 Hz; a trace needs at least 10",
+            &t,
+        ),
+        (
+            line(&["trace", "--object-at-deg", "0", "--out"], &t),
+            "--object-at-deg 0: the object's surface must be at a joint angle other than 0 \
+             (within ±80°",
             &t,
         ),
         (

@@ -79,6 +79,12 @@ pub struct RunArgs {
 impl RunArgs {
     /// The run these arguments ask for (refused: an object at 0°).
     pub fn options(&self) -> anyhow::Result<TraceOptions> {
+        if self.object_at_deg == Some(0.0) {
+            anyhow::bail!(
+                "--object-at-deg 0: the object's surface must be at a joint angle other than 0 \
+                 (within ±80°; it fills the side away from 0)"
+            );
+        }
         let object = self
             .object_at_deg
             .map(|deg| TipObject::new(deg, self.object_n_m))

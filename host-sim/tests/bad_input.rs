@@ -1448,7 +1448,8 @@ fn options_that_leave_nothing_to_do_are_refused_before_any_work() {
 /// A plant file is checked as a configuration is, naming the file: the
 /// board's zero codes (NaN, -1 and 1e30 had been taken, to latch a
 /// current-monitor fault), and an integration step so fine that a run
-/// never ends (1e30 Hz had hung `simulate`).
+/// never ends (1e30 Hz had hung `simulate`); a mass too light for the
+/// step is named.
 #[test]
 fn a_plant_file_with_scales_no_board_has_or_an_endless_step_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -1483,6 +1484,20 @@ fn a_plant_file_with_scales_no_board_has_or_an_endless_step_is_refused() {
         );
         assert!(!out.exists());
     }
+    // A mass too light for the step names the element that is.
+    std::fs::write(&plant, "[slider1]\nmass_kg = 1e-9\n").unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["simulate", "--scenario", "jae-ident", "--duration", "1"])
+            .arg("--plant")
+            .arg(&plant)
+            .arg("--out")
+            .arg(&out),
+    );
+    assert!(
+        err.contains("too coarse") && err.contains("(at slider1.mass_kg)"),
+        "{err}"
+    );
 }
 
 /// `identify --procedure bm` refuses a run with the cable attached (grating

@@ -99,23 +99,35 @@ impl Derived {
             cc[2][2] += b[1].sigma1 / (r * r);
             cc[3][3] += b[2].sigma1;
         }
+        // Gershgorin's row sums, and the row (the mass) that gives the
+        // largest: what a too coarse step has to be told about.
         let bound = |a: &[[f64; 4]; 4]| {
             (0..4)
                 .map(|i| {
-                    (0..4)
-                        .map(|j| a[i][j].abs() / (m[i] * m[j]).sqrt())
-                        .sum::<f64>()
+                    let sum: f64 = (0..4).map(|j| a[i][j].abs() / (m[i] * m[j]).sqrt()).sum();
+                    (sum, i)
                 })
-                .fold(0.0, f64::max)
+                .fold((0.0, 0), |best, x| if x.0 > best.0 { x } else { best })
         };
-        let omega_max = bound(&kk).sqrt();
-        let damping_max = bound(&cc);
+        const MASSES: [&str; 4] = [
+            "the motor (rotor_inertia_kg_m2 through the rope wheel)",
+            "slider1.mass_kg",
+            "the joint (joint.inertia_kg_m2 at the pulley)",
+            "slider2.mass_kg",
+        ];
+        let (omega_sq, stiff_row) = bound(&kk);
+        let omega_max = omega_sq.sqrt();
+        let (damping_max, damped_row) = bound(&cc);
         let lim = p.integration.max_omega_dt;
         anyhow::ensure!(
             omega_max * dt <= lim && damping_max * dt <= lim,
-            "plant step {dt:e} s too coarse: w_max = {omega_max:.0} rad/s gives w dt = {:.3}, \
-             damping rate {damping_max:.0} 1/s gives {:.3} (limit {lim}); raise integration.step_hz",
+            "plant step {dt:e} s too coarse: w_max = {omega_max:.0} rad/s (at {}) gives w dt = \
+             {:.3}, damping rate {damping_max:.0} 1/s (at {}) gives {:.3} (limit {lim}); raise \
+             integration.step_hz, or check that element's mass and its cables' stiffness and \
+             damping",
+            MASSES[stiff_row],
             omega_max * dt,
+            MASSES[damped_row],
             damping_max * dt
         );
         Ok(Derived {

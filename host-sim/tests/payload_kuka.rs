@@ -227,6 +227,19 @@ fn bad_input_names_file_line_column() {
     }
     analyse(&a).expect("every file restored");
 
+    // A corrupt last time (1e30 µs): increasing, so taken before, it made
+    // a 6 s run last 1e24 s. Refused as a jump by its line.
+    let last = wrench_text.lines().count();
+    std::fs::write(&wrench, with_cell(&wrench_text, last, 0, "1e30")).unwrap();
+    let msg = format!("{:#}", analyse(&a).err().expect("must fail"));
+    assert!(
+        msg.contains(&format!(
+            "2-vibrations_wrench.csv: line {last}: column \"t\" jumps"
+        )) && msg.contains("times the stream's median step"),
+        "{msg}"
+    );
+    std::fs::write(&wrench, &wrench_text).unwrap();
+
     // An orientation row that is not a rotation (a corrupt r11, then an
     // all-zero row) is refused naming the file and line, not taken as a
     // motion (the wrench file restored).
@@ -333,7 +346,7 @@ fn a_tare_window_longer_than_half_a_run_is_refused() {
     );
     assert!(
         msg.contains("--tare-s 100: run 1-baseline lasts 6.267 s")
-            && msg.contains("at most half of it (3.134 s)"),
+            && msg.contains("at most half of it (3.133 s)"),
         "{msg}"
     );
     analyse(&args(&["--tare-s", "3"])).expect("half a run is a window");

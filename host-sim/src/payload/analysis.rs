@@ -48,7 +48,8 @@ fn check_tare_window<'a>(tare_s: f64, runs: impl Iterator<Item = &'a Run>) -> Re
              can be at most half of it ({:.3} s), or it takes the contact for the sensor's \
              offset",
             run.name,
-            0.5 * length_s
+            // Rounded down: the figure printed is itself a window taken.
+            (0.5 * length_s * 1e3).floor() / 1e3
         );
     }
     Ok(())

@@ -244,7 +244,38 @@ fn rebase_us(path: &Path, t_us: &[f64], t0_us: f64) -> Result<Vec<f64>> {
             t_s[k],
         );
     }
+    check_time_gaps(path, &t_s)?;
     Ok(t_s)
+}
+
+/// Most a sample step may exceed the stream's median step: a step a
+/// thousand times longer is not a dropped sample but a corrupt time (the
+/// last row's 1e30 µs made a 6 s run last 1e24 s, and a no-contact window
+/// half of that).
+const MAX_STEP_OVER_MEDIAN: f64 = 1000.0;
+
+/// No step of `t_s` (increasing) longer than [`MAX_STEP_OVER_MEDIAN`]
+/// times the median step; the error names the file and the line.
+fn check_time_gaps(path: &Path, t_s: &[f64]) -> Result<()> {
+    let steps: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    if steps.is_empty() {
+        return Ok(());
+    }
+    let mut sorted = steps.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median_s = sorted[sorted.len() / 2];
+    let limit_s = MAX_STEP_OVER_MEDIAN * median_s;
+    if let Some(k) = steps.iter().position(|d| *d > limit_s) {
+        bail!(
+            "{}: line {}: column \"t\" jumps {:e} s after the sample before, more than \
+             {MAX_STEP_OVER_MEDIAN} times the stream's median step ({median_s:e} s): a corrupt time, \
+             or two recordings in one file",
+            path.display(),
+            crate::log::line_of_row(k + 1),
+            steps[k]
+        );
+    }
+    Ok(())
 }
 
 /// The static calibration poses.

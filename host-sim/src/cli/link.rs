@@ -17,6 +17,7 @@ use cable_joint::controller::{Command, Mode};
 use cable_joint::link::Down;
 use cable_joint::telemetry::Record;
 use cable_joint::trajectory::Trajectory;
+use cable_joint::Config;
 
 use crate::cli;
 use crate::cli::simulate::GripArgs;
@@ -110,6 +111,7 @@ fn schedule(
     excitation: Option<Design>,
     grip: GripOptions,
     start_at: Option<f64>,
+    config: &Config,
 ) -> anyhow::Result<Schedule> {
     let opts = ScenarioOptions {
         duration_scale,
@@ -118,6 +120,9 @@ fn schedule(
         ..ScenarioOptions::default()
     };
     let p = plan(name, &opts)?;
+    if name == "excite" {
+        crate::scenario::check_excitation_range(&p.references(), config)?;
+    }
     let mut t = 0.0;
     let mut commands = Vec::new();
     for seg in &p.segments {
@@ -189,6 +194,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
                 excitation,
                 args.grip.options(),
                 args.start_at,
+                &config,
             )
         })
         .transpose()?;

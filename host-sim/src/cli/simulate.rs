@@ -215,9 +215,6 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         None => Config::default(),
     };
     let opts = args.options(name)?;
-    if let (Some(path), Some(design)) = (&args.excitation, &opts.excitation) {
-        check_excitation_range(path, design, &config)?;
-    }
     let sim = simulate(plant, config, &opts)?;
     let summary = sim.summary;
     // The log and the raw trace are written together, or neither is.
@@ -326,39 +323,6 @@ fn datasheet_jae_hint(
          workflow does"
             .to_owned()
     })
-}
-
-/// The excitation in `path` stays inside the configuration's joint-angle
-/// limit (`limits.max_joint_angle_rad`): beyond it the run would latch
-/// `AngleRange` (fault 12) and record a faulted run, not an identification
-/// run. Sampled every millisecond (at most a million samples).
-fn check_excitation_range(
-    path: &std::path::Path,
-    design: &crate::ident::excite::Design,
-    config: &Config,
-) -> anyhow::Result<()> {
-    let limit_rad = f64::from(config.limits.max_joint_angle_rad);
-    let step_s = (design.duration_s / 1e6).max(1e-3);
-    let samples = (design.duration_s / step_s).ceil() as usize;
-    let (peak_rad, at_s) = (0..=samples)
-        .map(|k| {
-            let t_s = k as f64 * step_s;
-            (
-                f64::from(design.trajectory.at(t_s as f32).angle_rad).abs(),
-                t_s,
-            )
-        })
-        .fold((0.0, 0.0), |m, x| if x.0 > m.0 { x } else { m });
-    anyhow::ensure!(
-        peak_rad <= limit_rad,
-        "the excitation {}: its angle reaches {:.1}° at {at_s:.3} s, beyond the configuration's \
-         limits.max_joint_angle_rad ({:.1}°): the run would latch AngleRange (fault 12); \
-         check its offset and amplitudes, or design it again with a smaller --max-angle-deg",
-        path.display(),
-        peak_rad.to_degrees(),
-        limit_rad.to_degrees()
-    );
-    Ok(())
 }
 
 #[cfg(test)]

@@ -44,7 +44,7 @@ pub use plan::{
     default_excitation, excitation_replacing, plan, Plan, ScenarioInfo, Segment,
     GRIP_APPROACH_RAD_S, GRIP_S, LOADING_ANGLES_DEG, LOADING_MASSES_G, SCENARIOS,
 };
-pub use simulate::{simulate, SimulateOptions, Simulation};
+pub use simulate::{check_excitation_range, simulate, SimulateOptions, Simulation};
 
 /// Standard gravity, m/s² (weights on the tip: `F = m g`).
 pub const G_M_S2: f64 = 9.81;

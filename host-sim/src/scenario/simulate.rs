@@ -4,6 +4,7 @@
 //! firmware replay.
 
 use anyhow::Result;
+use cable_joint::trajectory::Trajectory;
 use cable_joint::Config;
 
 use super::{
@@ -111,7 +112,11 @@ pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> R
         (None, Some(s)) => format!("--duration-scale {s}"),
         (None, None) => format!("scenario {name}"),
     };
-    let duration_s = plan(name, &scenario_opts)?.duration_s();
+    let the_plan = plan(name, &scenario_opts)?;
+    if name == "excite" {
+        check_excitation_range(&the_plan.references(), &config)?;
+    }
+    let duration_s = the_plan.duration_s();
     let rate_hz = f64::from(config.control_rate_hz);
     // A log the other commands read has at least this many rows.
     let min_ticks = crate::log::DEFAULT_MIN_ROWS;
@@ -149,6 +154,43 @@ pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> R
         log,
         raw: opts.raw_trace.then_some(raw),
     })
+}
+
+/// The excitation's references (`references`: trajectory and how long it
+/// runs) stay inside the configuration's joint-angle limit
+/// (`limits.max_joint_angle_rad`): beyond it the run would latch
+/// `AngleRange` (fault 12) and record a faulted run, not an identification
+/// run. Sampled every millisecond (at most a million samples each).
+/// [`simulate`] checks its `excite` runs with it, `host-sim link` the run
+/// it sends.
+///
+/// # Errors
+/// The first reference that leaves the limit, with its peak and when.
+pub fn check_excitation_range(references: &[(Trajectory, f64)], config: &Config) -> Result<()> {
+    let limit_rad = f64::from(config.limits.max_joint_angle_rad);
+    let mut start_s = 0.0;
+    for (trajectory, duration_s) in references {
+        let step_s = (duration_s / 1e6).max(1e-3);
+        let samples = (duration_s / step_s).ceil() as usize;
+        let (peak_rad, at_s) = (0..=samples)
+            .map(|k| {
+                let t_s = k as f64 * step_s;
+                (f64::from(trajectory.at(t_s as f32).angle_rad).abs(), t_s)
+            })
+            .fold((0.0, 0.0), |m, x| if x.0 > m.0 { x } else { m });
+        anyhow::ensure!(
+            peak_rad <= limit_rad,
+            "the excitation's angle reaches {:.1}° at {:.3} s of the run, beyond the \
+             configuration's limits.max_joint_angle_rad ({:.1}°): the run would latch \
+             AngleRange (fault 12); check the excitation's offset and amplitudes, or design it \
+             again with a smaller --max-angle-deg",
+            peak_rad.to_degrees(),
+            start_s + at_s,
+            limit_rad.to_degrees()
+        );
+        start_s += duration_s;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

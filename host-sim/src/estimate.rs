@@ -107,8 +107,13 @@ pub const REFERENCE_FORCE_LIMIT_DRIVES: f32 = 100.0;
 
 /// The log's reference force (`f_ext_n`) within
 /// [`REFERENCE_FORCE_LIMIT_DRIVES`] times the drive's squeeze; blank and
-/// non-finite cells are left to the log's own checks.
-fn check_reference_force(log: &Log, machine: &cable_joint::config::Machine) -> Result<()> {
+/// non-finite cells are left to the log's own checks. Every command that
+/// judges an estimate against the reference calls it (`estimate`,
+/// `residual`'s project models, `estimate-wrist`'s jaws).
+///
+/// # Errors
+/// The first cell beyond it, by line.
+pub fn check_reference_force(log: &Log, machine: &cable_joint::config::Machine) -> Result<()> {
     let Some(reference) = log.col("f_ext_n") else {
         return Ok(());
     };

@@ -1543,15 +1543,15 @@ fn a_refused_configuration_value_is_named_with_what_the_file_gives() {
     for (text, message) in [
         (
             "[limits]\nmax_motor_speed_rad_s = -1.0\n",
-            "`limits.max_motor_speed_rad_s` must be between 1 and 5000 rad/s (the file gives -1.0)",
+            "`limits.max_motor_speed_rad_s` must be between 1 and 5000 rad/s (the file gives -1)",
         ),
         (
             "[limits]\nmax_motor_speed_rad_s = nan\n",
-            "`limits.max_motor_speed_rad_s` must be between 1 and 5000 rad/s (the file gives nan)",
+            "`limits.max_motor_speed_rad_s` must be between 1 and 5000 rad/s (the file gives NaN)",
         ),
         (
             "[scales]\nadc_zero_code = 5000.0\n",
-            "`scales.adc_zero_code` must be within 0..=4095 (the file gives 5000.0)",
+            "`scales.adc_zero_code` must be within 0..=4095 (the file gives 5000)",
         ),
     ] {
         std::fs::write(&config, text).unwrap();
@@ -1573,8 +1573,9 @@ fn a_refused_configuration_value_is_named_with_what_the_file_gives() {
 
 /// An excitation whose angle leaves the configuration's joint-angle limit
 /// (an offset of 3 rad: the run had latched AngleRange and recorded a
-/// faulted run, exit 0) is refused before the run, naming the file; the
-/// designed one runs.
+/// faulted run, exit 0) is refused before the run, and so is the default
+/// design under a configuration whose limit it leaves; the designed one
+/// runs.
 #[test]
 fn an_excitation_beyond_the_joint_angle_limit_is_refused_before_the_run() {
     let dir = tempfile::tempdir().unwrap();
@@ -1600,12 +1601,103 @@ fn an_excitation_beyond_the_joint_angle_limit_is_refused_before_the_run() {
         c
     };
     let err = run_err(&mut simulate(&d("off.toml")));
+    let refused = "the excitation's angle reaches";
     assert!(
-        err.contains("the excitation")
-            && err.contains("off.toml: its angle reaches")
+        err.contains(refused)
             && err.contains("beyond the configuration's limits.max_joint_angle_rad"),
         "{err}"
     );
     assert!(!d("run.csv").exists());
     run_ok(&mut simulate(&d("ex.toml")));
+    // The default design, under a configuration whose limit is narrower
+    // than the design's angle (17°).
+    std::fs::write(d("narrow.toml"), "[limits]\nmax_joint_angle_rad = 0.3\n").unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["simulate", "--scenario", "excite", "--duration", "2"])
+            .arg("--config")
+            .arg(d("narrow.toml"))
+            .arg("--out")
+            .arg(d("narrow.csv")),
+    );
+    assert!(err.contains(refused) && err.contains("(17.2°)"), "{err}");
+    assert!(!d("narrow.csv").exists());
+}
+
+/// The reference force is checked by every command that judges an
+/// estimate against it, not only `estimate`: `residual --model force` had
+/// fitted 1e30 N (a baseline RMSE of 7.7e28 N) and `estimate-wrist` had
+/// reported a clamp error of 1.9e28 N from a jaw's log, both exit 0.
+#[test]
+fn every_command_judging_against_the_reference_refuses_one_beyond_any_force_carried() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = |p: &str| dir.path().join(p);
+    let fit = simulated(dir.path(), "jae-ident", 3.0, "fit.csv");
+    let bad = with_cell(&fit, "f_ext_n", 100, Some(1e30), "bad_ref.csv");
+    let err = run_err(
+        host_sim()
+            .args(["residual", "--model", "force", "--log"])
+            .arg(&bad)
+            .arg("--json")
+            .arg(d("r.json")),
+    );
+    assert!(
+        err.contains("bad_ref.csv")
+            && err.contains("line 102: column \"f_ext_n\" = 1e30 N is beyond any tip force"),
+        "{err}"
+    );
+    assert!(!d("r.json").exists());
+    run_ok(
+        host_sim()
+            .args(["simulate-wrist", "--grasp", "2", "--out"])
+            .arg(d("grasp")),
+    );
+    let jaw = d("grasp").join("jaw_a.csv");
+    let mut log = host_sim::log::Log::read(&jaw).unwrap();
+    let mut f = log.col_opt("f_ext_n").unwrap();
+    f[5000] = Some(1e30);
+    log.set_col_opt("f_ext_n", &f).unwrap();
+    log.write(&jaw).unwrap();
+    let err = run_err(
+        host_sim()
+            .args(["estimate-wrist", "--run"])
+            .arg(d("grasp"))
+            .args(["--gravity=-8.496,-4.905,0", "--jaw-open-deg", "20", "--out"])
+            .arg(d("forces.csv")),
+    );
+    assert!(
+        err.contains("jaw_a.csv") && err.contains("line 5002: column \"f_ext_n\" = 1e30 N"),
+        "{err}"
+    );
+    assert!(!d("forces.csv").exists());
+}
+
+/// A configuration whose `control_rate_hz` no board runs at (-5, 0,
+/// 1e39) is a broken file, refused by `estimate` too (it had taken the
+/// log's rate with a warning, as for a file made for another rate).
+#[test]
+fn estimate_refuses_a_configuration_whose_rate_is_no_control_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = simulated(dir.path(), "jae-ident", 1.0, "run.csv");
+    let config = dir.path().join("c.toml");
+    let out = dir.path().join("est.csv");
+    for (rate, shown) in [("-5.0", "-5"), ("0.0", "0"), ("1e39", "inf")] {
+        std::fs::write(&config, format!("control_rate_hz = {rate}\n")).unwrap();
+        let err = run_err(
+            host_sim()
+                .args(["estimate", "--log"])
+                .arg(&log)
+                .arg("--config")
+                .arg(&config)
+                .arg("--out")
+                .arg(&out),
+        );
+        assert!(
+            err.contains(&format!(
+                "c.toml: control_rate_hz = {shown} is not a control rate"
+            )),
+            "{rate}: {err}"
+        );
+        assert!(!out.exists());
+    }
 }

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use cable_joint::Config;
 
 use crate::cli;
@@ -161,6 +161,12 @@ pub fn run(args: ResidualArgs) -> Result<()> {
         Some(p) => crate::io::config::load_config(p)?,
         None => Config::default(),
     };
+    if project {
+        for l in fit.iter().chain(&validate).chain(&test) {
+            crate::estimate::check_reference_force(&l.log, &config.machine)
+                .with_context(|| l.name.clone())?;
+        }
+    }
     let options = SelectOptions {
         max_terms: args.max_terms.unwrap_or(kind.max_terms().0),
         min_gain: args.min_gain,

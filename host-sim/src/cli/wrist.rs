@@ -145,10 +145,6 @@ pub struct SimulateWristArgs {
           default_value_t = crate::report::wrist::STIFFNESS_N_M[0], requires = "grasp",
           value_parser = cli::f64_in(1.0, 1e7))]
     pub object_stiffness: f64,
-    /// Eq. 3's model (`identify-wrist --out`) the simulated wrist takes out
-    /// of its estimates, as `estimate-wrist --eq3` does.
-    #[arg(long, value_name = "EQ3.TOML")]
-    pub eq3: Option<PathBuf>,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -220,10 +216,6 @@ pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
     let plant = crate::io::config::load_plant(args.plant.as_deref())?;
     let mut params = simulated_wrist_on(plant, config);
     params.links = params.links.map(|l| l.scaled(args.links_scale));
-    let gravity_m_s2 = Links::prototype().gravity_m_s2;
-    if let Some(path) = &args.eq3 {
-        params.inverse_dynamics = Some(load_eq3(path, gravity_m_s2, COMMAND)?);
-    }
     let ticks = match args.grasp {
         Some(target_n) => {
             let grasp = Grasp {
@@ -262,7 +254,7 @@ pub fn run_simulate(args: SimulateWristArgs) -> Result<()> {
         crate::io::config::stage_config(&mut out, args.out.join(format!("{name}.toml")), config)?;
     }
     out.commit()?;
-    let [gx, gy, gz] = gravity_m_s2;
+    let [gx, gy, gz] = Links::prototype().gravity_m_s2;
     let (what, command, out) = match args.grasp {
         Some(_) => (
             "estimate its forces",
@@ -690,6 +682,10 @@ fn replay_run(
 ) -> Result<([(String, crate::log::Log); 4], WristRun)> {
     let logs = read_run(dir, args.ticks_per_row, command)?;
     let configs = configs(args.config.as_deref(), dir, &logs, command)?;
+    for ((name, log), (config, _)) in logs.iter().zip(&configs) {
+        crate::estimate::check_reference_force(log, &config.machine)
+            .with_context(|| name.clone())?;
+    }
     for (name, (_, what)) in JOINT_NAMES.iter().zip(&configs) {
         eprintln!(
             "{command}: {}: {name}'s configuration: {what}",

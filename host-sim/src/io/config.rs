@@ -87,6 +87,16 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
     let mut notes = Vec::new();
     if let Some(log_hz) = log_rate_hz {
         let file_hz = f64::from(config.control_rate_hz);
+        // The log's rate replaces the file's, but a rate no board runs at
+        // is a broken file, not another rate.
+        if has_key(&table, "control_rate_hz") && !(100.0..=20_000.0).contains(&file_hz) {
+            return Err(anyhow!(
+                "{}: control_rate_hz = {} is not a control rate (the core runs at 100 to 20000 \
+                 Hz)",
+                path.display(),
+                crate::log::value_text(file_hz)
+            ));
+        }
         if (file_hz - log_hz).abs() > 0.01 * log_hz {
             if has_key(&table, "control_rate_hz") {
                 notes.push(format!(
@@ -142,8 +152,9 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
         // rate; any other rejected value has nothing to do with it.
         if given_rate_fields.contains(&e.field) {
             anyhow!(
-                "{}: {e} (at control_rate_hz = {rate_hz}: the value in the file is kept; leave it out to derive it from the rate)",
-                path.display()
+                "{}: {e}{} (at control_rate_hz = {rate_hz}: the value in the file is kept; leave it out to derive it from the rate)",
+                path.display(),
+                given_value(&table, e.field)
             )
         } else {
             anyhow!(
@@ -202,7 +213,8 @@ fn get_key<'a>(table: &'a toml::Table, field: &str) -> Option<&'a toml::Value> {
 /// (what a range error refused), else nothing.
 fn given_value(table: &toml::Table, field: &str) -> String {
     match get_key(table, field) {
-        Some(v @ (toml::Value::Float(_) | toml::Value::Integer(_) | toml::Value::Boolean(_))) => {
+        Some(toml::Value::Float(x)) => format!(" (the file gives {})", crate::log::value_text(*x)),
+        Some(v @ (toml::Value::Integer(_) | toml::Value::Boolean(_))) => {
             format!(" (the file gives {v})")
         }
         _ => String::new(),

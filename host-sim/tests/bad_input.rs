@@ -1445,6 +1445,19 @@ fn options_that_leave_nothing_to_do_are_refused_before_any_work() {
     assert!(!d("t.csv").exists());
 }
 
+/// `simulate` of a second of `jae-ident` with `file` as its `option`
+/// (`--plant`, `--config`), which must fail; its stderr.
+fn simulate_refused(option: &str, file: &Path, out: &Path) -> String {
+    run_err(
+        host_sim()
+            .args(["simulate", "--scenario", "jae-ident", "--duration", "1"])
+            .arg(option)
+            .arg(file)
+            .arg("--out")
+            .arg(out),
+    )
+}
+
 /// A plant file is checked as a configuration is, naming the file: the
 /// board's zero codes (NaN, -1 and 1e30 had been taken, to latch a
 /// current-monitor fault), and an integration step so fine that a run
@@ -1470,14 +1483,7 @@ fn a_plant_file_with_scales_no_board_has_or_an_endless_step_is_refused() {
         ),
     ] {
         std::fs::write(&plant, text).unwrap();
-        let err = run_err(
-            host_sim()
-                .args(["simulate", "--scenario", "jae-ident", "--duration", "1"])
-                .arg("--plant")
-                .arg(&plant)
-                .arg("--out")
-                .arg(&out),
-        );
+        let err = simulate_refused("--plant", &plant, &out);
         assert!(
             err.contains("plant.toml") && err.contains(message),
             "{text}: {err}"
@@ -1486,14 +1492,7 @@ fn a_plant_file_with_scales_no_board_has_or_an_endless_step_is_refused() {
     }
     // A mass too light for the step names the element that is.
     std::fs::write(&plant, "[slider1]\nmass_kg = 1e-9\n").unwrap();
-    let err = run_err(
-        host_sim()
-            .args(["simulate", "--scenario", "jae-ident", "--duration", "1"])
-            .arg("--plant")
-            .arg(&plant)
-            .arg("--out")
-            .arg(&out),
-    );
+    let err = simulate_refused("--plant", &plant, &out);
     assert!(
         err.contains("too coarse") && err.contains("(at slider1.mass_kg)"),
         "{err}"
@@ -1555,14 +1554,7 @@ fn a_refused_configuration_value_is_named_with_what_the_file_gives() {
         ),
     ] {
         std::fs::write(&config, text).unwrap();
-        let err = run_err(
-            host_sim()
-                .args(["simulate", "--scenario", "jae-ident", "--duration", "1"])
-                .arg("--config")
-                .arg(&config)
-                .arg("--out")
-                .arg(&out),
-        );
+        let err = simulate_refused("--config", &config, &out);
         assert!(
             err.contains("c.toml") && err.contains(message),
             "{text}: {err}"

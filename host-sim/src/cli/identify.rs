@@ -106,15 +106,6 @@ pub struct IdentifyArgs {
     pub ticks_per_row: Option<u32>,
 }
 
-impl Procedure {
-    /// The name `--procedure` takes.
-    fn name(self) -> String {
-        use clap::ValueEnum;
-        self.to_possible_value()
-            .map_or_else(String::new, |v| v.get_name().to_owned())
-    }
-}
-
 /// Split `--log`/`--validate` arguments by procedure.
 fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, PathBuf)>> {
     let order = [Procedure::Bm, Procedure::Jae, Procedure::Tension];
@@ -152,7 +143,7 @@ fn assign(files: &[String], procedure: Procedure) -> Result<Vec<(Procedure, Path
                 if procedure != Procedure::All && p != procedure {
                     bail!(
                         "`{f}` is tagged for another procedure than {}",
-                        procedure.name()
+                        crate::cli::value_name(&procedure)
                     );
                 }
                 out.push((p, path));
@@ -308,7 +299,7 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
             continue;
         }
         if logs.is_empty() {
-            bail!("no log for the {} procedure", p.name());
+            bail!("no log for the {} procedure", crate::cli::value_name(&p));
         }
         let val_logs = read_logs(&vals, p, args.ticks_per_row)?;
         // One run under two names passes the path checks; its data do not.

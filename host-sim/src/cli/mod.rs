@@ -222,6 +222,14 @@ pub fn f64_above(
     move |s| parse_in(s, lo, true, hi)
 }
 
+/// The name an option takes for `value` of a `clap::ValueEnum` (what
+/// messages call it, not its Rust name).
+pub fn value_name<T: clap::ValueEnum>(value: &T) -> String {
+    value
+        .to_possible_value()
+        .map_or_else(String::new, |v| v.get_name().to_owned())
+}
+
 /// Parser of an `f32` option in `[lo, hi]`, finite.
 pub fn f32_in(
     lo: f32,

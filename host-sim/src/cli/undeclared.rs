@@ -70,11 +70,10 @@ pub fn run(args: UndeclaredArgs) -> Result<()> {
         anyhow::bail!("--rate {r} is given twice: each rate once");
     }
     if let Some(s) = repeated(&args.sizes) {
-        use clap::ValueEnum;
-        let name = s
-            .to_possible_value()
-            .map_or_else(String::new, |v| v.get_name().to_owned());
-        anyhow::bail!("--size {name} is given twice: each size once");
+        anyhow::bail!(
+            "--size {} is given twice: each size once",
+            cli::value_name(&s)
+        );
     }
     let opts = ProgrammeOptions {
         draws: args.draws,

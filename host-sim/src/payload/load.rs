@@ -257,14 +257,11 @@ const MAX_STEP_OVER_MEDIAN: f64 = 1000.0;
 /// No step of `t_s` (increasing) longer than [`MAX_STEP_OVER_MEDIAN`]
 /// times the median step; the error names the file and the line.
 fn check_time_gaps(path: &Path, t_s: &[f64]) -> Result<()> {
-    let steps: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
-    if steps.is_empty() {
+    let Some(median_s) = crate::derive::median_period_s(t_s) else {
         return Ok(());
-    }
-    let mut sorted = steps.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median_s = sorted[sorted.len() / 2];
+    };
     let limit_s = MAX_STEP_OVER_MEDIAN * median_s;
+    let steps: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
     if let Some(k) = steps.iter().position(|d| *d > limit_s) {
         bail!(
             "{}: line {}: column \"t\" jumps {:e} s after the sample before, more than \

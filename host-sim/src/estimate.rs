@@ -105,11 +105,38 @@ pub struct ReferenceErrors {
 /// corrupt cell) and would swamp every statistic of the summary.
 pub const REFERENCE_FORCE_LIMIT_DRIVES: f32 = 100.0;
 
+/// Why `value_n` is no reference force in newtons: beyond
+/// [`REFERENCE_FORCE_LIMIT_DRIVES`] times the squeeze `machine`'s drive
+/// holds (the text follows the value's name: "= 1e30 N is beyond ...");
+/// `None` for a force the joint can carry, and for a non-finite value,
+/// which the log's own checks name.
+pub fn reference_force_refusal(
+    value_n: f64,
+    machine: &cable_joint::config::Machine,
+) -> Option<String> {
+    let drive_n = cable_joint::wrist::drive_squeeze_limit_n(
+        machine,
+        machine.pulley_radius_m,
+        machine.gripper_length_m,
+    );
+    let limit_n = f64::from(REFERENCE_FORCE_LIMIT_DRIVES * drive_n);
+    (value_n.is_finite() && value_n.abs() > limit_n).then(|| {
+        format!(
+            "= {} N is beyond any tip force the joint can carry ({REFERENCE_FORCE_LIMIT_DRIVES} \
+             times the {drive_n:.1} N its drive holds at machine.current_limit_a = {} A, \
+             {limit_n:.0} N): not a reference force in newtons",
+            crate::log::value_text(value_n),
+            machine.current_limit_a
+        )
+    })
+}
+
 /// The log's reference force (`f_ext_n`) within
-/// [`REFERENCE_FORCE_LIMIT_DRIVES`] times the drive's squeeze; blank and
-/// non-finite cells are left to the log's own checks. Every command that
-/// judges an estimate against the reference calls it (`estimate`,
-/// `residual`'s project models, `estimate-wrist`'s jaws).
+/// [`REFERENCE_FORCE_LIMIT_DRIVES`] times the drive's squeeze
+/// ([`reference_force_refusal`]); blank and non-finite cells are left to
+/// the log's own checks. Every command that judges an estimate against
+/// the reference calls it (`estimate`, `residual`'s project models,
+/// `estimate-wrist`'s jaws, `identify`'s weights through `estimate`).
 ///
 /// # Errors
 /// The first cell beyond it, by line.
@@ -117,26 +144,13 @@ pub fn check_reference_force(log: &Log, machine: &cable_joint::config::Machine) 
     let Some(reference) = log.col("f_ext_n") else {
         return Ok(());
     };
-    let drive_n = cable_joint::wrist::drive_squeeze_limit_n(
-        machine,
-        machine.pulley_radius_m,
-        machine.gripper_length_m,
-    );
-    let limit_n = f64::from(REFERENCE_FORCE_LIMIT_DRIVES * drive_n);
-    if let Some(k) = reference
-        .iter()
-        .position(|v| v.is_finite() && v.abs() > limit_n)
-    {
-        let v = reference[k];
-        let value = crate::log::value_text(v);
-        bail!(
-            "line {}: column \"f_ext_n\" = {value} N is beyond any tip force the joint can \
-             carry ({REFERENCE_FORCE_LIMIT_DRIVES} times the {drive_n:.1} N its drive holds at \
-             machine.current_limit_a = {} A, {limit_n:.0} N): not a reference force in newtons; \
-             check the log's units",
-            crate::log::line_of_row(k),
-            machine.current_limit_a
-        );
+    for (k, &v) in reference.iter().enumerate() {
+        if let Some(why) = reference_force_refusal(v, machine) {
+            bail!(
+                "line {}: column \"f_ext_n\" {why}; check the log's units",
+                crate::log::line_of_row(k)
+            );
+        }
     }
     Ok(())
 }

@@ -1662,6 +1662,28 @@ fn every_command_judging_against_the_reference_refuses_one_beyond_any_force_carr
         "{err}"
     );
     assert!(!d("forces.csv").exists());
+    // `identify`'s weights given as steps: the force came from the
+    // argument, not from a cell (it had been named as "line N: column
+    // f_ext_n" of the log).
+    let mut bare = host_sim::log::Log::read(&fit).unwrap();
+    bare.remove_col("f_ext_n");
+    bare.write(&d("bare.csv")).unwrap();
+    let arg = format!("{}@0.5=0,1.5=1e30", d("bare.csv").display());
+    let err = run_err(
+        host_sim()
+            .args(["identify", "--procedure", "weights", "--log"])
+            .arg(&arg)
+            .arg("--config-out")
+            .arg(d("w.toml")),
+    );
+    assert!(
+        err.contains(&format!(
+            "`{arg}`: the reference step `1.5=1e30` = 1e30 N is beyond any tip force"
+        )),
+        "{err}"
+    );
+    assert!(!err.contains("line "), "{err}");
+    assert!(!d("w.toml").exists());
 }
 
 /// A configuration whose `control_rate_hz` no board runs at (-5, 0,

@@ -189,15 +189,27 @@ fn file_and_steps(arg: &Path) -> (PathBuf, Option<String>) {
 
 /// The weights procedure's logs, each `FILE` with its own `f_ext_n` or
 /// `FILE@T0=F0,T1=F1,...` with the reference force as steps by the log's
-/// time (a rig's recording, which has none).
+/// time (a rig's recording, which has none). A step's force is checked
+/// as a log's reference is ([`crate::estimate::reference_force_refusal`]),
+/// naming the argument it came from.
 fn read_weight_logs(
     files: &[(Procedure, PathBuf)],
     ticks_per_row: Option<u32>,
+    machine: &cable_joint::config::Machine,
 ) -> Result<Vec<(String, Log)>> {
     let mut out = Vec::new();
     for (_, arg) in files.iter().filter(|(q, _)| *q == Procedure::Weights) {
         let (path, spec) = file_and_steps(arg);
         let steps = spec.as_deref().map(parse_reference_steps).transpose()?;
+        for &(t_s, f_n) in steps.iter().flatten() {
+            if let Some(why) = crate::estimate::reference_force_refusal(f_n, machine) {
+                bail!(
+                    "`{}`: the reference step `{t_s}={}` {why}; the steps are forces in N",
+                    arg.display(),
+                    crate::log::value_text(f_n)
+                );
+            }
+        }
         let mut log = read_replay(&path, ticks_per_row)?;
         let label = path.display().to_string();
         if let Some(steps) = steps {
@@ -255,8 +267,8 @@ pub fn identify(args: &IdentifyArgs) -> Result<(IdentifyReport, Config)> {
             ..WeightsOptions::default()
         };
         let (fit, val) = (
-            read_weight_logs(&fits, args.ticks_per_row)?,
-            read_weight_logs(&vals, args.ticks_per_row)?,
+            read_weight_logs(&fits, args.ticks_per_row, &config.machine)?,
+            read_weight_logs(&vals, args.ticks_per_row, &config.machine)?,
         );
         let (w, calibrated) = calibrate_weights(&refs(&fit), &refs(&val), &config, &wopts)?;
         let rep = IdentifyReport {

@@ -596,6 +596,13 @@ impl Default for Config {
     }
 }
 
+/// The control rates the core runs at, Hz: 100 Hz is the slowest at which
+/// the cascade's and differentiators' derived settings keep their
+/// margins, 20 kHz the fastest tick the Cortex-M4F's budget allows
+/// (checked by [`Config::validate`]; the host's tools refuse other rates
+/// from the same constant).
+pub const CONTROL_RATE_RANGE_HZ: core::ops::RangeInclusive<f32> = 100.0..=20_000.0;
+
 /// Every setting [`Config::at_rate`] can derive from the control rate (a
 /// [`RateAdjustment::field`] is one of them): a value a file gives for any
 /// other setting has nothing to do with the rate.
@@ -953,10 +960,7 @@ impl Config {
     /// cross-field checks (rail margin against the ADC range, current limits
     /// against each other) across functions.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        if !(self.control_rate_hz.is_finite()
-            && self.control_rate_hz >= 100.0
-            && self.control_rate_hz <= 20_000.0)
-        {
+        if !CONTROL_RATE_RANGE_HZ.contains(&self.control_rate_hz) {
             return Err(ConfigError {
                 field: "control_rate_hz",
                 expected: "between 100 and 20000 Hz",

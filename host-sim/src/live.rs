@@ -358,16 +358,8 @@ fn chart(frame: &mut Frame, area: Rect, panel: &Panel, points: &VecDeque<Point>,
         .iter()
         .map(|line| series(points, area.width, line.value))
         .collect();
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for data in &data {
-        for &(_, y) in data {
-            lo = lo.min(y);
-            hi = hi.max(y);
-        }
-    }
-    if !lo.is_finite() {
-        (lo, hi) = (-1.0, 1.0);
-    }
+    let (lo, hi) =
+        crate::stats::finite_range(data.iter().flatten().map(|&(_, y)| y)).unwrap_or((-1.0, 1.0));
     let pad = ((hi - lo) * 0.1).max(1e-3 * hi.abs().max(lo.abs()).max(1.0));
     let y = [lo - pad, hi + pad];
     let title = Line::from(vec![

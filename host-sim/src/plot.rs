@@ -217,14 +217,9 @@ fn thin(s: &Series) -> Vec<(f64, f64)> {
 
 /// Axis range covering `v` with 4 % margins; a degenerate range is widened.
 fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for x in v.filter(|x| x.is_finite()) {
-        lo = lo.min(x);
-        hi = hi.max(x);
-    }
-    if !lo.is_finite() {
+    let Some((lo, hi)) = crate::stats::finite_range(v) else {
         return (0.0, 1.0);
-    }
+    };
     let span = hi - lo;
     if span <= 1e-12 * lo.abs().max(1e-300) {
         let d = if lo == 0.0 { 1.0 } else { 0.05 * lo.abs() };

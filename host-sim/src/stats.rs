@@ -215,6 +215,18 @@ impl ErrorStats {
     }
 }
 
+/// The least and the greatest finite value of `values` (blank cells,
+/// NaN and infinities left out); `None` when there is none.
+pub fn finite_range(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
+    values
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .fold(None, |r, v| match r {
+            None => Some((v, v)),
+            Some((lo, hi)) => Some((f64::min(lo, v), f64::max(hi, v))),
+        })
+}
+
 /// Root mean square of `v` (NaN when empty).
 pub fn rms(v: &[f64]) -> f64 {
     if v.is_empty() {
@@ -360,6 +372,16 @@ pub(crate) mod test_rng {
 mod tests {
     use super::test_rng::Rng;
     use super::*;
+
+    #[test]
+    fn finite_range_leaves_out_what_is_not_a_value() {
+        assert_eq!(finite_range([]), None);
+        assert_eq!(finite_range([f64::NAN, f64::INFINITY]), None);
+        assert_eq!(
+            finite_range([f64::NAN, 2.0, f64::NEG_INFINITY, -1.0, 0.5]),
+            Some((-1.0, 2.0))
+        );
+    }
 
     #[test]
     fn summary_and_band_agree_with_direct_statistics() {

@@ -27,14 +27,6 @@ pub struct ImportArgs {
     pub out: PathBuf,
 }
 
-fn range(values: &[f64]) -> (f64, f64) {
-    values
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        })
-}
-
 /// One line describing an imported run.
 pub fn summary(run: &MrdlabRun) -> String {
     let log = &run.log;
@@ -57,8 +49,10 @@ pub fn summary(run: &MrdlabRun) -> String {
         ("tau_in_nm", " mN·m", 1e3),
         ("tau_ext_nm", " mN·m", 1e3),
     ] {
-        if let Some(c) = log.col(name) {
-            let (lo, hi) = range(c);
+        if let Some((lo, hi)) = log
+            .col(name)
+            .and_then(|c| crate::stats::finite_range(c.iter().copied()))
+        {
             let _ = write!(s, "; {name} {lo:.4}..{hi:.4}");
             if !unit.is_empty() {
                 let _ = write!(s, " ({:.1}..{:.1}{unit})", lo * scale, hi * scale);

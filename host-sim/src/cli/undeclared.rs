@@ -34,7 +34,9 @@ pub struct UndeclaredArgs {
     pub draws: Vec<u64>,
     /// Control rates, Hz.
     #[arg(allow_negative_numbers = true, long = "rate", num_args = 1.., default_values_t = [2000.0f32, 1000.0],
-          value_parser = cli::f32_in(100.0, 20_000.0))]
+          value_parser = cli::f32_in(
+              *cable_joint::config::CONTROL_RATE_RANGE_HZ.start(),
+              *cable_joint::config::CONTROL_RATE_RANGE_HZ.end()))]
     pub rates_hz: Vec<f32>,
     /// Effect sizes.
     #[arg(long = "size", num_args = 1.., value_enum, default_values_t = [Size::Datasheet, Size::Upper])]

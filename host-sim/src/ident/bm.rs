@@ -70,14 +70,8 @@ pub fn identify_bm_with(
 /// would call that tension damping.
 fn check_unhooked(label: &str, log: &Log, config: &Config) -> Result<()> {
     let span = |name: &str| {
-        let c = log.col(name)?;
-        let (lo, hi) = c
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                (lo.min(*v), hi.max(*v))
-            });
-        (hi >= lo).then_some(hi - lo)
+        let (lo, hi) = crate::stats::finite_range(log.col(name)?.iter().copied())?;
+        Some(hi - lo)
     };
     let (Some(phi_rad), Some(x1_m)) = (span("phi_rad"), span("x1_m")) else {
         return Ok(());

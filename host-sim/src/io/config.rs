@@ -89,12 +89,14 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
         let file_hz = f64::from(config.control_rate_hz);
         // The log's rate replaces the file's, but a rate no board runs at
         // is a broken file, not another rate.
-        if has_key(&table, "control_rate_hz") && !(100.0..=20_000.0).contains(&file_hz) {
+        let rates = &cable_joint::config::CONTROL_RATE_RANGE_HZ;
+        if has_key(&table, "control_rate_hz") && !rates.contains(&config.control_rate_hz) {
             return Err(anyhow!(
-                "{}: control_rate_hz = {} is not a control rate (the core runs at 100 to 20000 \
-                 Hz)",
+                "{}: control_rate_hz = {} is not a control rate (the core runs at {} to {} Hz)",
                 path.display(),
-                crate::log::value_text(file_hz)
+                crate::log::value_text(file_hz),
+                rates.start(),
+                rates.end()
             ));
         }
         if (file_hz - log_hz).abs() > 0.01 * log_hz {

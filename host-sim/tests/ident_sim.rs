@@ -1067,3 +1067,67 @@ fn cable_0_s_stiffness_is_read_where_slider_1_stands_still_within_a_tenth_of_the
     unread.apply(&mut stale);
     assert_eq!(stale.stretch.cable0_n_m, 0.0);
 }
+
+/// A tension run cut short by a fault on a plant five times heavier than
+/// the datasheet's (sliders, joint and rotor; I²t latched after some 6 s)
+/// fits a negative spring rate and a negative Coulomb friction. Physics
+/// forbids both: the model is not written, the configuration keeps its
+/// own, and the result says which values and why (it had been written
+/// with a note-free exit).
+#[test]
+fn a_tension_fit_physics_forbids_is_not_written() {
+    let mut plant = PlantParams::default();
+    plant.slider1.mass_kg *= 5.0;
+    plant.slider2.mass_kg *= 5.0;
+    plant.joint.inertia_kg_m2 *= 5.0;
+    plant.motor.rotor_inertia_kg_m2 *= 5.0;
+    let (_, _, config) = bm_and_jae_on(plant, Config::default());
+    let full = simulate_on(plant, "tension-ident", &config, None, 54.0);
+    let (log, note) = host_sim::ingest::before_recorded_fault(full, "tension", 0).unwrap();
+    assert!(note.is_some(), "the heavy plant's run faults");
+    let r = identify_tension_with(&[("tension", &log)], &config, &IdentOptions::default()).unwrap();
+    let why = r.unphysical.as_deref().expect("refused");
+    assert!(r.chi_p[2] <= 0.0 || r.chi_p[1] < 0.0, "{:?}", r.chi_p);
+    assert!(why.contains("the configuration keeps its model"), "{why}");
+    let mut written = config;
+    r.apply(&mut written);
+    assert_eq!(written.tension, config.tension, "{why}");
+}
+
+/// Slider 2's Coulomb term fitted below zero beside a physical rest is
+/// refitted at zero, slider 1's carrying the sum the run pins down (model
+/// C's two sign columns move together but in transients, so their split
+/// is loose and their sum is not). On a plant whose stiction is twice its
+/// kinetic friction on both sliders and the pin, the fit put f_cp2 at
+/// -0.88 N (2.1 standard deviations below zero) and wrote it.
+#[test]
+fn a_negative_slider_2_friction_is_refitted_at_zero_with_slider_1_carrying_the_sum() {
+    let mut plant = PlantParams::default();
+    plant.slider1.static_n = 2.0 * plant.slider1.coulomb_n;
+    plant.slider2.static_n = 2.0 * plant.slider2.coulomb_n;
+    plant.joint.static_nm = 2.0 * plant.joint.coulomb_nm;
+    let (_, _, config) = bm_and_jae_on(plant, Config::default());
+    let log = simulate_on(plant, "tension-ident", &config, None, 54.0);
+    let r = identify_tension_with(&[("tension", &log)], &config, &IdentOptions::default()).unwrap();
+    let note = r.slider2_at_zero.as_deref().expect("refitted");
+    assert!(r.unphysical.is_none(), "{:?}", r.unphysical);
+    assert_eq!(r.chi_p[1], 0.0, "{note}");
+    assert!(
+        r.chi_p[0] > 0.0 && r.chi_p[2] > 0.0 && r.chi_p[3] > 0.0,
+        "{:?}",
+        r.chi_p
+    );
+    // Slider 1's term lands on the plant's friction seen in cable 1
+    // (slider 1's own and the motor's through the rope wheel) as the
+    // datasheet plant's does.
+    let m = &plant.motor;
+    let truth_n = plant.slider1.coulomb_n + m.coulomb_nm * m.gear_ratio / m.rope_wheel_radius_m;
+    assert!(
+        rel(r.chi_p[0], truth_n) < 0.1,
+        "{:?} against {truth_n} N; {note}",
+        r.chi_p
+    );
+    let mut written = config;
+    r.apply(&mut written);
+    assert_eq!(written.tension.f_cp2_n, 0.0);
+}

@@ -637,7 +637,12 @@ pub fn format_report(r: &IdentifyReport) -> String {
         }
         let _ = writeln!(
             s,
-            "  -> tension: chi_p = [f_sc1 {}, f_cp2 {}, K_s {}, F_0 {}] (seed: [3.879, 5.027, 707.7, 19.52])\n",
+            "  {}: chi_p = [f_sc1 {}, f_cp2 {}, K_s {}, F_0 {}] (seed: [3.879, 5.027, 707.7, 19.52])\n",
+            if t.unphysical.is_some() {
+                "fitted, not written (see the warning below)"
+            } else {
+                "-> tension"
+            },
             fmt_num(t.chi_p[0]),
             fmt_num(t.chi_p[1]),
             fmt_num(t.chi_p[2]),
@@ -668,7 +673,10 @@ pub fn format_report(r: &IdentifyReport) -> String {
                 );
             }
         }
-        if let Some(why) = &t.unidentified {
+        if let Some(note) = &t.slider2_at_zero {
+            let _ = writeln!(s, "  note: {note}\n");
+        }
+        if let Some(why) = t.unphysical.as_ref().or(t.unidentified.as_ref()) {
             let _ = writeln!(s, "  warning: {why}\n");
         }
         if t.derivative_from_observer {

@@ -148,11 +148,20 @@ pub struct TensionResult {
     /// Refit on the core's structure (the kept ones of [`SIMPLIFIED_C`](super::SIMPLIFIED_C)):
     /// what goes into the configuration.
     pub core: FitReport,
-    /// `chi_p = [f_sc1, f_cp2, K_s, F_0]` written to the configuration
+    /// `chi_p = [f_sc1, f_cp2, K_s, F_0]` fitted on the core's structure,
+    /// written to the configuration unless [`TensionResult::unphysical`]
     /// (0 for a term the pruning dropped).
     pub chi_p: [f64; 4],
     /// Kept regressors outside the core's structure (not written).
     pub not_written: Vec<Regressor>,
+    /// Slider 2's Coulomb term came out negative beside a positive slider
+    /// 1's: `chi_p` is the refit with `f_cp2` at zero (the sentence says
+    /// so, with both fits' figures; `None`: no such refit).
+    pub slider2_at_zero: Option<String>,
+    /// Why `chi_p` is not written, when physics forbids a value of it (a
+    /// negative spring rate, preload or Coulomb friction): the
+    /// configuration's tension model is kept (`None`: it is written).
+    pub unphysical: Option<String>,
     /// Why the log does not identify the friction terms, when the written
     /// model's residual exceeds them (`None`: it does).
     pub unidentified: Option<String>,

@@ -279,9 +279,14 @@ pub fn identify_config(
     let (_, _, _, config_jae, ..) = identify_bm_jae(plant, base, s, tag, &mut faults)?;
     let (tension, _, config, ..) = identify_tension(plant, &config_jae, s, tag, &mut faults)?;
     faults.extend(
-        tension
-            .unidentified
-            .map(|why| format!("tension-ident: {why}")),
+        [
+            tension.slider2_at_zero,
+            tension.unphysical,
+            tension.unidentified,
+        ]
+        .into_iter()
+        .flatten()
+        .map(|why| format!("tension-ident: {why}")),
     );
     Ok((config, faults))
 }

@@ -1667,7 +1667,7 @@ fn every_command_judging_against_the_reference_refuses_one_beyond_any_force_carr
     // f_ext_n" of the log).
     let mut bare = host_sim::log::Log::read(&fit).unwrap();
     bare.remove_col("f_ext_n");
-    bare.write(&d("bare.csv")).unwrap();
+    bare.write(d("bare.csv")).unwrap();
     let arg = format!("{}@0.5=0,1.5=1e30", d("bare.csv").display());
     let err = run_err(
         host_sim()

@@ -32,8 +32,12 @@ pub struct EstimateSummary {
     pub rows: usize,
     /// Settings derived from the log (rate and what followed from it).
     pub derived: Vec<String>,
-    /// First latched fault: (row, code, text).
+    /// First fault the replay latched: (row, code, text).
     pub first_fault: Option<(usize, u8, String)>,
+    /// First fault the log itself records (`fault_code`, the board's):
+    /// (row, code). From there the board's drive was off, so the summary's
+    /// figures end at the earlier of the two.
+    pub recorded_fault: Option<(usize, u8)>,
     /// Share of rows with slider 1 stuck (DOB blind to its band), of the
     /// rows before the first fault.
     pub slider1_stuck_share: f64,
@@ -92,7 +96,8 @@ pub struct ReferenceErrors {
     /// Rows left out because the reference is not measured there, and the
     /// first of them (0-based).
     pub not_measured: (usize, Option<usize>),
-    /// Rows left out because the replay had latched a fault.
+    /// Rows left out because the replay had latched a fault or the log
+    /// records one (the drive off).
     pub faulted: usize,
 }
 
@@ -177,8 +182,17 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
     });
     // The shares and the bound's width describe the estimator on the log's
     // data: the rows before a latched fault (after it the replay idles and
-    // its bound grows without a measurement behind it).
-    let live = first_fault.as_ref().map_or(rows, |f| f.0);
+    // its bound grows without a measurement behind it), and before a fault
+    // the log records (the board's drive off: the joint falls or relaxes,
+    // which no estimate of a controlled joint's load is judged on).
+    let recorded_fault = crate::ingest::first_recorded_fault(log);
+    let live = first_fault
+        .as_ref()
+        .map(|f| f.0)
+        .into_iter()
+        .chain(recorded_fault.map(|f| f.0))
+        .min()
+        .unwrap_or(rows);
     let share = |bit: u8| {
         fl[..live].iter().filter(|f| (**f as u8) & bit != 0).count() as f64 / live.max(1) as f64
     };
@@ -200,7 +214,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
                     not_measured.1.get_or_insert(k);
                     continue;
                 }
-                if fault[k] != 0.0 {
+                if k >= live {
                     faulted += 1;
                     continue;
                 }
@@ -226,7 +240,6 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
     };
     let against_log = match log.col("f_ext_fused_n") {
         Some(board) => {
-            let logged_fault = log.col("fault_code");
             let board_theta = log.col("theta_hat_rad");
             let theta = col("theta_hat_rad")?;
             let board_bound = log.col("f_ext_lo_n").zip(log.col("f_ext_hi_n"));
@@ -234,9 +247,6 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             let (mut ef, mut et) = (Acc::default(), Acc::default());
             let (mut inside, mut judged) = (0usize, 0usize);
             for k in 0..live {
-                if logged_fault.is_some_and(|c| c[k] != 0.0) {
-                    break;
-                }
                 if board[k].is_finite() {
                     ef.push(fused[k] - board[k]);
                 }
@@ -267,6 +277,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
             rows,
             derived,
             first_fault,
+            recorded_fault,
             slider1_stuck_share: share(flags::SLIDER1_STUCK),
             inconsistent_share: share(flags::INCONSISTENT),
             mean_bound_width_n: width.summary(1.0).mean,

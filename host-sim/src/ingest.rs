@@ -257,7 +257,7 @@ pub fn fault_words(code: u8) -> String {
 }
 
 /// The first row whose `fault_code` is not 0, and the code.
-fn first_recorded_fault(log: &Log) -> Option<(usize, u8)> {
+pub fn first_recorded_fault(log: &Log) -> Option<(usize, u8)> {
     let fault = log.col("fault_code")?;
     let k = fault.iter().position(|&f| f != 0.0)?;
     Some((k, fault[k].clamp(0.0, 255.0) as u8))

@@ -892,3 +892,49 @@ fn estimate_names_the_force_parameters_still_the_datasheet_plants() {
         "{no_tension}"
     );
 }
+
+/// A fault the log records (the board's `fault_code`: its drive off from
+/// there) ends the summary's figures there, as the replay's own fault
+/// does, and the summary names it: a tension run whose board latched I²t
+/// had been judged on the joint falling unpowered, and the replay's later
+/// angle fault was the only one named.
+#[test]
+fn a_fault_the_log_records_ends_the_summary_there_and_is_named() {
+    let (config, _) = Config::default().at_rate(1000.0);
+    let mut log = loading_run_1khz(30.0, 100.0);
+    let cut = log.len() / 2;
+    let mut code = log.col("fault_code").unwrap().to_vec();
+    code[cut..].fill(16.0);
+    log.set_col("fault_code", code).unwrap();
+    let (out, s) = estimate(&log, &config).unwrap();
+    assert_eq!(s.recorded_fault, Some((cut, 16)));
+    assert_eq!(s.first_fault, None, "the replay itself latches none");
+    let r = s.against_reference.expect("the log has f_ext_n");
+    assert_eq!(
+        (r.rows + r.not_measured.0, r.faulted),
+        (cut, log.len() - cut)
+    );
+    let (lo, hi) = (
+        out.col("f_ext_lo_n").unwrap(),
+        out.col("f_ext_hi_n").unwrap(),
+    );
+    let width = (0..cut).map(|k| hi[k] - lo[k]).sum::<f64>() / cut as f64;
+    assert!(
+        (s.mean_bound_width_n - width).abs() < 1e-9,
+        "{} against {width}",
+        s.mean_bound_width_n
+    );
+    let text = host_sim::cli::estimate::format_summary("run.csv", &s);
+    let line = host_sim::log::line_of_row(cut);
+    assert!(
+        text.contains(&format!(
+            "the log records winding I2t above its continuous rating (code 16) at line {line}"
+        )),
+        "{text}"
+    );
+    let warnings = host_sim::cli::estimate::row_loss_warnings("run.csv", &s).join("\n");
+    assert!(
+        warnings.contains("the board's drive off from there"),
+        "{warnings}"
+    );
+}

@@ -102,23 +102,45 @@ pub fn row_loss_warnings(name: &str, s: &EstimateSummary) -> Vec<String> {
         ));
     }
     if r.faulted > 0 {
-        let at = s
-            .first_fault
-            .as_ref()
-            .map(|(k, code, text)| {
-                format!(
-                    " ({text}, code {code}, at line {})",
-                    crate::log::line_of_row(*k)
-                )
-            })
-            .unwrap_or_default();
         w.push(format!(
             "warning: {name}: {} of {} rows are left out of the comparison with the reference: \
-             the replay had latched a fault{at}",
-            r.faulted, s.rows
+             {}",
+            r.faulted,
+            s.rows,
+            summary_end(s).unwrap_or_default()
         ));
     }
     w
+}
+
+/// Where the summary's figures end, when a fault ends them: the log's own
+/// (the board's drive off from there) or the replay's, whichever came
+/// first, in words.
+fn summary_end(s: &EstimateSummary) -> Option<String> {
+    let recorded = s.recorded_fault.map(|(k, code)| {
+        (
+            k,
+            format!(
+                "the log records {} at line {} (the board's drive off from there)",
+                crate::ingest::fault_words(code),
+                crate::log::line_of_row(k)
+            ),
+        )
+    });
+    let replayed = s.first_fault.as_ref().map(|(k, code, text)| {
+        (
+            *k,
+            format!(
+                "the replay latched {text} (code {code}) at line {}",
+                crate::log::line_of_row(*k)
+            ),
+        )
+    });
+    recorded
+        .into_iter()
+        .chain(replayed)
+        .min_by_key(|(k, _)| *k)
+        .map(|(_, words)| words)
 }
 
 /// The terminal summary.
@@ -126,19 +148,29 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
     use std::fmt::Write as _;
     let mut t = String::new();
     let _ = writeln!(t, "{name}: {} rows replayed through the core", s.rows);
+    if let Some((k, code)) = s.recorded_fault {
+        let _ = writeln!(
+            t,
+            "  the log records {} at line {}: the board's drive was off from there, and the \
+             figures below end there",
+            crate::ingest::fault_words(code),
+            crate::log::line_of_row(k)
+        );
+    }
     match &s.first_fault {
         Some((k, code, text)) => {
             let _ = writeln!(
                 t,
-                "  fault latched at line {} (code {code}: {text}); estimates after it are the idle replay's",
+                "  the replay latched a fault at line {} (code {code}: {text}); estimates after it are the idle replay's",
                 crate::log::line_of_row(*k)
             );
         }
         None => {
-            let _ = writeln!(t, "  no fault");
+            let _ = writeln!(t, "  the replay latched no fault");
         }
     }
-    let rows = if s.first_fault.is_some() {
+    let ended = s.first_fault.is_some() || s.recorded_fault.is_some();
+    let rows = if ended {
         "of the rows before the fault"
     } else {
         "of rows"
@@ -154,11 +186,7 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
         "  mean width of the force bound: {:.3} N{}; it excludes zero force in {:.1} % {rows} \
          (elsewhere the estimate cannot tell a load from none, nor its direction)",
         s.mean_bound_width_n,
-        if s.first_fault.is_some() {
-            " (before the fault)"
-        } else {
-            ""
-        },
+        if ended { " (before the fault)" } else { "" },
         100.0 * s.excludes_zero_share
     );
     if let Some(d) = &s.against_log {

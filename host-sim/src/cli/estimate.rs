@@ -143,6 +143,13 @@ fn summary_end(s: &EstimateSummary) -> Option<String> {
         .map(|(_, words)| words)
 }
 
+/// A share as a percentage to a tenth, rounded down: a bound that misses
+/// 5 rows of 12000 covers 99.9 %, not "100.0 %" (the 1e-9 absorbs the
+/// share's own rounding: a log has at most 1e6 rows).
+fn share_floor_pct(share: f64) -> String {
+    format!("{:.1}", (1000.0 * share + 1e-9).floor() / 10.0)
+}
+
 /// The terminal summary.
 pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
     use std::fmt::Write as _;
@@ -240,13 +247,32 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
         let board = s
             .against_log
             .and_then(|d| d.board_coverage)
-            .map(|c| format!(" (the board's own bound: {:.1} %)", 100.0 * c))
+            .map(|c| format!(" (the board's own bound: {} %)", share_floor_pct(c)))
             .unwrap_or_default();
+        let outside = (r.rows as f64 * (1.0 - r.coverage)).round() as usize;
+        let missed = if outside > 0 {
+            format!(" ({outside} of {} outside it)", r.rows)
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             t,
-            "  bound covers the reference in {:.1} % of rows{board}",
-            100.0 * r.coverage
+            "  bound covers the reference in {} % of rows{missed}{board}",
+            share_floor_pct(r.coverage)
         );
     }
     t.trim_end().to_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::share_floor_pct;
+
+    #[test]
+    fn a_share_is_rounded_down_to_a_tenth_of_a_percent() {
+        assert_eq!(share_floor_pct(11_995.0 / 12_000.0), "99.9");
+        assert_eq!(share_floor_pct(1.0), "100.0");
+        assert_eq!(share_floor_pct(999.0 / 1000.0), "99.9");
+        assert_eq!(share_floor_pct(0.0), "0.0");
+    }
 }

@@ -223,6 +223,13 @@ impl SpringFit {
     /// datasheet's rate is kept ([`Self::reach_n_m`]).
     fn interval_note(&self) -> String {
         let k = self.k_s_n_m.0;
+        if !(k.is_finite() && k > 0.0) {
+            // No spring has such a rate: its interval says nothing about
+            // where the spring is ([`Self::reach_n_m`] is zero).
+            return "a rate that is not positive is no spring's, so the fit gives the force \
+                    bound's stiffness scale no interval: it keeps the datasheet's tolerance"
+                .to_owned();
+        }
         let two_sigma = self.two_sigma_n_m();
         format!(
             "the force bound's stiffness scale reaches to the fit's two-standard-deviation \
@@ -335,5 +342,35 @@ impl SpringFit {
                 self.interval_note()
             ),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::SpringFit;
+    use cable_joint::Config;
+
+    /// A fit of a negative rate (a stiction plant's: -829 N/m, %sigma
+    /// 169) keeps the datasheet's rate and tolerance, and its note says
+    /// so instead of an interval "of 0.000 of the datasheet's rate".
+    #[test]
+    fn a_negative_rate_keeps_the_datasheet_and_says_it_gives_no_interval() {
+        let fit = SpringFit {
+            rows: 10_000,
+            sweeps: 6,
+            k_s_n_m: (-829.0, 169.2),
+            datasheet_n_m: 656.6,
+            residual_rms_n: 1.0,
+            halves_n_m: (-700.0, -900.0),
+            without_inertia_n_m: -800.0,
+            current_ticks_share: 1.0,
+            note: String::new(),
+        };
+        let mut config = Config::default();
+        let before = config.machine.spring_n_m;
+        let note = fit.apply(&mut config);
+        assert_eq!(config.machine.spring_n_m, before);
+        assert_eq!(fit.relative_uncertainty(0.1), 0.1);
+        assert!(note.contains("no spring's") && !note.contains("0.000 of"), "{note}");
     }
 }

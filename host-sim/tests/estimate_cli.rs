@@ -859,6 +859,24 @@ fn ticks_per_row_gives_a_log_without_a_tick_column_its_control_rate() {
         stderr.contains("recording.csv: --ticks-per-row 10: the log has a tick column"),
         "{stderr}"
     );
+
+    // With the 1 kHz loop's own configuration, whose rate-dependent
+    // settings do not fit 100 Hz, the refusal says what the option is for
+    // (it had blamed the setting alone).
+    let config = dir.path().join("c1k.toml");
+    let (c1k, _) = cable_joint::Config::default().at_rate(1000.0);
+    host_sim::io::config::write_config(&config, &c1k).unwrap();
+    let o = run_estimate_with(&foreign, &out, &["--config".as_ref(), config.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains(
+            "The file was made for 1000 Hz and the log's rows run at 100 Hz: if the log was \
+             recorded at a row every 10 ticks of a 1000 Hz loop and has no tick column, give \
+             --ticks-per-row 10"
+        ),
+        "{stderr}"
+    );
 }
 
 /// A configuration whose force parameters were identified (here set to

@@ -371,6 +371,9 @@ mod tests {
         let note = fit.apply(&mut config);
         assert_eq!(config.machine.spring_n_m, before);
         assert_eq!(fit.relative_uncertainty(0.1), 0.1);
-        assert!(note.contains("no spring's") && !note.contains("0.000 of"), "{note}");
+        assert!(
+            note.contains("no spring's") && !note.contains("0.000 of"),
+            "{note}"
+        );
     }
 }

@@ -85,6 +85,8 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
     let mut table: toml::Table = toml::from_str(&text).map_err(parse_err)?;
     let mut config: Config = toml::from_str(&text).map_err(parse_err)?;
     let mut notes = Vec::new();
+    // The file's own rate where the log's replaced it.
+    let mut made_for_hz = None;
     if let Some(log_hz) = log_rate_hz {
         let file_hz = f64::from(config.control_rate_hz);
         // The log's rate replaces the file's, but a rate no board runs at
@@ -101,6 +103,7 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
         }
         if (file_hz - log_hz).abs() > 0.01 * log_hz {
             if has_key(&table, "control_rate_hz") {
+                made_for_hz = Some(file_hz);
                 notes.push(format!(
                     "warning: control_rate_hz = {file_hz} in the file, but the log runs at \
                      {log_hz:.1} Hz: taken at {log_hz:.1} Hz, the rate-dependent settings the \
@@ -154,9 +157,10 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
         // rate; any other rejected value has nothing to do with it.
         if given_rate_fields.contains(&e.field) {
             anyhow!(
-                "{}: {e}{} (at control_rate_hz = {rate_hz}: the value in the file is kept; leave it out to derive it from the rate)",
+                "{}: {e}{} (at control_rate_hz = {rate_hz}: the value in the file is kept; leave it out to derive it from the rate){}",
                 path.display(),
-                given_value(&table, e.field)
+                given_value(&table, e.field),
+                made_for_hz.map_or_else(String::new, |file_hz| another_rate_hint(file_hz, rate_hz))
             )
         } else {
             anyhow!(
@@ -168,6 +172,27 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
         }
     })?;
     Ok((config, notes))
+}
+
+/// Why a file made for `file_hz` may meet a log taken at `log_hz`: the log
+/// runs at its rows' own rate, and a recording kept at a row every N-th
+/// tick without the board's tick counter reads as N times slower; when
+/// the two rates are a whole multiple apart, the option that says so.
+fn another_rate_hint(file_hz: f64, log_hz: f32) -> String {
+    let ratio = file_hz / f64::from(log_hz);
+    let n = ratio.round();
+    let multiple = n >= 2.0 && (ratio - n).abs() <= 0.01 * n;
+    format!(
+        ". The file was made for {file_hz} Hz and the log's rows run at {log_hz} Hz{}",
+        if multiple {
+            format!(
+                ": if the log was recorded at a row every {n} ticks of a {file_hz} Hz loop \
+                 and has no tick column, give --ticks-per-row {n}"
+            )
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// Which term of an added-term bank (`field` `jae.added` or

@@ -373,10 +373,16 @@ fn at_the_logs_rate<'a>(
         return Ok(config);
     }
     let (moved, notes) = crate::derive::config_at_clock(clock, &config)?;
+    let hint = if clock.from_ticks {
+        None
+    } else {
+        crate::io::config::ticks_per_row_hint(given_hz, rate_hz)
+    };
     eprintln!(
         "note: the logs run at {rate_hz:.1} Hz: the configuration written is for that rate \
-         (control_rate_hz = {}, not {given_hz}; the board that recorded them refuses another)",
-        moved.control_rate_hz
+         (control_rate_hz = {}, not {given_hz}; the board that recorded them refuses another){}",
+        moved.control_rate_hz,
+        hint.map_or_else(String::new, |h| format!("; {h}"))
     );
     for n in notes {
         eprintln!("note: {n}");

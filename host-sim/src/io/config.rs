@@ -176,23 +176,28 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
 
 /// Why a file made for `file_hz` may meet a log taken at `log_hz`: the log
 /// runs at its rows' own rate, and a recording kept at a row every N-th
-/// tick without the board's tick counter reads as N times slower; when
-/// the two rates are a whole multiple apart, the option that says so.
+/// tick without the board's tick counter reads as N times slower
+/// ([`ticks_per_row_hint`]).
 fn another_rate_hint(file_hz: f64, log_hz: f32) -> String {
-    let ratio = file_hz / f64::from(log_hz);
-    let n = ratio.round();
-    let multiple = n >= 2.0 && (ratio - n).abs() <= 0.01 * n;
     format!(
         ". The file was made for {file_hz} Hz and the log's rows run at {log_hz} Hz{}",
-        if multiple {
-            format!(
-                ": if the log was recorded at a row every {n} ticks of a {file_hz} Hz loop \
-                 and has no tick column, give --ticks-per-row {n}"
-            )
-        } else {
-            String::new()
-        }
+        ticks_per_row_hint(file_hz, f64::from(log_hz))
+            .map_or_else(String::new, |h| format!(": {h}"))
     )
+}
+
+/// When a configuration's `file_hz` is a whole multiple N ≥ 2 of the
+/// rate a log's rows run at, `log_hz` (a log without the board's tick
+/// counter, whose rate is its rows' own): what `--ticks-per-row N` is for.
+pub fn ticks_per_row_hint(file_hz: f64, log_hz: f64) -> Option<String> {
+    let ratio = file_hz / log_hz;
+    let n = ratio.round();
+    (n >= 2.0 && (ratio - n).abs() <= 0.01 * n).then(|| {
+        format!(
+            "if the log was recorded at a row every {n} ticks of a {file_hz} Hz loop and has no \
+             tick column, give --ticks-per-row {n}"
+        )
+    })
 }
 
 /// Which term of an added-term bank (`field` `jae.added` or
@@ -400,6 +405,22 @@ mod tests {
     use super::*;
     use cable_joint::effects::{EffectKind, Term};
     use cable_joint::model::sig;
+
+    #[test]
+    fn ticks_per_row_is_named_only_for_a_whole_multiple_of_the_logs_rate() {
+        let h = ticks_per_row_hint(2000.0, 1000.0).unwrap();
+        assert!(h.ends_with("give --ticks-per-row 2"), "{h}");
+        assert!(ticks_per_row_hint(2000.0, 200.0)
+            .unwrap()
+            .ends_with("--ticks-per-row 10"));
+        for (file_hz, log_hz) in [(2000.0, 2000.0), (1000.0, 2000.0), (2000.0, 800.0)] {
+            assert_eq!(
+                ticks_per_row_hint(file_hz, log_hz),
+                None,
+                "{file_hz} / {log_hz}"
+            );
+        }
+    }
 
     #[test]
     fn numbers_are_written_shortest_and_read_back_equal() {

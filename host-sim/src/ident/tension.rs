@@ -92,14 +92,16 @@ pub fn identify_tension_with(
     // their sum down and not the split; the fit bounded by physics puts
     // slider 2's at zero and the sum in slider 1's (whose band the force
     // bound widens by, so it stays as wide).
-    let rest_physical = |c: &FitReport| {
-        negative_friction(c, 0).is_none()
-            && c.value(Regressor::SgnX1Vel) + c.value(Regressor::SgnX2Vel) > 0.0
-            && c.value(Regressor::X2) > 0.0
-            && c.value(Regressor::One) > 0.0
+    let only_slider2 = |c: &FitReport| {
+        let forbidden = forbidden_values(c);
+        let sum_n = c.value(Regressor::SgnX1Vel) + c.value(Regressor::SgnX2Vel);
+        match forbidden.as_slice() {
+            [(Regressor::SgnX2Vel, why)] if sum_n > 0.0 => Some(why.clone()),
+            _ => None,
+        }
     };
-    let (core, slider2_at_zero) = match negative_friction(&core, 1) {
-        Some(why) if rest_physical(&core) && core_idx.len() > 1 => {
+    let (core, slider2_at_zero) = match only_slider2(&core) {
+        Some(why) if core_idx.len() > 1 => {
             let bounded: Vec<usize> = core_idx
                 .iter()
                 .copied()
@@ -129,7 +131,7 @@ pub fn identify_tension_with(
         _ => (core, None),
     };
     let chi_p = SIMPLIFIED_C.map(|r| core.value(r));
-    let unphysical = unphysical_terms(&core, chi_p, config);
+    let unphysical = unphysical_terms(&core, config);
     let cable0 = super::read_cable0_stiffness(&preps);
     let change_a = current_change_per_tick_a(logs);
     let unidentified = if unphysical.is_some() {
@@ -171,45 +173,53 @@ pub fn identify_tension_with(
 /// used the term for something else.
 pub const NEGATIVE_FRICTION_SIGMAS: f64 = 2.0;
 
-/// Model C's Coulomb term `k` of [`SIMPLIFIED_C`] (0: `f_sc1`, 1:
-/// `f_cp2`) when it lies more than [`NEGATIVE_FRICTION_SIGMAS`] below
-/// zero: the sentence that says so.
-fn negative_friction(core: &FitReport, k: usize) -> Option<String> {
-    let (r, name) = [
+/// What physics forbids in a fit of the core's tension model `[f_sc1,
+/// f_cp2, K_s, F_0]`, each with the sentence that says so: a return
+/// spring's rate and the preload are positive, a Coulomb friction is not
+/// negative (beyond [`NEGATIVE_FRICTION_SIGMAS`]; a term the fit lacks is
+/// 0 and forbidden only for `K_s` and `F_0`, which are never pruned).
+fn forbidden_values(core: &FitReport) -> Vec<(Regressor, String)> {
+    let mut out = Vec::new();
+    for (r, name) in [
         (Regressor::SgnX1Vel, "f_sc1"),
         (Regressor::SgnX2Vel, "f_cp2"),
-    ][k];
-    let value = core.param(r)?.value;
-    let std_n = core.std_eff(r).unwrap_or(0.0);
-    (value < -NEGATIVE_FRICTION_SIGMAS * std_n).then(|| {
-        format!(
-            "{name} = {value:.4} N (standard deviation {std_n:.3} N): a Coulomb friction is not \
-             negative"
-        )
-    })
+    ] {
+        let value = core.value(r);
+        let std_n = core.std_eff(r).unwrap_or(0.0);
+        if value < -NEGATIVE_FRICTION_SIGMAS * std_n {
+            out.push((
+                r,
+                format!(
+                    "{name} = {value:.4} N (standard deviation {std_n:.3} N): a Coulomb \
+                     friction is not negative"
+                ),
+            ));
+        }
+    }
+    let k_s = core.value(Regressor::X2);
+    if k_s.is_nan() || k_s <= 0.0 {
+        out.push((
+            Regressor::X2,
+            format!("K_s = {k_s:.1} N/m: a return spring's rate is positive"),
+        ));
+    }
+    let f_0 = core.value(Regressor::One);
+    if f_0.is_nan() || f_0 <= 0.0 {
+        out.push((
+            Regressor::One,
+            format!("F_0 = {f_0:.3} N: the return spring's preload is a positive tension"),
+        ));
+    }
+    out
 }
 
-/// What physics forbids in the written model `chi_p = [f_sc1, f_cp2, K_s,
-/// F_0]`: a return spring's rate and the preload are positive, a
-/// Coulomb friction is not negative (beyond [`NEGATIVE_FRICTION_SIGMAS`]).
-/// Such a fit has not identified model C (a run cut short by a fault, a
-/// plant the run did not excite, an effect the model lacks): the sentence
-/// says which values and why, and [`TensionResult::apply`] keeps the
+/// Why the written model may not be written ([`forbidden_values`]): such
+/// a fit has not identified model C (a run cut short by a fault, a plant
+/// the run did not excite, an effect the model lacks). The sentence says
+/// which values and why, and [`TensionResult::apply`] keeps the
 /// configuration's model (named in it) instead.
-fn unphysical_terms(core: &FitReport, chi_p: [f64; 4], config: &Config) -> Option<String> {
-    let mut why: Vec<String> = (0..2).filter_map(|k| negative_friction(core, k)).collect();
-    if chi_p[2].is_nan() || chi_p[2] <= 0.0 {
-        why.push(format!(
-            "K_s = {:.1} N/m: a return spring's rate is positive",
-            chi_p[2]
-        ));
-    }
-    if chi_p[3].is_nan() || chi_p[3] <= 0.0 {
-        why.push(format!(
-            "F_0 = {:.3} N: the return spring's preload is a positive tension",
-            chi_p[3]
-        ));
-    }
+fn unphysical_terms(core: &FitReport, config: &Config) -> Option<String> {
+    let why: Vec<String> = forbidden_values(core).into_iter().map(|(_, w)| w).collect();
     if why.is_empty() {
         return None;
     }

@@ -454,3 +454,29 @@ fn a_growing_dither_frees_a_stuck_pin_and_says_when_it_has_not() {
     );
     assert!(error_n.abs() < 0.05, "with growth {error_n:.3} N off");
 }
+
+/// The tuned gains at another rate: at 1 kHz the velocity loop follows the
+/// motor observer's bandwidth as the rate's own derivation has it
+/// (`Config::at_rate`); kept at their 2 kHz values they had run the
+/// winding into I²t (fault 16) on every `simulate --tuned-gains` run of a
+/// 1 kHz configuration. At 2 kHz they are the tuned values.
+#[test]
+fn the_tuned_gains_at_1_khz_follow_the_rate_and_the_calibration_run_does_not_fault() {
+    let at_2k = scenario::tuned_gains(&Config::default());
+    assert_eq!(
+        (at_2k.cascade.kp_vel_a_s_rad, at_2k.cascade.ki_vel_a_rad),
+        (0.04, 2.0)
+    );
+    let base = Config::default().at_rate(1000.0).0;
+    let (at_1k, derived) = scenario::tuned_gains_noted(&base);
+    assert!(at_1k.validate().is_ok());
+    assert!(
+        derived.iter().any(|a| a.field == "cascade.kp_vel_a_s_rad"),
+        "{derived:?}"
+    );
+    let rerun = at_1k.at_rate(1000.0);
+    assert_eq!(rerun.0, at_1k, "nothing left for the rate to derive");
+    let p = PlantParams::default();
+    let s = scenario::run("jae-ident", p, at_1k, None, &short(0.5), &mut NullRecorder).unwrap();
+    assert_eq!(s.fault, None);
+}

@@ -351,12 +351,23 @@ pub fn oracle_config(plant: &PlantParams, base: &Config) -> Config {
 /// Cascade gains that work on the default plant (measured with
 /// `host-sim simulate --scenario track-jae --oracle --tuned-gains`): the
 /// position loop well below the velocity loop's bandwidth
-/// (`K_m kp_vel / J_m ≈ 870 rad/s`), as the seed's `K_p1 = 98`.
+/// (`K_m kp_vel / J_m ≈ 870 rad/s`), as the seed's `K_p1 = 98`. They were
+/// tuned at 2 kHz; at `base`'s rate the rules the rate imposes
+/// ([`Config::at_rate`]) apply on top ([`tuned_gains_noted`]).
 pub fn tuned_gains(base: &Config) -> Config {
+    tuned_gains_noted(base).0
+}
+
+/// [`tuned_gains`], with the settings the rate derived in place of the
+/// tuned ones (at 1 kHz the velocity loop's gains follow the motor
+/// observer's bandwidth: kept at their 2 kHz values they had run the
+/// winding into I²t on every run).
+pub fn tuned_gains_noted(base: &Config) -> (Config, Vec<cable_joint::config::RateAdjustment>) {
     let mut c = *base;
     c.cascade.kp_pos_1_s = 200.0;
     c.cascade.kd_pos = 0.5;
     c.cascade.kp_vel_a_s_rad = 0.04;
     c.cascade.ki_vel_a_rad = 2.0;
-    c
+    let (c, changes) = c.at_rate(c.control_rate_hz);
+    (c, changes.into_iter().collect())
 }

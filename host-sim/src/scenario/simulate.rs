@@ -8,7 +8,8 @@ use cable_joint::trajectory::Trajectory;
 use cable_joint::Config;
 
 use super::{
-    oracle_config, plan, run, tuned_gains, Direction, GripOptions, RunSummary, ScenarioOptions,
+    oracle_config, plan, run, tuned_gains_noted, Direction, GripOptions, RunSummary,
+    ScenarioOptions,
 };
 use crate::ident::excite::Design;
 use crate::plant::PlantParams;
@@ -104,7 +105,18 @@ pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> R
         config = oracle_config(&plant, &config);
     }
     if opts.tuned_gains {
-        config = tuned_gains(&config);
+        let (tuned, derived) = tuned_gains_noted(&config);
+        for a in derived {
+            eprintln!(
+                "note: --tuned-gains: {} = {} (the tuned {} does not fit control_rate_hz = {}, so \
+                 derived from it)",
+                a.field,
+                a.to_text(),
+                a.from_text(),
+                tuned.control_rate_hz
+            );
+        }
+        config = tuned;
     }
     let scenario_opts = opts.scenario_options()?;
     let what = match (opts.duration, opts.duration_scale) {

@@ -155,11 +155,14 @@ fn a_single_jaw_grips_on_its_own_estimate() {
 /// fitted (here the plant's true `f_efc`, `fusion.pin_identified`): each
 /// jaw's point estimate takes the pin's kinetic level against the object's
 /// side, so the true contact force comes to the 2 N set point within 5 %
-/// on the soft and the firm object (measured -0.1 % and +1.3 %), where
+/// on the soft and the firm object (measured -0.6 % and +1.2 %), where
 /// with the level only an upper bound (the default's) the pin's friction
-/// is read as force and the true force stays short (measured -10.8 % and
-/// -5.3 %). Fails if the pressing side is dropped or taken with the wrong
-/// sign (the force would then be short by twice the pin's friction at the
+/// is read as force: on the soft object the true force stays short
+/// (measured -11.0 %), on the firm one it lands further off (+4.8 %).
+/// (Until stop 68 the oracle kept the datasheet's 11 400 N/m cables for
+/// the plant's 11 434: -0.1 % and +1.3 %, upper bound -10.8 % and -5.3 %.)
+/// Fails if the pressing side is dropped or taken with the wrong sign
+/// (the force would then be short by twice the pin's friction at the
 /// tip, 0.4 N).
 #[test]
 fn a_pair_with_a_fitted_pin_level_holds_the_true_force_at_its_set_point() {
@@ -187,11 +190,14 @@ fn a_pair_with_a_fitted_pin_level_holds_the_true_force_at_its_set_point() {
         assert!((with.steady_est_n - 2.0).abs() < 0.06, "k {k}: {with:?}");
         assert!(with.steady_error_pct.abs() < 5.0, "k {k}: {with:?}");
         assert!(with.overshoot_pct < 20.0, "k {k}: {with:?}");
+        let margin_pct = if k < 5000.0 { 3.0 } else { 1.0 };
         assert!(
-            without.steady_error_pct < 0.0
-                && with.steady_error_pct.abs() + 3.0 < without.steady_error_pct.abs(),
+            with.steady_error_pct.abs() + margin_pct < without.steady_error_pct.abs(),
             "k {k}: {with:?}\n{without:?}"
         );
+        if k < 5000.0 {
+            assert!(without.steady_error_pct < -5.0, "k {k}: {without:?}");
+        }
     }
 }
 

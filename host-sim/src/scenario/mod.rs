@@ -319,8 +319,9 @@ pub fn run<R: Recorder + ?Sized>(
 
 /// A configuration whose identified parts are the plant's true values (an
 /// oracle identification): machine constants, JAE coefficients (Eq. 26),
-/// simplified model C (Eq. 29) and `B_m`. Gains, filters and limits are
-/// kept from `base`. Useful to separate estimator-structure errors from
+/// simplified model C (Eq. 29), `B_m` and the stretch estimate's cable 1
+/// and 2 stiffnesses. Gains, filters, limits, the slack check's cable 0
+/// and the pin friction's upper bound (`fusion`) are kept from `base`. Useful to separate estimator-structure errors from
 /// identification errors.
 pub fn oracle_config(plant: &PlantParams, base: &Config) -> Config {
     let mut c = *base;
@@ -345,6 +346,10 @@ pub fn oracle_config(plant: &PlantParams, base: &Config) -> Config {
     c.tension.k_s_n_m = t[2] as f32;
     c.tension.f_0_n = t[3] as f32;
     c.dob.viscous_nm_s_rad = plant.motor.viscous_nm_s_rad as f32;
+    // The stretch estimate's cables (a plant with softer cables had kept
+    // the datasheet's 11 400 N/m, and its clamp force read 47 % high).
+    c.stretch.cable1_n_m = plant.cable1.stiffness_n_m as f32;
+    c.stretch.cable2_n_m = plant.cable2.stiffness_n_m as f32;
     c
 }
 

@@ -41,7 +41,7 @@ pub struct SimulateOptions {
     /// Use the plant's true values for the identified parameters
     /// ([`oracle_config`]).
     pub oracle: bool,
-    /// Use cascade gains that work on the default plant ([`tuned_gains`]).
+    /// Use cascade gains that work on the default plant ([`super::tuned_gains`]).
     pub tuned_gains: bool,
     /// Also record the raw trace ([`RawTrace`]).
     pub raw_trace: bool,

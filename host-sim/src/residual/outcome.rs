@@ -52,6 +52,13 @@ pub struct Step {
     /// that one explains at least [`RIVAL_SHARE`](super::select::RIVAL_SHARE) of what this one does: the
     /// data do not tell the two families apart.
     pub rival: Option<Rival>,
+    /// Families passed over before it was taken (only for kept terms):
+    /// the best candidate of each other family that explained more of the
+    /// same training residual (a larger ERR) but was set aside on
+    /// validation since the last term kept. The data favour them in the
+    /// fit and this one on validation; the output says so, so that a
+    /// kept term is not read as the only family the residual fits.
+    pub passed_over: Vec<Rival>,
     /// A validation run whose error it would have raised by more than the
     /// smallest gain (do no harm), with that rise (relative); only for
     /// set-aside terms.

@@ -108,6 +108,7 @@ fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
         "gain": s.gain,
         "class": s.class,
         "rival": s.rival,
+        "passed_over": s.passed_over,
         "group": s.group,
         "harm": s.harm.as_ref().map(|(run, rise)| json!({ "run": run, "rise": rise })),
         "evidence": s.evidence.map(|(before, after)| json!({
@@ -341,6 +342,23 @@ fn accepted_rows(s: &mut String, o: &Outcome, scale: f64) {
                 100.0 * st.err,
                 st.class,
                 r.class
+            );
+        }
+        if !st.passed_over.is_empty() && !later_part {
+            let names: Vec<String> = st
+                .passed_over
+                .iter()
+                .map(|r| format!("{} ({}, ERR {:.1} %)", r.class, r.label, 100.0 * r.err))
+                .collect();
+            let _ = writeln!(
+                s,
+                "      passed over: {} explained more of the same residual (ERR {:.1} % for this \
+                 term) but {} set aside on validation (below): the fit favours {}, the \
+                 validation this one",
+                names.join("; "),
+                100.0 * st.err,
+                if names.len() == 1 { "was" } else { "were" },
+                if names.len() == 1 { "it" } else { "them" }
             );
         }
     }

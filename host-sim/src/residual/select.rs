@@ -173,6 +173,22 @@ impl Default for SelectOptions {
 /// of the taken term's ERR.
 pub const RIVAL_SHARE: f64 = 0.8;
 
+/// Of the steps `set_aside` since the last term kept (each with the ERR
+/// it had on the same training residual), the best of each family other
+/// than `class` whose ERR is above `err`, largest first.
+fn passed_over(set_aside: &[Rival], class: &str, err: f64) -> Vec<Rival> {
+    let mut out: Vec<Rival> = Vec::new();
+    for r in set_aside.iter().filter(|r| r.class != class && r.err > err) {
+        match out.iter_mut().find(|o| o.class == r.class) {
+            Some(o) if o.err < r.err => *o = r.clone(),
+            Some(_) => {}
+            None => out.push(r.clone()),
+        }
+    }
+    out.sort_by(|a, b| b.err.total_cmp(&a.err));
+    out
+}
+
 /// Run the selection.
 pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     check(problem)?;
@@ -205,6 +221,9 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     let groups = effect_groups(&problem.candidates);
     let mut group_aside = vec![false; groups.len()];
     let mut misses = 0usize;
+    // The steps set aside since the last term kept, as rivals: a kept
+    // term names those of other families that explained more.
+    let mut since_kept: Vec<Rival> = Vec::new();
     while search.chosen.len() < opts.max_terms && misses < opts.patience {
         let Some(errs) = search.error_reduction_ratios(&set_aside) else {
             break;
@@ -270,18 +289,31 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             gain,
             class: classes[m].clone(),
             rival: rival.clone(),
+            passed_over: Vec::new(),
             harm: None,
             evidence: None,
             group: group_label.as_ref().map(|(_, l)| l.clone()),
         };
         if gain >= opts.min_gain && harm.is_none() {
+            let passed_over = passed_over(&since_kept, &classes[k], err);
+            since_kept.clear();
             // Part by part into the basis; the fit is the whole group's.
             for &m in &members {
                 search.accept(m, nm.clone(), mf.clone(), p.clone(), cand_e.clone());
-                accepted.push(step(m));
+                accepted.push(Step {
+                    passed_over: passed_over.clone(),
+                    ..step(m)
+                });
             }
             misses = 0;
         } else {
+            since_kept.push(Rival {
+                label: group_label
+                    .as_ref()
+                    .map_or_else(|| labels[k].clone(), |(_, l)| l.clone()),
+                class: classes[k].clone(),
+                err,
+            });
             set_aside_now(&mut set_aside, &mut group_aside);
             misses += 1;
             let mut st = step(k);
@@ -693,6 +725,74 @@ mod tests {
         families.sort_unstable();
         assert_eq!(families, ["drift", "stiffness"]);
         assert!(rival.err >= RIVAL_SHARE * kept.err);
+    }
+
+    /// A drift in the training rows only (a warm-up the validation run does
+    /// not have) explains more of the fit's residual than a stiffness term
+    /// does, but raises the validation error and is set aside; the
+    /// stiffness term is kept and names drift as passed over, with its
+    /// larger ERR.
+    #[test]
+    fn a_family_set_aside_with_a_larger_err_is_named_by_the_term_kept() {
+        let n = 3000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let u: Vec<f32> = t.iter().map(|t| (7.0 * t).sin() as f32).collect();
+        let x: Vec<f32> = t.iter().map(|t| (19.0 * t).sin() as f32).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|k| {
+                let warm_up = if k < 2000 { 0.5 * t[k] } else { 0.0 };
+                u[k] as f64 + 0.2 * x[k] as f64 + warm_up
+            })
+            .collect();
+        let problem = Problem {
+            model: "generic".into(),
+            target: "y".into(),
+            baseline_names: vec!["u".into(), "const".into()],
+            signal_names: vec!["u".into(), "x_m".into()],
+            candidates: vec![
+                Term::new(EffectKind::Time { scale_s: 1.0 }, 0),
+                Term::new(EffectKind::Linear, 1),
+            ],
+            runs: vec![RunData {
+                name: "r".into(),
+                fixed: vec![0.0; n],
+                baseline: vec![u.iter().map(|v| *v as f64).collect(), vec![1.0; n]],
+                signals: vec![u.clone(), x.clone()],
+                target: y,
+                fit_rows: 0..2000,
+                val_rows: 2000..n,
+                t_s: t,
+                ..Default::default()
+            }],
+            ..Default::default()
+        };
+        let out = select(&problem, &SelectOptions::default()).unwrap();
+        let kept = &out.accepted[0];
+        assert_eq!(kept.class, "stiffness", "{:?}", out.accepted);
+        let passed = &kept.passed_over;
+        assert_eq!(passed.len(), 1, "{passed:?}");
+        assert_eq!(passed[0].class, "drift");
+        assert!(passed[0].err > kept.err, "{passed:?} against {}", kept.err);
+        assert!(out.rejected.iter().any(|r| r.class == "drift"));
+    }
+
+    #[test]
+    fn passed_over_keeps_the_best_of_each_other_family_above_the_kept_err() {
+        let r = |class: &str, err: f64| Rival {
+            label: format!("{class}{err}"),
+            class: class.into(),
+            err,
+        };
+        let aside = [
+            r("drift", 0.10),
+            r("thermal", 0.11),
+            r("drift", 0.12),
+            r("friction", 0.2),
+            r("creep", 0.04),
+        ];
+        let out = passed_over(&aside, "friction", 0.06);
+        let got: Vec<(&str, f64)> = out.iter().map(|o| (o.class.as_str(), o.err)).collect();
+        assert_eq!(got, [("drift", 0.12), ("thermal", 0.11)]);
     }
 
     /// A load carried with a gain and an offset of each stroke's own:

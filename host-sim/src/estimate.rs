@@ -293,18 +293,28 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
 /// the stretch estimate, and the log's reference `f_ext_n` where it has
 /// one) and the joint angle (the JAE's, and the log's `theta_rad` where it
 /// has one), against time. `title` heads the force panel (the log's name;
-/// the first fault, when one latched, is added to it).
+/// the first fault, the log's own or the replay's, is added to it).
 ///
 /// # Errors
 /// A column the replay always writes is missing from `out`.
 pub fn figure(out: &Log, title: &str, s: &EstimateSummary) -> Result<Figure> {
     let t = out.time_s()?.to_vec();
     let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);
-    let fault = s
+    // The earlier of the log's own fault (the board's drive off) and the
+    // replay's.
+    let recorded = s
+        .recorded_fault
+        .map(|(k, code)| (k, format!("the log records fault {code}")));
+    let replayed = s
         .first_fault
         .as_ref()
-        .map_or(String::new(), |(k, code, _)| {
-            format!(" (fault {code} latched at t = {:.3} s)", t[*k])
+        .map(|(k, code, _)| (*k, format!("fault {code} latched")));
+    let fault = recorded
+        .into_iter()
+        .chain(replayed)
+        .min_by_key(|(k, _)| *k)
+        .map_or(String::new(), |(k, what)| {
+            format!(" ({what} at t = {:.3} s)", t[k])
         });
     let mut force = Panel::new(format!("{title}: tip force{fault}"), "t [s]", "F_ext [N]")
         // In drawing order: the noisy DOB underneath, the fused estimate

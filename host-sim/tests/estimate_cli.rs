@@ -955,4 +955,10 @@ fn a_fault_the_log_records_ends_the_summary_there_and_is_named() {
         warnings.contains("the board's drive off from there"),
         "{warnings}"
     );
+    let fig = host_sim::estimate::figure(&out, "run.csv", &s).unwrap();
+    let t_s = log.time_s().unwrap()[cut];
+    assert_eq!(
+        fig.panels[0].title,
+        format!("run.csv: tip force (the log records fault 16 at t = {t_s:.3} s)")
+    );
 }

@@ -60,6 +60,29 @@ pub struct EstimateSummary {
     pub against_log: Option<LogDifference>,
 }
 
+/// The earlier of a log's own first fault and the replay's, each (row,
+/// code): (row, code, whether it is the log's); the log's on a tie.
+fn earlier_fault(
+    recorded: Option<(usize, u8)>,
+    replayed: Option<(usize, u8)>,
+) -> Option<(usize, u8, bool)> {
+    let recorded = recorded.map(|(k, code)| (k, code, true));
+    let replayed = replayed.map(|(k, code)| (k, code, false));
+    recorded.into_iter().chain(replayed).min_by_key(|f| f.0)
+}
+
+impl EstimateSummary {
+    /// The fault that ends the summary's figures: the earlier of the log's
+    /// own ([`Self::recorded_fault`]) and the replay's
+    /// ([`Self::first_fault`]), as (row, code, whether it is the log's).
+    pub fn ending_fault(&self) -> Option<(usize, u8, bool)> {
+        earlier_fault(
+            self.recorded_fault,
+            self.first_fault.as_ref().map(|(k, code, _)| (*k, *code)),
+        )
+    }
+}
+
 /// The replay's estimates against those a recording carries (the board's,
 /// computed on line at every tick, with the configuration of the run).
 #[derive(Clone, Copy, Debug)]
@@ -186,13 +209,11 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
     // the log records (the board's drive off: the joint falls or relaxes,
     // which no estimate of a controlled joint's load is judged on).
     let recorded_fault = crate::ingest::first_recorded_fault(log);
-    let live = first_fault
-        .as_ref()
-        .map(|f| f.0)
-        .into_iter()
-        .chain(recorded_fault.map(|f| f.0))
-        .min()
-        .unwrap_or(rows);
+    let live = earlier_fault(
+        recorded_fault,
+        first_fault.as_ref().map(|(k, code, _)| (*k, *code)),
+    )
+    .map_or(rows, |f| f.0);
     let share = |bit: u8| {
         fl[..live].iter().filter(|f| (**f as u8) & bit != 0).count() as f64 / live.max(1) as f64
     };
@@ -300,20 +321,14 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
 pub fn figure(out: &Log, title: &str, s: &EstimateSummary) -> Result<Figure> {
     let t = out.time_s()?.to_vec();
     let col = |n: &str| out.col_required(n).map(<[f64]>::to_vec);
-    // The earlier of the log's own fault (the board's drive off) and the
-    // replay's.
-    let recorded = s
-        .recorded_fault
-        .map(|(k, code)| (k, format!("the log records fault {code}")));
-    let replayed = s
-        .first_fault
-        .as_ref()
-        .map(|(k, code, _)| (*k, format!("fault {code} latched")));
-    let fault = recorded
-        .into_iter()
-        .chain(replayed)
-        .min_by_key(|(k, _)| *k)
-        .map_or(String::new(), |(k, what)| {
+    let fault = s
+        .ending_fault()
+        .map_or(String::new(), |(k, code, recorded)| {
+            let what = if recorded {
+                format!("the log records fault {code}")
+            } else {
+                format!("fault {code} latched")
+            };
             format!(" ({what} at t = {:.3} s)", t[k])
         });
     let mut force = Panel::new(format!("{title}: tip force{fault}"), "t [s]", "F_ext [N]")

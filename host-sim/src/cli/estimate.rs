@@ -113,34 +113,22 @@ pub fn row_loss_warnings(name: &str, s: &EstimateSummary) -> Vec<String> {
     w
 }
 
-/// Where the summary's figures end, when a fault ends them: the log's own
-/// (the board's drive off from there) or the replay's, whichever came
-/// first, in words.
+/// Where the summary's figures end, when a fault ends them
+/// ([`EstimateSummary::ending_fault`]): the log's own (the board's drive
+/// off from there) or the replay's, in words.
 fn summary_end(s: &EstimateSummary) -> Option<String> {
-    let recorded = s.recorded_fault.map(|(k, code)| {
-        (
-            k,
-            format!(
-                "the log records {} at line {} (the board's drive off from there)",
-                crate::ingest::fault_words(code),
-                crate::log::line_of_row(k)
+    s.ending_fault().map(|(k, code, recorded)| {
+        let line = crate::log::line_of_row(k);
+        match (&s.first_fault, recorded) {
+            (Some((_, _, text)), false) => {
+                format!("the replay latched {text} (code {code}) at line {line}")
+            }
+            _ => format!(
+                "the log records {} at line {line} (the board's drive off from there)",
+                crate::ingest::fault_words(code)
             ),
-        )
-    });
-    let replayed = s.first_fault.as_ref().map(|(k, code, text)| {
-        (
-            *k,
-            format!(
-                "the replay latched {text} (code {code}) at line {}",
-                crate::log::line_of_row(*k)
-            ),
-        )
-    });
-    recorded
-        .into_iter()
-        .chain(replayed)
-        .min_by_key(|(k, _)| *k)
-        .map(|(_, words)| words)
+        }
+    })
 }
 
 /// A share as a percentage to a tenth, rounded down: a bound that misses
@@ -176,7 +164,7 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
             let _ = writeln!(t, "  the replay latched no fault");
         }
     }
-    let ended = s.first_fault.is_some() || s.recorded_fault.is_some();
+    let ended = s.ending_fault().is_some();
     let rows = if ended {
         "of the rows before the fault"
     } else {

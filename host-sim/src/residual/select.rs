@@ -307,13 +307,6 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             }
             misses = 0;
         } else {
-            since_kept.push(Rival {
-                label: group_label
-                    .as_ref()
-                    .map_or_else(|| labels[k].clone(), |(_, l)| l.clone()),
-                class: classes[k].clone(),
-                err,
-            });
             set_aside_now(&mut set_aside, &mut group_aside);
             misses += 1;
             let mut st = step(k);
@@ -321,6 +314,11 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
                 st.label = l.clone();
             }
             st.harm = harm.filter(|_| gain >= opts.min_gain);
+            since_kept.push(Rival {
+                label: st.label.clone(),
+                class: st.class.clone(),
+                err,
+            });
             rejected.push(st);
         }
     }

@@ -321,8 +321,9 @@ pub fn run<R: Recorder + ?Sized>(
 /// oracle identification): machine constants, JAE coefficients (Eq. 26),
 /// simplified model C (Eq. 29), `B_m` and the stretch estimate's cable 1
 /// and 2 stiffnesses. Gains, filters, limits, the slack check's cable 0
-/// and the pin friction's upper bound (`fusion`) are kept from `base`. Useful to separate estimator-structure errors from
-/// identification errors.
+/// and the pin friction's upper bound (`fusion`) are kept from `base`.
+/// Useful to separate estimator-structure errors from identification
+/// errors.
 pub fn oracle_config(plant: &PlantParams, base: &Config) -> Config {
     let mut c = *base;
     let m = &mut c.machine;

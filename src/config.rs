@@ -596,6 +596,12 @@ impl Default for Config {
     }
 }
 
+/// A differentiator bandwidth [`Config::at_rate`] derives where the rate
+/// cannot support the file's, as a share of the control rate (a fifth of
+/// the Nyquist rate, inside [`Config::validate`]'s quarter): the widest
+/// the project gives an observer at a rate.
+pub const DERIVED_BANDWIDTH_PER_RATE: f32 = 0.1;
+
 /// The control rates the core runs at, Hz: 100 Hz is the slowest at which
 /// the cascade's and differentiators' derived settings keep their
 /// margins, 20 kHz the fastest tick the Cortex-M4F's budget allows
@@ -836,7 +842,7 @@ impl Config {
         let mut changes = heapless::Vec::new();
         c.control_rate_hz = rate_hz;
         let limit_hz = 0.125 * rate_hz;
-        let derived_hz = 0.1 * rate_hz;
+        let derived_hz = DERIVED_BANDWIDTH_PER_RATE * rate_hz;
         let d = &mut c.differentiators;
         for (field, bw) in [
             (

@@ -132,6 +132,7 @@ pub(super) fn generic_run(
         target: target_v,
         fixed: vec![0.0; n],
         baseline,
+        unfiltered_baseline: Vec::new(),
         signals,
         fit_rows: 0..0,
         val_rows: 0..0,

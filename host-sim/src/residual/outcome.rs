@@ -66,6 +66,14 @@ pub struct Step {
     /// Correlation of the validation residual with the term's column,
     /// before (baseline) and after (final model); only for kept terms.
     pub evidence: Option<(f64, f64)>,
+    /// Its validation gain when the baseline's differentiated inputs are
+    /// taken without the core's observer filtering
+    /// ([`unfiltered_gains`](super::select::unfiltered_gains); only for
+    /// kept terms of a model that differentiates). Below
+    /// [`FILTERING_SHARE`](super::select::FILTERING_SHARE) of `gain`, the
+    /// term stands in for that filtering and its `class` is
+    /// [`OBSERVER_FILTERING`](super::select::OBSERVER_FILTERING).
+    pub unfiltered_gain: Option<f64>,
     /// When the term is one part of an effect taken with its other parts
     /// in the same step ([`effect_groups`](super::library::effect_groups)):
     /// that effect's label. `err`, `fit` and `gain` are then the group's.

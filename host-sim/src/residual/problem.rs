@@ -28,7 +28,8 @@
 use std::path::Path;
 
 use anyhow::{bail, ensure, Context, Result};
-use cable_joint::filter::LowPass1;
+use cable_joint::config::DERIVED_BANDWIDTH_PER_RATE;
+use cable_joint::filter::{LowPass1, TrackingObserver};
 use cable_joint::model::{sig, SIGNAL_NAMES};
 use cable_joint::Config;
 
@@ -36,7 +37,10 @@ use super::candidates::offer_candidates;
 use super::families::{term_column, term_label};
 use super::generic::{generic_columns, generic_run};
 use super::select::{Problem, RunData};
-use crate::derive::{held_sign, held_sign_travelled, low_pass_column, median_period_s, TickReplay};
+use crate::derive::{
+    held_sign, held_sign_travelled, low_pass_column, median_period_s, zero_phase_kinematics,
+    TickReplay,
+};
 use crate::import::{import_mrdlab_run, is_mrdlab_path, MrdlabZero};
 use crate::ingest::ReplayEnd;
 use crate::log::{Log, Schema};
@@ -440,7 +444,16 @@ fn core_run(
         warn_unmeasured(&nl.name, name, on_rows);
         at_log_rows(&replay, name)
     };
-    let (mut target, fixed, mut baseline, names) = match kind {
+    // The observer check's derivatives (`select::unfiltered_gains`): the
+    // core's grating observer without its phase, for the JAE's linear
+    // terms also at the widest bandwidth the project gives one at this
+    // rate (a noisier regressor costs the fit a little; motion above the
+    // core's band is what a term may stand in for).
+    let grating_observer =
+        TrackingObserver::new(cfg.differentiators.grating_bandwidth_hz, cfg.period_s());
+    let wideband =
+        TrackingObserver::new(DERIVED_BANDWIDTH_PER_RATE / cfg.period_s(), cfg.period_s());
+    let (mut target, fixed, mut baseline, mut unfiltered_baseline, names) = match kind {
         ModelKind::Jae => {
             let target = need("theta_rad", "the magnetic encoder of a calibration run")?;
             let sign = held_sign_travelled(
@@ -449,40 +462,63 @@ fn core_run(
                 cfg.jae.sign_switch_m_s,
                 cfg.jae.sign_travel_m,
             );
+            let jae_baseline = |acc: Vec<f64>, vel: Vec<f64>, sign: Vec<f64>| {
+                vec![acc, vel, sign, to64(s(sig::X2_M)), vec![1.0; n]]
+            };
+            let unfiltered = zero_phase_kinematics(&wideband, s(sig::X2_M));
+            let unfiltered_baseline = unfiltered.map_or_else(Vec::new, |(vel, acc)| {
+                let sign = held_sign_travelled(
+                    &vel,
+                    &to64(s(sig::X2_M)),
+                    cfg.jae.sign_switch_m_s,
+                    cfg.jae.sign_travel_m,
+                );
+                jae_baseline(acc, vel, sign)
+            });
             (
                 target,
                 vec![0.0; n],
-                vec![
-                    to64(s(sig::X2_ACC_M_S2)),
-                    to64(s(sig::X2_VEL_M_S)),
-                    sign,
-                    to64(s(sig::X2_M)),
-                    vec![1.0; n],
-                ],
+                jae_baseline(to64(s(sig::X2_ACC_M_S2)), to64(s(sig::X2_VEL_M_S)), sign),
+                unfiltered_baseline,
                 ["x2_acc_m_s2", "x2_vel_m_s", "sgn(x2_vel)", "x2_m", "offset"],
             )
         }
         ModelKind::Tension => {
             let mut target = at_log_rows(&replay, "tension1_hat_n")?;
             take_out_known_load(&nl.name, d, &cfg, lp, &mut target);
-            let s1 = held_sign(
-                s(sig::X1_VEL_M_S).iter().copied(),
-                cfg.tension.sign_switch_x1_m_s,
-            );
-            let s2 = held_sign(
-                s(sig::X2_VEL_M_S).iter().copied(),
-                cfg.tension.sign_switch_x2_m_s,
-            );
-            problem.prefilter = Some(lp);
-            (
-                target,
-                vec![0.0; n],
+            let tension_baseline = |s1: Vec<f64>, s2: Vec<f64>| {
                 vec![
                     low_pass_column(lp, &s1),
                     low_pass_column(lp, &s2),
                     low_pass_column(lp, s(sig::X2_M)),
                     vec![1.0; n],
-                ],
+                ]
+            };
+            let signs = |x1_vel: &[f32], x2_vel: &[f32]| {
+                (
+                    held_sign(x1_vel.iter().copied(), cfg.tension.sign_switch_x1_m_s),
+                    held_sign(x2_vel.iter().copied(), cfg.tension.sign_switch_x2_m_s),
+                )
+            };
+            let (s1, s2) = signs(s(sig::X1_VEL_M_S), s(sig::X2_VEL_M_S));
+            // The signs' velocities without the observer's lag but at its
+            // bandwidth: the switch speeds are set for its noise, and a wider
+            // band would chatter the signs at rest.
+            let unlagged = |i: u8| zero_phase_kinematics(&grating_observer, s(i));
+            let unfiltered_baseline = match (unlagged(sig::X1_M), unlagged(sig::X2_M)) {
+                (Some((v1, _)), Some((v2, _))) => {
+                    let to32 = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect::<Vec<f32>>();
+                    let (s1, s2) = signs(&to32(v1), &to32(v2));
+                    tension_baseline(s1, s2)
+                }
+                _ => Vec::new(),
+            };
+            problem.prefilter = Some(lp);
+            (
+                target,
+                vec![0.0; n],
+                tension_baseline(s1, s2),
+                unfiltered_baseline,
                 ["Q[sgn(x1_vel)]", "Q[sgn(x2_vel)]", "Q[x2_m]", "F_0", ""],
             )
         }
@@ -490,7 +526,7 @@ fn core_run(
             let target = need("f_ext_n", "a reference force")?;
             let fixed = d.col_required("f_ext_hat_n")?.to_vec();
             problem.prefilter = Some(lp);
-            (target, fixed, Vec::new(), ["", "", "", "", ""])
+            (target, fixed, Vec::new(), Vec::new(), ["", "", "", "", ""])
         }
         ModelKind::Generic { .. } => bail!("internal: generic model in core_run"),
     };
@@ -501,7 +537,12 @@ fn core_run(
         .map(|s| (*s).to_owned())
         .collect();
     if keep_added {
+        let declared = baseline.len();
         keep_added_terms(kind, &cfg, &signals, &t_s, &mut baseline, problem);
+        // The kept terms read the core's own signals in either baseline.
+        if !unfiltered_baseline.is_empty() {
+            unfiltered_baseline.extend(baseline[declared..].iter().cloned());
+        }
     }
     Ok((
         RunData {
@@ -510,6 +551,7 @@ fn core_run(
             target,
             fixed,
             baseline,
+            unfiltered_baseline,
             signals,
             fit_rows: 0..0,
             val_rows: 0..0,

@@ -33,6 +33,7 @@ use anyhow::{Context, Result};
 use cable_joint::Config;
 use serde::Serialize;
 
+use super::select::OBSERVER_FILTERING;
 use super::{analyse, config_with, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions};
 use crate::plant::{Creep, OffsetDrift, PlantParams, Presliding, SpringHardening, Thermal};
 use crate::report::programme::run_seed;
@@ -323,8 +324,9 @@ pub enum Verdict {
 
 /// The verdict for one model: `expected` families against the `classes`
 /// added (in order; those the loop also added on the clean run, marked in
-/// `also_clean`, do not count), with the validation errors of the clean run
-/// and of this run before the loop.
+/// `also_clean`, and those that stand in for the core's observer,
+/// [`OBSERVER_FILTERING`], do not count), with the validation errors of
+/// the clean run and of this run before the loop.
 pub fn verdict(
     expected: &[&str],
     classes: &[String],
@@ -340,7 +342,7 @@ pub fn verdict(
     let new: Vec<&String> = classes
         .iter()
         .zip(also_clean.iter().chain(std::iter::repeat(&false)))
-        .filter(|(_, clean)| !**clean)
+        .filter(|(c, clean)| !**clean && c.as_str() != OBSERVER_FILTERING)
         .map(|(c, _)| c)
         .collect();
     let named = match expected {

@@ -111,6 +111,7 @@ fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
         "passed_over": s.passed_over,
         "group": s.group,
         "harm": s.harm.as_ref().map(|(run, rise)| json!({ "run": run, "rise": rise })),
+        "unfiltered_gain": s.unfiltered_gain,
         "evidence": s.evidence.map(|(before, after)| json!({
             "corr_before": before,
             "corr_after": after,
@@ -330,6 +331,21 @@ fn accepted_rows(s: &mut String, o: &Outcome, scale: f64) {
             let _ = writeln!(
                 s,
                 "      evidence: correlation of the validation residual with the term {before:+.3} before, {after:+.3} after"
+            );
+        }
+        if let (Some(g), false) = (st.unfiltered_gain, later_part) {
+            let verdict = if st.class == super::select::OBSERVER_FILTERING {
+                "it stands in for the observer's filtering, not for an effect of the plant"
+            } else {
+                "not the observer's filtering"
+            };
+            let _ = writeln!(
+                s,
+                "      observer check: with the baseline's derivatives taken without the core's \
+                 observer filtering (offline: widest bandwidth, no lag) it cuts the validation \
+                 RMSE by {:.1} % ({:.1} % with the MCU's): {verdict}",
+                100.0 * g,
+                100.0 * st.gain
             );
         }
         if let Some(r) = &st.rival {

@@ -68,6 +68,13 @@ pub struct RunData {
     pub fixed: Vec<f64>,
     /// Baseline regressor columns, in [`Problem::baseline_names`] order.
     pub baseline: Vec<Vec<f64>>,
+    /// The baseline with its differentiated inputs taken without the
+    /// core's observer filtering (without phase,
+    /// [`zero_phase_kinematics`](crate::derive::zero_phase_kinematics); see
+    /// [`unfiltered_gains`] for the bandwidths), column for column with
+    /// `baseline`: what [`unfiltered_gains`] refits on. Empty: the model
+    /// differentiates nothing, no check.
+    pub unfiltered_baseline: Vec<Vec<f64>>,
     /// Signals read by the terms, in [`Problem::signal_names`] order.
     pub signals: Vec<Vec<f32>>,
     /// Rows used for fitting.
@@ -292,6 +299,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             passed_over: Vec::new(),
             harm: None,
             evidence: None,
+            unfiltered_gain: None,
             group: group_label.as_ref().map(|(_, l)| l.clone()),
         };
         if gain >= opts.min_gain && harm.is_none() {
@@ -331,6 +339,13 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         let c = &val.cand[step.candidate];
         step.evidence = Some((corr(&e_before, c), corr(&e_after, c)));
     }
+    let unfiltered = unfiltered_gains(problem, opts, &accepted)?;
+    for (step, unfiltered) in accepted.iter_mut().zip(unfiltered) {
+        step.unfiltered_gain = unfiltered;
+        if unfiltered.is_some_and(|g| g < FILTERING_SHARE * step.gain) {
+            step.class = OBSERVER_FILTERING.to_owned();
+        }
+    }
     let (runs, traces) = run_results(problem, &val, &search, &e_before, &e_after);
     // The test runs, judged once by the model chosen without them.
     let test_runs = run_errors(
@@ -356,6 +371,94 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         traces,
         test_runs,
     })
+}
+
+/// The family of a kept term that stands in for what the core's observer
+/// filters out of the baseline's differentiated inputs (its lag, and motion
+/// above its bandwidth) rather than for an effect of the plant.
+pub const OBSERVER_FILTERING: &str = "observer filtering";
+
+/// A kept term is [`OBSERVER_FILTERING`] when, with the baseline's
+/// differentiated inputs taken without the observer's filtering, it keeps
+/// less than this share of its validation gain: most of what it explains
+/// is then the observer, not the plant.
+pub const FILTERING_SHARE: f64 = 0.5;
+
+/// The observer check: each kept step's validation gain when the
+/// baseline's differentiated inputs come from the core's observer run
+/// forward and backward, without its lag ([`RunData::unfiltered_baseline`]):
+/// the JAE's `x2'`, `x2''` and held sign also at the widest bandwidth the
+/// rate allows, the tension model's held signs at the core's own (their
+/// switch speeds are set for its noise). The kept terms are taken in the
+/// same order (a group's parts together). A term that stands in for the observer's lag, or for motion
+/// above its bandwidth (the motor current is in phase with a limit cycle
+/// the observer does not follow), loses its gain there; one that carries
+/// an effect of the plant keeps it. `None` per step when a run has no
+/// such baseline.
+pub fn unfiltered_gains(
+    problem: &Problem,
+    opts: &SelectOptions,
+    accepted: &[Step],
+) -> Result<Vec<Option<f64>>> {
+    let none = vec![None; accepted.len()];
+    if accepted.is_empty()
+        || problem
+            .runs
+            .iter()
+            .any(|r| r.unfiltered_baseline.len() != r.baseline.len())
+    {
+        return Ok(none);
+    }
+    let unfiltered = Problem {
+        candidates: accepted.iter().map(|s| s.term).collect(),
+        runs: problem
+            .runs
+            .iter()
+            .map(|r| RunData {
+                baseline: r.unfiltered_baseline.clone(),
+                unfiltered_baseline: Vec::new(),
+                ..r.clone()
+            })
+            .collect(),
+        ..problem.clone()
+    };
+    let (fit, val, _) = gather(&unfiltered, opts.decimate)?;
+    let mut names = problem.baseline_names.clone();
+    names.extend(accepted.iter().map(|s| s.label.clone()));
+    let val_rmse = |terms: usize| -> Option<f64> {
+        let idx: Vec<usize> = (0..terms).collect();
+        model_fit(
+            &fit,
+            &val,
+            &idx,
+            &names[..problem.baseline_names.len() + terms],
+        )
+        .ok()
+        .map(|(mf, _)| mf.val_rmse)
+    };
+    let mut out = none;
+    let mut start = 0;
+    while start < accepted.len() {
+        // A group's parts were taken in one step: judged together.
+        let end = match &accepted[start].group {
+            Some(g) => {
+                start
+                    + accepted[start..]
+                        .iter()
+                        .take_while(|s| s.group.as_ref() == Some(g))
+                        .count()
+            }
+            None => start + 1,
+        };
+        if let (Some(before), Some(after)) = (val_rmse(start), val_rmse(end)) {
+            let gain = (before - after) / before;
+            for o in &mut out[start..end] {
+                *o = gain.is_finite().then_some(gain);
+            }
+        }
+        start = end;
+    }
+    Ok(out)
 }
 
 /// Batches a validation run is cut into for the standard error of its
@@ -592,6 +695,90 @@ mod tests {
             !out.rejected.is_empty(),
             "a second term was tried and set aside"
         );
+    }
+
+    /// A run of `y = 2 + 0.5 v + 0.3 stop(w)` whose baseline reads `v`
+    /// 20 ms late (an observer's lag) and whose unfiltered baseline reads
+    /// it on time; the signals are `a = v'` and `w`.
+    fn lagged_run(name: &str, phase: f64, fit: bool) -> RunData {
+        use std::f64::consts::PI;
+        let n = 4000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let (w1, w2) = (2.0 * PI * 1.3, 2.0 * PI * 4.7);
+        let v = |t: f64| (w1 * t + phase).sin() + 0.5 * (w2 * t).sin();
+        let a: Vec<f32> = t
+            .iter()
+            .map(|&t| (w1 * (w1 * t + phase).cos() + 0.5 * w2 * (w2 * t).cos()) as f32)
+            .collect();
+        let w: Vec<f32> = t
+            .iter()
+            .map(|&t| (2.0 * PI * 0.7 * t + 2.0 * phase).sin() as f32)
+            .collect();
+        let stop = Term::new(EffectKind::Stop { half_width: 0.1 }, 1);
+        let signals = vec![a, w];
+        let h = term_column(&stop, &signals, &t, None, None);
+        let y: Vec<f64> = t
+            .iter()
+            .zip(&h)
+            .map(|(&t, h)| 2.0 + 0.5 * v(t) + 0.3 * h)
+            .collect();
+        RunData {
+            name: name.into(),
+            fixed: vec![0.0; n],
+            baseline: vec![t.iter().map(|&t| v(t - 0.02)).collect(), vec![1.0; n]],
+            unfiltered_baseline: vec![t.iter().map(|&t| v(t)).collect(), vec![1.0; n]],
+            signals,
+            target: y,
+            fit_rows: if fit { 0..n } else { 0..0 },
+            val_rows: if fit { 0..0 } else { 0..n },
+            t_s: t,
+            ..Default::default()
+        }
+    }
+
+    /// The observer check: a term that explains only the baseline's lag
+    /// (`linear[a]`, `a` being the derivative of the late input) loses its
+    /// gain on the unfiltered baseline and is classed
+    /// [`OBSERVER_FILTERING`]; the planted effect (`stop[w]`) keeps its
+    /// gain and its family.
+    #[test]
+    fn a_term_that_stands_in_for_the_observers_lag_is_classed_so_and_an_effect_keeps_its_family() {
+        let problem = Problem {
+            model: "generic".into(),
+            target: "y".into(),
+            baseline_names: vec!["v".into(), "const".into()],
+            signal_names: vec!["a".into(), "w".into()],
+            candidates: vec![
+                Term::new(EffectKind::Linear, 0),
+                Term::new(EffectKind::Stop { half_width: 0.1 }, 1),
+            ],
+            runs: vec![lagged_run("fit", 0.0, true), lagged_run("val", 1.0, false)],
+            ..Default::default()
+        };
+        let out = select(&problem, &SelectOptions::default()).unwrap();
+        let step = |candidate: usize| {
+            out.accepted
+                .iter()
+                .find(|s| s.candidate == candidate)
+                .unwrap_or_else(|| panic!("candidate {candidate} not kept: {:?}", out.accepted))
+        };
+        let (lag, effect) = (step(0), step(1));
+        assert_eq!(lag.class, OBSERVER_FILTERING);
+        let g = lag.unfiltered_gain.unwrap();
+        assert!(g < FILTERING_SHARE * lag.gain, "{g} against {}", lag.gain);
+        assert_eq!(effect.class, "hysteresis");
+        let g = effect.unfiltered_gain.unwrap();
+        assert!(
+            g >= FILTERING_SHARE * effect.gain,
+            "{g} against {}",
+            effect.gain
+        );
+        // Without an unfiltered baseline there is no check.
+        let mut unchecked = problem.clone();
+        unchecked.runs[1].unfiltered_baseline.clear();
+        let out = select(&unchecked, &SelectOptions::default()).unwrap();
+        assert!(out.accepted.iter().all(|s| s.unfiltered_gain.is_none()));
+        assert!(out.accepted.iter().all(|s| s.class != OBSERVER_FILTERING));
     }
 
     /// A run of `y = 2 + 0.5 u + c stop(u)`; `c` is the effect's size in it.

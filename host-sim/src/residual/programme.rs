@@ -781,6 +781,20 @@ mod tests {
     }
 
     #[test]
+    fn a_term_that_stands_in_for_the_observer_does_not_count_as_the_first() {
+        let e = ["creep / relaxation"];
+        let classes = v(&[OBSERVER_FILTERING, "creep / relaxation"]);
+        assert_eq!(
+            verdict(&e, &classes, &[false, false], 1.0, 3.0),
+            Verdict::Named
+        );
+        assert_eq!(
+            verdict(&e, &v(&[OBSERVER_FILTERING]), &[false], 1.0, 3.0),
+            Verdict::Missed
+        );
+    }
+
+    #[test]
     fn a_single_effect_is_named_only_when_its_family_comes_first() {
         let e = ["creep / relaxation"];
         assert_eq!(

@@ -116,6 +116,8 @@ pub struct ReferenceErrors {
     pub coverage: f64,
     /// Rows compared.
     pub rows: usize,
+    /// Rows compared whose reference lies outside `[lo, hi]`.
+    pub outside: usize,
     /// Rows left out because the reference is not measured there, and the
     /// first of them (0-based).
     pub not_measured: (usize, Option<usize>),
@@ -253,6 +255,7 @@ pub fn estimate(log: &Log, config: &Config) -> Result<(Log, EstimateSummary)> {
                 fused_n: ef.summary(1.0),
                 coverage: inside as f64 / n as f64,
                 rows: n,
+                outside: n - inside,
                 not_measured,
                 faulted,
             })

@@ -237,9 +237,8 @@ pub fn format_summary(name: &str, s: &EstimateSummary) -> String {
             .and_then(|d| d.board_coverage)
             .map(|c| format!(" (the board's own bound: {} %)", share_floor_pct(c)))
             .unwrap_or_default();
-        let outside = (r.rows as f64 * (1.0 - r.coverage)).round() as usize;
-        let missed = if outside > 0 {
-            format!(" ({outside} of {} outside it)", r.rows)
+        let missed = if r.outside > 0 {
+            format!(" ({} of {} outside it)", r.outside, r.rows)
         } else {
             String::new()
         };

@@ -14,6 +14,7 @@ use cable_joint::model::SIGNAL_NAMES;
 use cable_joint::units::{AdcCode, GratingCount, MagneticCount, MotorCount};
 use cable_joint::{Config, Controller, RawSample};
 
+use crate::io::config::rate_adjustment_note;
 use crate::log::Log;
 
 /// Columns [`derive()`] adds beyond the run-time signals ([`SIGNAL_NAMES`]).
@@ -319,14 +320,7 @@ pub(crate) fn config_at_clock(clock: &Clock, config: &Config) -> Result<(Config,
         .map_err(|e| anyhow::anyhow!("{e} (control rate taken from the log: {rate_hz:.1} Hz)"))?;
     let notes = changes
         .iter()
-        .map(|a| {
-            format!(
-                "{} = {} (derived from the rate: {} does not fit {rate_hz:.0} Hz)",
-                a.field,
-                a.to_text(),
-                a.from_text()
-            )
-        })
+        .map(|a| rate_adjustment_note(a, "the configuration's", c.control_rate_hz))
         .collect();
     Ok((c, notes))
 }

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
-use cable_joint::config::RATE_DERIVED_FIELDS;
+use cable_joint::config::{RateAdjustment, RATE_DERIVED_FIELDS};
 use cable_joint::Config;
 
 use crate::log::toml_error;
@@ -137,11 +137,10 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
             toml::Value::Float(f64::from(a.to))
         };
         set_key(&mut table, a.field, value);
-        notes.push(format!(
-            "{} = {} (not in the file; the default {} does not fit control_rate_hz = {rate_hz}, so derived from it)",
-            a.field,
-            a.to_text(),
-            a.from_text()
+        notes.push(rate_adjustment_note(
+            a,
+            "not in the file; the default",
+            rate_hz as f32,
         ));
     }
     let config: Config = if missing_none {
@@ -183,6 +182,19 @@ fn another_rate_hint(file_hz: f64, log_hz: f32) -> String {
         ". The file was made for {file_hz} Hz and the log's rows run at {log_hz} Hz{}",
         ticks_per_row_hint(file_hz, f64::from(log_hz))
             .map_or_else(String::new, |h| format!(": {h}"))
+    )
+}
+
+/// The line for a setting [`Config::at_rate`] derived at `rate_hz`:
+/// `field = to (WHOSE from does not fit control_rate_hz = RATE, so derived
+/// from it)`, `whose` naming where the value it replaces came from ("the
+/// default", "the tuned", "the configuration's").
+pub fn rate_adjustment_note(a: &RateAdjustment, whose: &str, rate_hz: f32) -> String {
+    format!(
+        "{} = {} ({whose} {} does not fit control_rate_hz = {rate_hz}, so derived from it)",
+        a.field,
+        a.to_text(),
+        a.from_text()
     )
 }
 

@@ -12,6 +12,7 @@ use super::{
     ScenarioOptions,
 };
 use crate::ident::excite::Design;
+use crate::io::config::rate_adjustment_note;
 use crate::plant::PlantParams;
 use crate::sim::{check_ticks, LogRecorder, RawTrace};
 
@@ -108,12 +109,8 @@ pub fn simulate(plant: PlantParams, config: Config, opts: &SimulateOptions) -> R
         let (tuned, derived) = tuned_gains_noted(&config);
         for a in derived {
             eprintln!(
-                "note: --tuned-gains: {} = {} (the tuned {} does not fit control_rate_hz = {}, so \
-                 derived from it)",
-                a.field,
-                a.to_text(),
-                a.from_text(),
-                tuned.control_rate_hz
+                "note: --tuned-gains: {}",
+                rate_adjustment_note(&a, "the tuned", tuned.control_rate_hz)
             );
         }
         config = tuned;

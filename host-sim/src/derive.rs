@@ -651,14 +651,21 @@ fn replay(
     let two_pi = std::f64::consts::TAU;
     let period_s = f64::from(cfg.period_s());
     let mut magnetic = 0u16;
-    // Row k's sensor readings, or those a fraction `f` of the way from row
-    // k - 1 to row k (the ticks inside a hole).
+    // Counts per unit of each position sensor.
+    let grating_per_m = 1.0 / s.grating_m_per_count as f64;
+    let motor_per_rad = s.motor_counts_per_rev as f64 / two_pi;
+    let magnetic_per_rad = s.magnetic_counts_per_rev as f64 / two_pi;
+    // Row k's sensor readings in counts (the current in amperes), or those
+    // a fraction `f` of the way from row k - 1 to row k (the ticks inside a
+    // hole): between the two rows' whole counts, so that a tick halfway
+    // between rows a count apart is an exact half count.
     let reading = |k: usize, f: f64| {
-        let at = |c: &[f64]| {
+        let at = |c: &[f64], per_unit: f64| {
             if f < 1.0 {
-                c[k - 1] + f * (c[k] - c[k - 1])
+                let (a, b) = ((c[k - 1] * per_unit).round(), (c[k] * per_unit).round());
+                a + f * (b - a)
             } else {
-                c[k]
+                c[k] * per_unit
             }
         };
         let meas_at = |j: usize| {
@@ -676,23 +683,45 @@ fn replay(
         // latch an encoder-jump fault and end the replay).
         let th = theta.and_then(|c| {
             let (a, b) = (if f < 1.0 { c[k - 1] } else { c[k] }, c[k]);
-            (a.is_finite() && b.is_finite()).then_some(a + f * (b - a))
+            (a.is_finite() && b.is_finite()).then(|| {
+                let (a, b) = (
+                    (a * magnetic_per_rad).round(),
+                    (b * magnetic_per_rad).round(),
+                );
+                a + f * (b - a)
+            })
         });
-        (at(x1), at(x2), at(phi), th, meas)
+        (
+            at(x1, grating_per_m),
+            at(x2, grating_per_m),
+            at(phi, motor_per_rad),
+            th,
+            meas,
+        )
     };
+    // To whole counts, ties to even: a filled tick halfway between rows a
+    // count apart is an exact half count, and rounding half away from zero
+    // (as `reading` once did on the interpolated angle, where the log's
+    // `f32` cells made near-ties land away from zero 87 % of the time)
+    // pushed every such tick away from the origin, the motor's by +0.37
+    // count on average for φ > 0 and −0.37 for φ < 0. The motor observer
+    // then read ∓0.1 rad/s at the rows, the DOB's tension ±0.04 N with the
+    // sign of each sweep, and the spring fit through the motor took it as
+    // a stiffer spring: 703 and 706 N/m from rows every 2nd and 4th tick of
+    // a run whose every tick gives 642 (stop 69).
     let raw_of = |(x1, x2, phi, th, meas): (f64, f64, f64, Option<f64>, f64),
                   magnetic: &mut u16| {
         if let Some(v) = th {
-            *magnetic = (v * s.magnetic_counts_per_rev as f64 / two_pi).round() as i64 as u16;
+            *magnetic = v.round_ties_even() as i64 as u16;
         }
         RawSample {
-            grating1: GratingCount((x1 / s.grating_m_per_count as f64).round() as i32),
-            grating2: GratingCount((x2 / s.grating_m_per_count as f64).round() as i32),
-            motor: MotorCount((phi * s.motor_counts_per_rev as f64 / two_pi).round() as i64 as u16),
+            grating1: GratingCount(x1.round_ties_even() as i32),
+            grating2: GratingCount(x2.round_ties_even() as i32),
+            motor: MotorCount(phi.round_ties_even() as i64 as u16),
             magnetic: MagneticCount(*magnetic),
             current: AdcCode(
                 (meas as f32 / s.adc_a_per_code + s.adc_zero_code)
-                    .round()
+                    .round_ties_even()
                     .clamp(0.0, 4095.0) as u16,
             ),
         }

@@ -14,7 +14,7 @@ use host_sim::cli::identify::{identify, IdentifyArgs, Procedure};
 use host_sim::ident::{
     decoupled, identify_bm_with, identify_jae_with, identify_tension_with, nonnegative_by_physics,
     physically_required, read_cable0_stiffness, validate_bm, validate_jae, validate_tension,
-    IdentOptions, Prepared, Regressor, LIMIT_CYCLE_SHARE, SIMPLIFIED_C,
+    IdentOptions, Prepared, Regressor, SpringFit, LIMIT_CYCLE_SHARE, SIMPLIFIED_C,
 };
 use host_sim::io::config::load_config;
 use host_sim::log::Log;
@@ -579,6 +579,18 @@ fn a_decimated_calibration_log_fits_the_joint_as_the_log_with_every_tick() {
     );
 }
 
+/// The spring rate through the motor, fitted by `identify --procedure jae`
+/// on `log` with the datasheet configuration.
+fn spring_fit(log: &Log) -> SpringFit {
+    identify_jae_with(
+        &[("jae", log)],
+        &Config::default(),
+        &IdentOptions::default(),
+    )
+    .unwrap()
+    .spring
+}
+
 /// The spring rate through the motor needs the current of every tick: the
 /// DOB's tension carries the motor's reflected inertia, and the cascade's
 /// current changes from tick to tick. A record every 10th tick with its own
@@ -589,13 +601,7 @@ fn a_decimated_calibration_log_fits_the_joint_as_the_log_with_every_tick() {
 #[test]
 fn a_decimated_log_with_the_applied_mean_current_measures_the_spring_as_every_tick_does() {
     let c = chain();
-    let opts = IdentOptions::default();
-    let base = Config::default();
-    let fit = |log: &Log| {
-        identify_jae_with(&[("jae", log)], &base, &opts)
-            .unwrap()
-            .spring
-    };
+    let fit = spring_fit;
     let every = fit(&c.jae_log);
     let sampled = fit(&recorded_every(&c.jae_log, 10, false));
     let mean = fit(&recorded_every(&c.jae_log, 10, true));
@@ -629,15 +635,7 @@ fn a_decimated_log_with_the_applied_mean_current_measures_the_spring_as_every_ti
 #[test]
 fn the_spring_fit_on_rows_every_2nd_and_4th_tick_reads_as_every_tick() {
     let c = chain();
-    let opts = IdentOptions::default();
-    let base = Config::default();
-    let fit = |log: &Log| {
-        identify_jae_with(&[("jae", log)], &base, &opts)
-            .unwrap()
-            .spring
-            .k_s_n_m
-            .0
-    };
+    let fit = |log: &Log| spring_fit(log).k_s_n_m.0;
     let every = fit(&c.jae_log);
     for n in [2, 4] {
         let k = fit(&recorded_every(&c.jae_log, n, true));

@@ -339,7 +339,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
         let c = &val.cand[step.candidate];
         step.evidence = Some((corr(&e_before, c), corr(&e_after, c)));
     }
-    let unfiltered = unfiltered_gains(problem, opts, &accepted)?;
+    let unfiltered = unfiltered_gains(problem, opts, &accepted);
     for (step, unfiltered) in accepted.iter_mut().zip(unfiltered) {
         step.unfiltered_gain = unfiltered;
         if unfiltered.is_some_and(|g| g < FILTERING_SHARE * step.gain) {
@@ -390,16 +390,16 @@ pub const FILTERING_SHARE: f64 = 0.5;
 /// the JAE's `x2'`, `x2''` and held sign also at the widest bandwidth the
 /// rate allows, the tension model's held signs at the core's own (their
 /// switch speeds are set for its noise). The kept terms are taken in the
-/// same order (a group's parts together). A term that stands in for the observer's lag, or for motion
-/// above its bandwidth (the motor current is in phase with a limit cycle
-/// the observer does not follow), loses its gain there; one that carries
-/// an effect of the plant keeps it. `None` per step when a run has no
-/// such baseline.
+/// same order (a group's parts together). A term that stands in for the
+/// observer's lag, or for motion above its bandwidth (the motor current is
+/// in phase with a limit cycle the observer does not follow), loses its
+/// gain there; one that carries an effect of the plant keeps it. `None`
+/// per step when a run has no such baseline, or no row of it can be used.
 pub fn unfiltered_gains(
     problem: &Problem,
     opts: &SelectOptions,
     accepted: &[Step],
-) -> Result<Vec<Option<f64>>> {
+) -> Vec<Option<f64>> {
     let none = vec![None; accepted.len()];
     if accepted.is_empty()
         || problem
@@ -407,7 +407,7 @@ pub fn unfiltered_gains(
             .iter()
             .any(|r| r.unfiltered_baseline.len() != r.baseline.len())
     {
-        return Ok(none);
+        return none;
     }
     let unfiltered = Problem {
         candidates: accepted.iter().map(|s| s.term).collect(),
@@ -422,7 +422,9 @@ pub fn unfiltered_gains(
             .collect(),
         ..problem.clone()
     };
-    let (fit, val, _) = gather(&unfiltered, opts.decimate)?;
+    let Ok((fit, val, _)) = gather(&unfiltered, opts.decimate) else {
+        return none;
+    };
     let mut names = problem.baseline_names.clone();
     names.extend(accepted.iter().map(|s| s.label.clone()));
     let val_rmse = |terms: usize| -> Option<f64> {
@@ -458,7 +460,7 @@ pub fn unfiltered_gains(
         }
         start = end;
     }
-    Ok(out)
+    out
 }
 
 /// Batches a validation run is cut into for the standard error of its

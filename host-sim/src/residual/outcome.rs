@@ -67,9 +67,9 @@ pub struct Step {
     /// before (baseline) and after (final model); only for kept terms.
     pub evidence: Option<(f64, f64)>,
     /// Its validation gain when the baseline's differentiated inputs are
-    /// taken without the core's observer filtering
-    /// ([`unfiltered_gains`](super::select::unfiltered_gains); only for
-    /// kept terms of a model that differentiates). Below
+    /// taken without the core's observer's lag (the JAE's also at a wider
+    /// band; [`unfiltered_gains`](super::select::unfiltered_gains); only
+    /// for kept terms of a model that differentiates). Below
     /// [`FILTERING_SHARE`](super::select::FILTERING_SHARE) of `gain`, the
     /// term stands in for that filtering and its `class` is
     /// [`OBSERVER_FILTERING`](super::select::OBSERVER_FILTERING).

@@ -446,13 +446,16 @@ fn core_run(
     };
     // The observer check's derivatives (`select::unfiltered_gains`): the
     // core's grating observer without its phase, for the JAE's linear
-    // terms also at the widest bandwidth the project gives one at this
-    // rate (a noisier regressor costs the fit a little; motion above the
-    // core's band is what a term may stand in for).
-    let grating_observer =
-        TrackingObserver::new(cfg.differentiators.grating_bandwidth_hz, cfg.period_s());
-    let wideband =
-        TrackingObserver::new(DERIVED_BANDWIDTH_PER_RATE / cfg.period_s(), cfg.period_s());
+    // terms also at a tenth of the rate (what `Config::at_rate` derives)
+    // where that is wider than the core's (a noisier regressor costs the
+    // fit a little; motion above the core's band is what a term may stand
+    // in for).
+    let core_hz = cfg.differentiators.grating_bandwidth_hz;
+    let grating_observer = TrackingObserver::new(core_hz, cfg.period_s());
+    let wideband = TrackingObserver::new(
+        core_hz.max(DERIVED_BANDWIDTH_PER_RATE / cfg.period_s()),
+        cfg.period_s(),
+    );
     let (mut target, fixed, mut baseline, mut unfiltered_baseline, names) = match kind {
         ModelKind::Jae => {
             let target = need("theta_rad", "the magnetic encoder of a calibration run")?;

@@ -341,9 +341,9 @@ fn accepted_rows(s: &mut String, o: &Outcome, scale: f64) {
             };
             let _ = writeln!(
                 s,
-                "      observer check: with the baseline's derivatives taken without the core's \
-                 observer filtering (offline, the observer run forward and backward) it cuts the validation \
-                 RMSE by {:.1} % ({:.1} % with the MCU's): {verdict}",
+                "      observer check: with the baseline's derivatives taken without the observer's \
+                 lag (offline, forward and backward; the JAE's also at a tenth of the rate) it \
+                 cuts the validation RMSE by {:.1} % ({:.1} % with the MCU's): {verdict}",
                 100.0 * g,
                 100.0 * st.gain
             );

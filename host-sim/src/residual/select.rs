@@ -387,9 +387,10 @@ pub const FILTERING_SHARE: f64 = 0.5;
 /// The observer check: each kept step's validation gain when the
 /// baseline's differentiated inputs come from the core's observer run
 /// forward and backward, without its lag ([`RunData::unfiltered_baseline`]):
-/// the JAE's `x2'`, `x2''` and held sign also at the widest bandwidth the
-/// rate allows, the tension model's held signs at the core's own (their
-/// switch speeds are set for its noise). The kept terms are taken in the
+/// the JAE's `x2'`, `x2''` and held sign also at a tenth of the rate (what
+/// `Config::at_rate` derives) when that is wider than the core's, the
+/// tension model's held signs at the core's own bandwidth (their switch
+/// speeds are set for its noise). The kept terms are taken in the
 /// same order (a group's parts together). A term that stands in for the
 /// observer's lag, or for motion above its bandwidth (the motor current is
 /// in phase with a limit cycle the observer does not follow), loses its
@@ -402,10 +403,9 @@ pub fn unfiltered_gains(
 ) -> Vec<Option<f64>> {
     let none = vec![None; accepted.len()];
     if accepted.is_empty()
-        || problem
-            .runs
-            .iter()
-            .any(|r| r.unfiltered_baseline.len() != r.baseline.len())
+        || problem.runs.iter().any(|r| {
+            r.unfiltered_baseline.is_empty() || r.unfiltered_baseline.len() != r.baseline.len()
+        })
     {
         return none;
     }
@@ -775,12 +775,17 @@ mod tests {
             "{g} against {}",
             effect.gain
         );
-        // Without an unfiltered baseline there is no check.
-        let mut unchecked = problem.clone();
-        unchecked.runs[1].unfiltered_baseline.clear();
-        let out = select(&unchecked, &SelectOptions::default()).unwrap();
-        assert!(out.accepted.iter().all(|s| s.unfiltered_gain.is_none()));
-        assert!(out.accepted.iter().all(|s| s.class != OBSERVER_FILTERING));
+        // Without an unfiltered baseline on one run, or on every run (a
+        // model that differentiates nothing), there is no check.
+        for runs in [vec![1], vec![0, 1]] {
+            let mut unchecked = problem.clone();
+            for r in runs {
+                unchecked.runs[r].unfiltered_baseline.clear();
+            }
+            let out = select(&unchecked, &SelectOptions::default()).unwrap();
+            assert!(out.accepted.iter().all(|s| s.unfiltered_gain.is_none()));
+            assert!(out.accepted.iter().all(|s| s.class != OBSERVER_FILTERING));
+        }
     }
 
     /// A run of `y = 2 + 0.5 u + c stop(u)`; `c` is the effect's size in it.

@@ -25,10 +25,10 @@ pub(super) fn md_step_7(o: &mut String, r: &Report, fx: &EffectsPart) {
          `track-jae`, each a fresh run with its own seed; for the tension model the same `robust-2n5` run with \
          its known load taken out of the target (`f_ext l_e / r` of cable-1 tension), and wrote them into `config.jae.added` and \
          `config.tension.added`; steps 3, 4 and 6 then ran again with that configuration. \
-         Each kept term's gain is also measured with the baseline's derivatives taken without the core's \
-         observer filtering (the observer run forward and backward, for the JAE at the widest bandwidth the \
-         rate allows): a term that keeps less than half of its gain there stands in for the observer, not \
-         for the plant, and its family reads \"observer filtering\".\n",
+         Each kept term's gain is also measured with the baseline's derivatives taken without the \
+         observer's lag (the core's observer run forward and backward, for the JAE also at a tenth of the \
+         rate, wider than the core's band): a term that keeps less than half of its gain there stands in \
+         for the observer, not for the plant, and its family reads \"observer filtering\".\n",
         fx.names.join(", ")
     );
     md_step7_table(o, r);
@@ -142,7 +142,7 @@ fn md_residual(out: &mut String, name: &str, a: &Analysis, scale: f64, unit: &st
 fn md_terms_added(out: &mut String, o: &Outcome, scale: f64, unit: &str) {
     let _ = writeln!(
         out,
-        "| # | term | effect family | meaning | validation RMSE after [{unit}] | gain | gain without the observer's filtering | residual–term correlation, before → after | a rival family as likely |"
+        "| # | term | effect family | meaning | validation RMSE after [{unit}] | gain | gain without the observer's lag | residual–term correlation, before → after | a rival family as likely |"
     );
     let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|");
     for (k, s) in o.accepted.iter().enumerate() {

@@ -598,8 +598,8 @@ impl Default for Config {
 
 /// A differentiator bandwidth [`Config::at_rate`] derives where the rate
 /// cannot support the file's, as a share of the control rate (a fifth of
-/// the Nyquist rate, inside [`Config::validate`]'s quarter): the widest
-/// the project gives an observer at a rate.
+/// the Nyquist rate, inside the quarter [`Config::validate`] allows a
+/// user's).
 pub const DERIVED_BANDWIDTH_PER_RATE: f32 = 0.1;
 
 /// The control rates the core runs at, Hz: 100 Hz is the slowest at which

@@ -660,13 +660,18 @@ fn replay(
     // hole): between the two rows' whole counts, so that a tick halfway
     // between rows a count apart is an exact half count.
     let reading = |k: usize, f: f64| {
-        let at = |c: &[f64], per_unit: f64| {
+        // From row k - 1's value `a` to row k's `b`, in counts.
+        let between = |a: f64, b: f64, per_unit: f64| {
             if f < 1.0 {
-                let (a, b) = ((c[k - 1] * per_unit).round(), (c[k] * per_unit).round());
+                let (a, b) = ((a * per_unit).round(), (b * per_unit).round());
                 a + f * (b - a)
             } else {
-                c[k] * per_unit
+                b * per_unit
             }
+        };
+        let at = |c: &[f64], per_unit: f64| {
+            let a = if f < 1.0 { c[k - 1] } else { c[k] };
+            between(a, c[k], per_unit)
         };
         let meas_at = |j: usize| {
             i_meas
@@ -683,13 +688,7 @@ fn replay(
         // latch an encoder-jump fault and end the replay).
         let th = theta.and_then(|c| {
             let (a, b) = (if f < 1.0 { c[k - 1] } else { c[k] }, c[k]);
-            (a.is_finite() && b.is_finite()).then(|| {
-                let (a, b) = (
-                    (a * magnetic_per_rad).round(),
-                    (b * magnetic_per_rad).round(),
-                );
-                a + f * (b - a)
-            })
+            (a.is_finite() && b.is_finite()).then(|| between(a, b, magnetic_per_rad))
         });
         (
             at(x1, grating_per_m),

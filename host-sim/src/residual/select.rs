@@ -440,6 +440,8 @@ pub fn unfiltered_gains(
     };
     let mut out = none;
     let mut start = 0;
+    // The model of the steps before `start`, carried from step to step.
+    let mut before = val_rmse(0);
     while start < accepted.len() {
         // A group's parts were taken in one step: judged together.
         let end = match &accepted[start].group {
@@ -452,12 +454,14 @@ pub fn unfiltered_gains(
             }
             None => start + 1,
         };
-        if let (Some(before), Some(after)) = (val_rmse(start), val_rmse(end)) {
-            let gain = (before - after) / before;
+        let after = val_rmse(end);
+        if let (Some(b), Some(a)) = (before, after) {
+            let gain = (b - a) / b;
             for o in &mut out[start..end] {
                 *o = gain.is_finite().then_some(gain);
             }
         }
+        before = after;
         start = end;
     }
     out

@@ -74,10 +74,22 @@ pub struct Step {
     /// term stands in for that filtering and its `class` is
     /// [`OBSERVER_FILTERING`](super::select::OBSERVER_FILTERING).
     pub unfiltered_gain: Option<f64>,
+    /// The family the term's kind belongs to when the observer check
+    /// renamed `class` [`OBSERVER_FILTERING`](super::select::OBSERVER_FILTERING)
+    /// (its `rival` and `passed_over` were weighed against that family).
+    pub reclassified_from: Option<String>,
     /// When the term is one part of an effect taken with its other parts
     /// in the same step ([`effect_groups`](super::library::effect_groups)):
     /// that effect's label. `err`, `fit` and `gain` are then the group's.
     pub group: Option<String>,
+}
+
+impl Step {
+    /// The family of the term's kind, whatever the observer check named
+    /// it (the family its `rival` and `passed_over` were weighed against).
+    pub fn family(&self) -> &str {
+        self.reclassified_from.as_deref().unwrap_or(&self.class)
+    }
 }
 
 /// A candidate of another effect family that explains the residual nearly

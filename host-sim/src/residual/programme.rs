@@ -33,6 +33,7 @@ use anyhow::{Context, Result};
 use cable_joint::Config;
 use serde::Serialize;
 
+use super::outcome::Step;
 use super::select::OBSERVER_FILTERING;
 use super::{analyse, config_with, Analysis, BuildOptions, ModelKind, NamedLog, SelectOptions};
 use crate::plant::{Creep, OffsetDrift, PlantParams, Presliding, SpringHardening, Thermal};
@@ -302,8 +303,9 @@ pub struct CaseRow {
     /// Which of them the loop also added on the clean run (the declared
     /// model's own deficit on this plant, not the effect).
     pub also_clean: Vec<bool>,
-    /// A rival family for the first term, when the data do not tell them
-    /// apart.
+    /// A rival family for the first term the verdict counts (neither kept
+    /// on the clean run too nor observer filtering), when the data do not
+    /// tell them apart.
     pub rival: Option<String>,
 }
 
@@ -354,6 +356,17 @@ pub fn verdict(
     } else {
         Verdict::Missed
     }
+}
+
+/// The first kept step [`verdict`] counts: not kept on the clean run
+/// too, not [`OBSERVER_FILTERING`] (the term whose rival family the row
+/// names).
+fn first_counted<'a>(accepted: &'a [Step], also_clean: &[bool]) -> Option<&'a Step> {
+    accepted
+        .iter()
+        .zip(also_clean.iter().chain(std::iter::repeat(&false)))
+        .find(|(s, clean)| !**clean && s.class != OBSERVER_FILTERING)
+        .map(|(s, _)| s)
 }
 
 /// What one drawn plant's clean run gave, per model.
@@ -529,6 +542,9 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
                             .map(|s| clean_keys.contains(&(s.term.kind.name(), s.term.input)))
                             .collect();
                         let (before, after) = (o.baseline.val_rmse, o.final_fit.val_rmse);
+                        let rival = first_counted(&o.accepted, &also_clean)
+                            .and_then(|s| s.rival.as_ref())
+                            .map(|r| r.class.clone());
                         let row = CaseRow {
                             effects: names.clone(),
                             size,
@@ -544,11 +560,7 @@ pub fn run(opts: &ProgrammeOptions) -> Result<Programme> {
                             terms: o.accepted.iter().map(|s| s.label.clone()).collect(),
                             classes,
                             also_clean,
-                            rival: o
-                                .accepted
-                                .first()
-                                .and_then(|s| s.rival.as_ref())
-                                .map(|r| r.class.clone()),
+                            rival,
                         };
                         rows.push(row);
                     }
@@ -792,6 +804,55 @@ mod tests {
             verdict(&e, &v(&[OBSERVER_FILTERING]), &[false], 1.0, 3.0),
             Verdict::Missed
         );
+    }
+
+    /// A kept step of family `class` whose rival family is `rival`.
+    fn kept(class: &str, rival: &str) -> Step {
+        Step {
+            term: cable_joint::effects::Term::new(cable_joint::effects::EffectKind::Linear, 0),
+            candidate: 0,
+            label: format!("a {class} term"),
+            meaning: "",
+            err: 0.5,
+            fit: super::super::outcome::ModelFit {
+                coefs: Vec::new(),
+                train_rmse: 1.0,
+                val_rmse: 1.0,
+                condition: 1.0,
+            },
+            gain: 0.2,
+            class: class.to_owned(),
+            rival: Some(super::super::outcome::Rival {
+                label: format!("a {rival} term"),
+                class: rival.to_owned(),
+                err: 0.45,
+            }),
+            passed_over: Vec::new(),
+            harm: None,
+            evidence: None,
+            unfiltered_gain: None,
+            reclassified_from: None,
+            group: None,
+        }
+    }
+
+    /// The row's rival family is the one of the term the verdict counts
+    /// first: not a term the clean run kept too, not observer filtering.
+    #[test]
+    fn the_rival_named_is_the_first_counted_terms() {
+        let steps = [
+            kept("stiffness", "drift"),
+            kept(OBSERVER_FILTERING, "friction"),
+            kept("creep / relaxation", "thermal"),
+        ];
+        let first = |clean: &[bool]| {
+            first_counted(&steps, clean)
+                .and_then(|s| s.rival.as_ref())
+                .map(|r| r.class.as_str())
+        };
+        assert_eq!(first(&[false, false, false]), Some("drift"));
+        assert_eq!(first(&[true]), Some("thermal"));
+        assert_eq!(first(&[true, false, true]), None);
     }
 
     #[test]

@@ -87,6 +87,15 @@ fn signal(a: &Analysis, i: u8) -> Value {
         .unwrap_or(Value::Null)
 }
 
+/// A kept term's family as the tables print it: the observer check's
+/// renaming with the family of the term's kind beside it.
+pub fn class_text(st: &Step) -> String {
+    match &st.reclassified_from {
+        Some(family) => format!("{} (a {family} term)", st.class),
+        None => st.class.clone(),
+    }
+}
+
 fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
     let t = &s.term;
     let last = s.fit.coefs.last();
@@ -107,6 +116,7 @@ fn step_json(a: &Analysis, s: &Step, coef: Option<&Coef>) -> Value {
         "val_rmse": s.fit.val_rmse,
         "gain": s.gain,
         "class": s.class,
+        "reclassified_from": s.reclassified_from,
         "rival": s.rival,
         "passed_over": s.passed_over,
         "group": s.group,
@@ -324,7 +334,11 @@ fn accepted_rows(s: &mut String, o: &Outcome, scale: f64) {
             let _ = writeln!(
                 s,
                 "      {}: {}; coef {:+.4e} ± {:.1e} ({:.1} %σ)",
-                st.class, st.meaning, c.value, c.std_dev, c.pct_sigma
+                class_text(st),
+                st.meaning,
+                c.value,
+                c.std_dev,
+                c.pct_sigma
             );
         }
         if let Some((before, after)) = st.evidence {
@@ -356,7 +370,7 @@ fn accepted_rows(s: &mut String, o: &Outcome, scale: f64) {
                 r.class,
                 100.0 * r.err,
                 100.0 * st.err,
-                st.class,
+                st.family(),
                 r.class
             );
         }

@@ -300,6 +300,7 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
             harm: None,
             evidence: None,
             unfiltered_gain: None,
+            reclassified_from: None,
             group: group_label.as_ref().map(|(_, l)| l.clone()),
         };
         if gain >= opts.min_gain && harm.is_none() {
@@ -343,7 +344,10 @@ pub fn select(problem: &Problem, opts: &SelectOptions) -> Result<Outcome> {
     for (step, unfiltered) in accepted.iter_mut().zip(unfiltered) {
         step.unfiltered_gain = unfiltered;
         if unfiltered.is_some_and(|g| g < FILTERING_SHARE * step.gain) {
-            step.class = OBSERVER_FILTERING.to_owned();
+            step.reclassified_from = Some(std::mem::replace(
+                &mut step.class,
+                OBSERVER_FILTERING.to_owned(),
+            ));
         }
     }
     let (runs, traces) = run_results(problem, &val, &search, &e_before, &e_after);
@@ -770,6 +774,14 @@ mod tests {
         };
         let (lag, effect) = (step(0), step(1));
         assert_eq!(lag.class, OBSERVER_FILTERING);
+        // The renamed term keeps its kind's family (the one its rival was
+        // weighed against); the effect was not renamed.
+        assert_eq!(
+            lag.reclassified_from.as_deref(),
+            Some(effect_class(&lag.term, &problem.signal_names, &problem.other_sensors).as_str())
+        );
+        assert_eq!(lag.family(), lag.reclassified_from.as_deref().unwrap());
+        assert_eq!(effect.reclassified_from, None);
         let g = lag.unfiltered_gain.unwrap();
         assert!(g < FILTERING_SHARE * lag.gain, "{g} against {}", lag.gain);
         assert_eq!(effect.class, "hysteresis");

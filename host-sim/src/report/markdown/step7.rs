@@ -165,7 +165,7 @@ fn md_terms_added(out: &mut String, o: &Outcome, scale: f64, unit: &str) {
             "| {} | {} | {} | {} | {} | {:.1} % | {} | {} | {} |",
             k + 1,
             label,
-            s.class,
+            crate::residual::report::class_text(s),
             s.meaning,
             fmt_num(s.fit.val_rmse * scale),
             100.0 * s.gain,

@@ -179,7 +179,7 @@ fn load_config_at(path: &Path, log_rate_hz: Option<f64>) -> Result<(Config, Vec<
 /// ([`ticks_per_row_hint`]).
 fn another_rate_hint(file_hz: f64, log_hz: f32) -> String {
     format!(
-        ". The file was made for {file_hz} Hz and the log's rows run at {log_hz} Hz{}",
+        ". The file was made for {file_hz} Hz and the log's rows run at {log_hz:.1} Hz{}",
         ticks_per_row_hint(file_hz, f64::from(log_hz))
             .map_or_else(String::new, |h| format!(": {h}"))
     )
@@ -187,11 +187,12 @@ fn another_rate_hint(file_hz: f64, log_hz: f32) -> String {
 
 /// The line for a setting [`Config::at_rate`] derived at `rate_hz`:
 /// `field = to (WHOSE from does not fit control_rate_hz = RATE, so derived
-/// from it)`, `whose` naming where the value it replaces came from ("the
+/// from it)`, the rate to a tenth of a hertz (a log's rate comes from its
+/// time steps, 999.99994 Hz in `f32`), `whose` naming where the value it replaces came from ("the
 /// default", "the tuned", "the configuration's").
 pub fn rate_adjustment_note(a: &RateAdjustment, whose: &str, rate_hz: f32) -> String {
     format!(
-        "{} = {} ({whose} {} does not fit control_rate_hz = {rate_hz}, so derived from it)",
+        "{} = {} ({whose} {} does not fit control_rate_hz = {rate_hz:.1}, so derived from it)",
         a.field,
         a.to_text(),
         a.from_text()
@@ -432,6 +433,18 @@ mod tests {
                 "{file_hz} / {log_hz}"
             );
         }
+    }
+
+    /// A log's rate comes from its time steps: the note names it to a
+    /// tenth of a hertz, not as `f32` holds it.
+    #[test]
+    fn a_rate_note_names_the_rate_to_a_tenth_of_a_hertz() {
+        let rate_hz = 999.999_94_f32;
+        let (_, changes) = Config::default().at_rate(rate_hz);
+        let a = changes.first().expect("2 kHz settings do not fit 1 kHz");
+        let note = rate_adjustment_note(a, "the default", rate_hz);
+        assert!(note.contains("control_rate_hz = 1000.0,"), "{note}");
+        assert!(note.starts_with(a.field), "{note}");
     }
 
     #[test]

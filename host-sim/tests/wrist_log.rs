@@ -545,6 +545,19 @@ fn identify_wrist_fits_one_simulated_run_and_validates_on_another() {
         |limit: &str, out: &str| estimate(&["--eq3", &eq3, "--force-limit-n", limit], out);
     let o = limited("5", "limited.csv");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let warning = "warning: the force limit";
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(!stdout.contains(warning), "a 2 N grasp under 5 N: {stdout}");
+    // A limit the jaws' own bounds exceed is the user's claim against the
+    // run: said, with the least limit the run allows.
+    let o = limited("1e-30", "tiny-limit.csv");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        stdout.contains(&format!("{warning} (1.0000e-30 N)"))
+            && stdout.contains("give --force-limit-n at least"),
+        "{stdout}"
+    );
     let narrow = Log::read_with(
         dir.path().join("limited.csv"),
         &Schema::with_required(&["total_z_limit_n"]),

@@ -15,6 +15,7 @@ use crate::ident::excite_wrist::WristDesign;
 use crate::links::{self, fit_eq3, FreeRun, InverseDynamicsFit, Links, NoLoad};
 use crate::output::Outputs;
 use crate::plant::PlantParams;
+use crate::report::render::fmt_num;
 use crate::scenario::{oracle_config, tuned_gains};
 use crate::wrist::{run_grasp, Eq3Model, Grasp, WristParams};
 use crate::wrist_estimate;
@@ -512,6 +513,33 @@ fn report_total(
     totals: &[cable_joint::wrist::TotalForce],
     force_limit_n: f32,
 ) {
+    // The limit is the user's claim on each jaw's force; a jaw whose own
+    // Eq. 4 bound lies wholly beyond it on some component contradicts it.
+    let beyond = |t: &wrist_estimate::WristEstimate| {
+        t.force
+            .jaws
+            .iter()
+            .flat_map(|j| j.force_n)
+            .filter(|b| b.lo.is_finite() && b.hi.is_finite())
+            .map(|b| b.lo.max(-b.hi))
+            .fold(0.0f32, f32::max)
+    };
+    let contradicted: Vec<f32> = ticks
+        .iter()
+        .map(beyond)
+        .filter(|&f| f > force_limit_n)
+        .collect();
+    if let Some(most) = contradicted.iter().copied().reduce(f32::max) {
+        crate::stdoutln!(
+            "warning: the force limit ({} N) is below what the jaws' own estimates hold \
+             on {} of {} ticks (a component's whole bound beyond ±limit, at least \
+             {most:.3} N on one tick): there the total's bound rests on a limit the run \
+             contradicts; give --force-limit-n at least {most:.3}",
+            fmt_num(f64::from(force_limit_n)),
+            contradicted.len(),
+            ticks.len()
+        );
+    }
     let held: Vec<_> = ticks
         .iter()
         .zip(totals)
@@ -532,9 +560,10 @@ fn report_total(
         )
     };
     crate::stdoutln!(
-        "total force (Eq. 5, the four joints together; force limit {force_limit_n:.1} N), \
+        "total force (Eq. 5, the four joints together; force limit {} N), \
          median bound width while holding ({n} ticks): {}, {}, {}; an axis mostly the limit's \
          is one the joints do not see (total_<axis>_limit_n in the CSV)",
+        fmt_num(f64::from(force_limit_n)),
         axis(0),
         axis(1),
         axis(2)

@@ -355,7 +355,10 @@ pub struct FusionConfig {
     /// `identify`'s when the runs cannot pin it down). Only a fitted level
     /// may stand as the pin's friction in a grip's point estimate
     /// ([`crate::grip`]): an upper bound there would read the force low by
-    /// its excess, and the law would squeeze that much harder.
+    /// its excess, and the law would squeeze that much harder. While the
+    /// chain slips, a fitted level bounds the pin's friction at `±
+    /// kinetic_tolerance` about it, an upper bound anywhere from zero to it
+    /// (times `1 + kinetic_tolerance`).
     pub pin_identified: bool,
     /// Largest ratio of static (breakaway) to kinetic friction the bound
     /// allows for a stuck element (1.5: the upper end of lubricated

@@ -23,6 +23,10 @@
 //!   and both sliders moving one way at speeds within [`TOGETHER_RATIO`]
 //!   of each other, so the whole chain slips as one):
 //!   friction `s f_c (1 ± kappa)`, `kappa` = [`crate::config::FusionConfig::kinetic_tolerance`];
+//!   the joint pin's level may be only an upper bound
+//!   ([`crate::config::FusionConfig::pin_identified`] false: the default's,
+//!   or what `identify` writes when its runs cannot pin the pin down), and
+//!   its slip friction is then anything in `s [0, f_c (1 + kappa)]`;
 //! * element stuck: friction in `[-rho f_c, +rho f_c]`, `rho` =
 //!   [`crate::config::FusionConfig::static_over_kinetic`].
 //!
@@ -30,7 +34,8 @@
 //! interval (the set of forces both agree on). Its point estimate is the
 //! stretch estimate projected onto the intersection: the pin's friction at
 //! its kinetic level while both sliders slip one way (at any speeds: the
-//! point's best guess of the sign); otherwise, when the command presses
+//! point's best guess of the sign; the middle of its slip band when the
+//! level is only an upper bound); otherwise, when the command presses
 //! toward a known side (a grip closing onto its object,
 //! [`FusionIn::pressing_sign`]), its kinetic level against that side, and
 //! zero when nothing says which side; the value is moved into the bound
@@ -107,6 +112,12 @@ pub struct Fusion {
     /// Whether `pin_nm` is a fitted level, not an upper bound: only then
     /// does [`FusionIn::pressing_sign`] count.
     pin_identified: bool,
+    /// The pin's friction while the chain slips one way, as a centre and
+    /// a half-width with the slip's sign to come, N·m: a fitted level
+    /// `f (1 ± kappa)`; an upper bound anything from zero to `f (1 +
+    /// kappa)` (its middle, `f (1 + kappa) / 2`, both ways).
+    pin_slip_nm: f32,
+    pin_slip_half_nm: f32,
     /// Torque error per rad of JAE error: `r² (K_w1 + K_w2)`, N·m/rad.
     torque_per_theta: f32,
     /// JAE band from slider 2's friction: `|c3|`, rad.
@@ -300,6 +311,16 @@ impl Fusion {
             f_cp2_n: math::abs(c.tension.f_cp2_n),
             pin_nm: f.pin_coulomb_nm,
             pin_identified: f.pin_identified,
+            pin_slip_nm: if f.pin_identified {
+                f.pin_coulomb_nm
+            } else {
+                0.5 * (1.0 + f.kinetic_tolerance) * f.pin_coulomb_nm
+            },
+            pin_slip_half_nm: if f.pin_identified {
+                f.kinetic_tolerance * f.pin_coulomb_nm
+            } else {
+                0.5 * (1.0 + f.kinetic_tolerance) * f.pin_coulomb_nm
+            },
             torque_per_theta: r * r * (c.stretch.cable1_n_m + c.stretch.cable2_n_m),
             c3_rad: math::abs(c.jae.c_sign_rad),
             theta_floor_rad: f.jae_error_rad + c.jae.c_pos_rad_m * c.scales.grating_m_per_count,
@@ -355,7 +376,14 @@ impl Fusion {
         // bounds `Q` of the friction, so they are filtered like the signals.
         let (a_lo, a_hi) = band(coherent, s1, self.f_sc1_n, rho, kappa);
         let (b_lo, b_hi) = band(coherent, s2, self.f_cp2_n, rho, kappa);
-        let (p_lo, p_hi) = band(coherent, s2, self.pin_nm, rho, kappa);
+        // The pin's slip band is its own: an upper bound (a level no run
+        // pinned down) says nothing of how far below it the pin slides.
+        let (p_lo, p_hi) = if coherent {
+            let c = s2 * self.pin_slip_nm;
+            (c - self.pin_slip_half_nm, c + self.pin_slip_half_nm)
+        } else {
+            (-rho * self.pin_nm, rho * self.pin_nm)
+        };
         let theta_band = self.theta_floor_rad
             + if coherent {
                 kappa * self.c3_rad
@@ -377,7 +405,7 @@ impl Fusion {
         };
         let (pp_lo, pp_hi) = if one_way {
             s.press_peak_nm = None;
-            band(true, s2, self.pin_nm, rho, kappa)
+            (s2 * self.pin_slip_nm, s2 * self.pin_slip_nm)
         } else if pressing != 0.0 {
             let press_nm = pressing * i.joint_torque_nm;
             let peak_nm = match s.press_peak_nm {
@@ -590,7 +618,10 @@ mod tests {
     /// tighter than either interval alone.
     #[test]
     fn intersection_is_tighter_than_either_and_contains_a_consistent_load() {
-        let (f, c) = fusion();
+        // The pin slips at its fitted level.
+        let (_, mut c) = fusion();
+        c.fusion.pin_identified = true;
+        let f = Fusion::new(&c, c.period_s());
         let m = &c.machine;
         let load_n = 1.0;
         let tension = load_n * m.gripper_length_m / m.pulley_radius_m;
@@ -699,6 +730,61 @@ mod tests {
             (out.hi_n - out.lo_n - (band.hi_n - band.lo_n)).abs() < 1e-3 * held_n,
             "{out:?} against the rest band {band:?}"
         );
+    }
+
+    /// A pin level that is only an upper bound (the default's, or what
+    /// `identify` writes when its runs cannot pin the pin down) bounds a
+    /// slip's pin friction from zero to that level, not about it: a chain
+    /// slipping with no load and a pin that slides at a fifth of the
+    /// bound (the datasheet plant's 4 mN·m under the seed's 19.7) is held
+    /// by the bound, where a fitted level at the bound rules it out; the
+    /// point takes the band's middle.
+    #[test]
+    fn an_upper_bound_pin_level_bounds_a_slip_from_zero_to_it() {
+        let run = |identified: bool| {
+            let mut c = Config::default();
+            c.fusion.pin_identified = identified;
+            let f = Fusion::new(&c, c.period_s());
+            let pin_nm = 0.2 * c.fusion.pin_coulomb_nm;
+            let fric = c.tension.f_sc1_n + c.tension.f_cp2_n;
+            let v = 10.0 * c.tension.sign_switch_x1_m_s.max(c.jae.sign_switch_m_s);
+            let mut s = FusionState::default();
+            let mut out = FusionOut::default();
+            for k in 0..2000 {
+                let x = v * k as f32 / c.control_rate_hz;
+                out = f.update(
+                    &mut s,
+                    &FusionIn {
+                        x1_m: x,
+                        x1_vel_m_s: v,
+                        x2_m: x,
+                        x2_vel_m_s: v,
+                        tension1_dob_n: c.tension.f_0_n + fric,
+                        tension1_model_n: c.tension.f_0_n + fric,
+                        tension1_friction_n: fric,
+                        joint_torque_nm: pin_nm,
+                        ..FusionIn::default()
+                    },
+                );
+            }
+            (out, c)
+        };
+        let (bound_only, c) = run(false);
+        assert_eq!(bound_only.flags, 0, "{bound_only:?}");
+        assert!(
+            bound_only.lo_n <= 0.0 && 0.0 <= bound_only.hi_n,
+            "{bound_only:?}"
+        );
+        let l_e = c.machine.gripper_length_m;
+        let (pin, kappa) = (c.fusion.pin_coulomb_nm, c.fusion.kinetic_tolerance);
+        let middle_n = (0.2 * pin - 0.5 * (1.0 + kappa) * pin) / l_e;
+        let point = math::clamp(middle_n, bound_only.lo_n, bound_only.hi_n);
+        assert!(
+            math::abs(bound_only.f_ext_n - point) < 1e-4,
+            "{bound_only:?} against {middle_n}"
+        );
+        let (fitted, _) = run(true);
+        assert!(fitted.hi_n < 0.0, "a fitted level: {fitted:?}");
     }
 
     /// Both sliders moving one way at very different speeds (slider 1

@@ -871,7 +871,7 @@ fn ticks_per_row_gives_a_log_without_a_tick_column_its_control_rate() {
     assert!(!o.status.success());
     assert!(
         stderr.contains(
-            "The file was made for 1000 Hz and the log's rows run at 100 Hz: if the log was \
+            "The file was made for 1000 Hz and the log's rows run at 100.0 Hz: if the log was \
              recorded at a row every 10 ticks of a 1000 Hz loop and has no tick column, give \
              --ticks-per-row 10"
         ),

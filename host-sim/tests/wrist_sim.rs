@@ -106,9 +106,11 @@ fn grip(pair: bool) -> GripRun {
 /// true parameters: from open jaws, the pair closes on a soft and on a ten
 /// times firmer object and the regulated clamp estimate settles on the
 /// 2 N set point (the law's own job: within 3 %); the true contact force
-/// follows within the estimate's error (measured -11 % on both objects:
-/// the estimate reads about 0.2 N high at standstill, the pin's friction
-/// at the tip), without overshooting by more than 20 % and without a
+/// follows within the estimate's error (measured -11 % on both objects
+/// until stop 70: the estimate reads about 0.2 N high at standstill, the
+/// pin's friction at the tip; +11.8 % and -10.7 % since a slip takes the
+/// middle of the upper-bound pin level's band, 12.3 mN·m, where it took
+/// the bound, 19.7), without overshooting by more than 20 % and without a
 /// fault. Fails if the law winds up, rings or stops short.
 #[test]
 fn the_grip_law_brings_the_clamp_force_to_its_set_point_on_soft_and_firm_objects() {
@@ -157,8 +159,10 @@ fn a_single_jaw_grips_on_its_own_estimate() {
 /// side, so the true contact force comes to the 2 N set point within 5 %
 /// on the soft and the firm object (measured -0.6 % and +1.2 %), where
 /// with the level only an upper bound (the default's) the pin's friction
-/// is read as force: on the soft object the true force stays short
-/// (measured -11.0 %), on the firm one it lands further off (+4.8 %).
+/// is read as force, and the true force lands more than 5 % off on the
+/// soft object (measured +11.8 %; -11.0 % until stop 70, when a slip
+/// took the bound itself for the pin's level, not its band's middle) and
+/// further off on the firm one (-10.7 %; +4.8 %).
 /// (Until stop 68 the oracle kept the datasheet's 11 400 N/m cables for
 /// the plant's 11 434: -0.1 % and +1.3 %, upper bound -10.8 % and -5.3 %.)
 /// Fails if the pressing side is dropped or taken with the wrong sign
@@ -196,7 +200,7 @@ fn a_pair_with_a_fitted_pin_level_holds_the_true_force_at_its_set_point() {
             "k {k}: {with:?}\n{without:?}"
         );
         if k < 5000.0 {
-            assert!(without.steady_error_pct < -5.0, "k {k}: {without:?}");
+            assert!(without.steady_error_pct.abs() > 5.0, "k {k}: {without:?}");
         }
     }
 }

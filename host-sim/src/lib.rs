@@ -7,6 +7,7 @@ pub mod gdb_rtt;
 pub mod ident;
 pub mod import;
 pub mod ingest;
+pub mod interrupt;
 pub mod io;
 pub mod links;
 pub mod live;

@@ -70,6 +70,10 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     // No output of the command may replace one of its inputs.
     host_sim::output::track_inputs();
+    // Ctrl-C or kill: no temporary file left, a recording kept.
+    if let Err(e) = host_sim::interrupt::install() {
+        eprintln!("warning: no signal handling ({e}): Ctrl-C leaves temporary files behind");
+    }
     let result: anyhow::Result<()> = match cli.command {
         None => host_sim::cli::report::run(host_sim::cli::report::ReportArgs::default()),
         Some(Command::Import(args)) => host_sim::cli::import::run(args),

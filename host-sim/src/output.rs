@@ -20,6 +20,12 @@
 //!
 //! [`write_atomic`] is the one-output case.
 //!
+//! A command stopped by a signal (Ctrl-C, `kill`) runs no destructor, so
+//! every live [`Outputs`] also lists its temporary files and the
+//! directories it made in one registry, which [`remove_staged`] empties
+//! from the signal handler ([`crate::interrupt`]); a commit holds the
+//! registry while it renames, so a signal waits for it to finish.
+//!
 //! An output never replaces one of the command's own inputs: the readers
 //! note each file they open ([`note_input`]) and staging refuses a target
 //! that is one of them (the same file by any path), once `main` has asked
@@ -172,6 +178,43 @@ fn refuse_input(named: &Path, target: &Path) -> Result<(), OutputError> {
     }
 }
 
+/// Every temporary file and every directory made that a live [`Outputs`]
+/// holds on disk beside its targets, for [`remove_staged`].
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// The registry, whatever a panicking holder left in it.
+fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Take `paths` out of the registry `live`.
+fn forget<'a>(live: &mut Vec<PathBuf>, paths: impl IntoIterator<Item = &'a Path>) {
+    for p in paths {
+        if let Some(i) = live.iter().rposition(|q| q == p) {
+            live.swap_remove(i);
+        }
+    }
+}
+
+/// Remove every temporary file a live [`Outputs`] staged and every
+/// directory one made (those left empty), for a process about to exit on
+/// a signal. Returns the registry held: no commit starts while the caller
+/// holds it, so it exits holding it.
+pub fn remove_staged() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    let mut held = live();
+    // Files first, then directories deepest first (made after their
+    // parents, so later in the list).
+    for p in held.iter().filter(|p| !p.is_dir()) {
+        let _ = fs::remove_file(p);
+    }
+    for p in held.iter().rev().filter(|p| p.is_dir()) {
+        let _ = fs::remove_dir(p);
+    }
+    held.clear();
+    held
+}
+
 /// A staged output: the complete temporary file and where it goes.
 struct Staged {
     /// The path the caller gave (for messages and the result).
@@ -197,10 +240,18 @@ impl Drop for Outputs {
         // The temporary files first (they sit in the directories), then
         // the directories this value created, deepest first; one that is
         // not empty (something else was written there) stays.
+        let mut live = live();
+        let temps: Vec<PathBuf> = self
+            .staged
+            .iter()
+            .map(|s| s.tmp.path().to_owned())
+            .collect();
         self.staged.clear();
         for d in self.made_dirs.iter().rev() {
             let _ = fs::remove_dir(d);
         }
+        forget(&mut live, temps.iter().map(PathBuf::as_path));
+        forget(&mut live, self.made_dirs.iter().map(PathBuf::as_path));
     }
 }
 
@@ -314,7 +365,9 @@ impl Outputs {
             .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
             .map(Path::to_owned)
             .collect();
+        let mut live = live();
         ensure_dir(dir)?;
+        live.extend(missing.iter().rev().cloned());
         self.made_dirs.extend(missing.into_iter().rev());
         Ok(())
     }
@@ -381,22 +434,34 @@ impl Outputs {
                 "named twice as an output of the same command",
             )));
         }
-        let tmp = temp_beside(path, &target)?;
-        write(&tmp).map_err(err)?;
-        // The writer may have replaced the file at the temporary path (an
-        // image encoder creates its file): reopen it to be sure what is
-        // synced is what will be renamed.
-        let file = fs::OpenOptions::new()
-            .write(true)
-            .open(tmp.path())
-            .map_err(err)?;
-        file.sync_all().map_err(err)?;
-        let perms = match meta {
-            Some(m) => Some(m.permissions()),
-            None => new_file_permissions(),
+        let tmp = {
+            let mut live = live();
+            let tmp = temp_beside(path, &target)?;
+            live.push(tmp.path().to_owned());
+            tmp
         };
-        if let Some(p) = perms {
-            file.set_permissions(p).map_err(err)?;
+        let written = (|| {
+            write(&tmp)?;
+            // The writer may have replaced the file at the temporary path
+            // (an image encoder creates its file): reopen it to be sure
+            // what is synced is what will be renamed.
+            let file = fs::OpenOptions::new().write(true).open(tmp.path())?;
+            file.sync_all()?;
+            let perms = match meta {
+                Some(m) => Some(m.permissions()),
+                None => new_file_permissions(),
+            };
+            if let Some(p) = perms {
+                file.set_permissions(p)?;
+            }
+            Ok(())
+        })();
+        if let Err(e) = written {
+            let mut live = live();
+            let path = tmp.path().to_owned();
+            drop(tmp);
+            forget(&mut live, [path.as_path()]);
+            return Err(err(e));
         }
         self.staged.push(Staged {
             named: path.to_owned(),
@@ -438,6 +503,23 @@ impl Outputs {
     /// the call, and the temporary files are removed.
     pub fn commit(mut self) -> Result<Vec<PathBuf>, OutputError> {
         let staged = std::mem::take(&mut self.staged);
+        // Held to the end: a signal's cleanup waits for the renames (and
+        // the backups' removal) to finish. Every staged file is renamed or
+        // removed by then.
+        let mut live = live();
+        let temps: Vec<PathBuf> = staged.iter().map(|s| s.tmp.path().to_owned()).collect();
+        let result = Self::rename_all(staged);
+        forget(&mut live, temps.iter().map(PathBuf::as_path));
+        if result.is_ok() {
+            // The directories now hold the outputs: they stay.
+            forget(&mut live, self.made_dirs.iter().map(PathBuf::as_path));
+            self.made_dirs.clear();
+        }
+        result
+    }
+
+    /// [`Outputs::commit`]'s renames, all or none.
+    fn rename_all(staged: Vec<Staged>) -> Result<Vec<PathBuf>, OutputError> {
         // Check every target again (it may have changed while the command
         // worked) before the first rename.
         for s in &staged {
@@ -490,8 +572,6 @@ impl Outputs {
                 let _ = f.sync_all();
             }
         }
-        // The directories now hold the outputs: they stay.
-        self.made_dirs.clear();
         Ok(written)
     }
 }

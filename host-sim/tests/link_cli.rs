@@ -567,3 +567,46 @@ fn a_recording_that_cannot_be_written_is_refused_before_the_link_opens() {
         std::io::ErrorKind::WouldBlock
     );
 }
+
+/// Ctrl-C (SIGINT) during a recording stops the run as `q` does and the
+/// records received are written; without the handler the process died
+/// with them in memory and the file was never written.
+#[test]
+fn ctrl_c_during_a_recording_keeps_what_was_received() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("run.csv");
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    // 30 s of ticks in real time; the host asks for all of them.
+    let firmware = std::thread::spawn(move || firmware_in_real_time(listener, 400, 60_000));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
+        .args(["--duration-s", "30", "--record"])
+        .arg(&log)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let out = child.wait_with_output().unwrap();
+    firmware.join().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("stopped with q or Ctrl-C before the end; what was received is kept"),
+        "{stderr}"
+    );
+    let text = std::fs::read_to_string(&log).unwrap();
+    let rows = text.lines().count() - 1;
+    assert!((100..60_000).contains(&rows), "{rows} rows");
+    // Nothing staged is left beside it.
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left, ["run.csv"]);
+}

@@ -310,8 +310,15 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
     let mut last_data = Instant::now();
     let idle = Duration::from_secs_f64(args.idle_timeout_s);
     // What was received is written even when the link fails part way.
+    // Ctrl-C (or kill) stops the run as `q` does (crate::interrupt), and
+    // until the recording is written only a second one stops at once.
+    let _interrupt = crate::interrupt::Graceful::new();
     let outcome = (|| -> anyhow::Result<()> {
         loop {
+            if crate::interrupt::requested() {
+                stopped = true;
+                break;
+            }
             let got = client.poll()?;
             let mut now = None;
             for r in &got {
@@ -451,7 +458,7 @@ pub fn run(args: LinkArgs) -> anyhow::Result<()> {
         }
     }
     if stopped {
-        eprintln!("stopped with q before the end; what was received is kept");
+        eprintln!("stopped with q or Ctrl-C before the end; what was received is kept");
     }
     eprintln!(
         "received {ticks} tick records{lost} ({} damaged frames, {} requests sent again)",

@@ -579,7 +579,7 @@ fn ctrl_c_during_a_recording_keeps_what_was_received() {
     let port = listener.local_addr().unwrap().port();
     // 30 s of ticks in real time; the host asks for all of them.
     let firmware = std::thread::spawn(move || firmware_in_real_time(listener, 400, 60_000));
-    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+    let child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(["link", "--port", &format!("tcp:127.0.0.1:{port}")])
         .args(["--duration-s", "30", "--record"])
         .arg(&log)

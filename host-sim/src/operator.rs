@@ -445,7 +445,16 @@ impl Client {
         let n = match self.port.read(&mut buf) {
             Ok(0) => bail!("the firmware link closed"),
             Ok(n) => n,
-            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => 0,
+            // A signal (Ctrl-C asking `link` to stop, crate::interrupt)
+            // cuts a read short: nothing read this time.
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+                ) =>
+            {
+                0
+            }
             Err(e) => return Err(e).context("reading the firmware link"),
         };
         for &b in &buf[..n] {

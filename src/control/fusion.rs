@@ -301,6 +301,12 @@ impl Fusion {
         let m = &c.machine;
         let f = &c.fusion;
         let r = m.pulley_radius_m;
+        let (pin_slip_nm, pin_slip_half_nm) = if f.pin_identified {
+            (f.pin_coulomb_nm, f.kinetic_tolerance * f.pin_coulomb_nm)
+        } else {
+            let half = 0.5 * (1.0 + f.kinetic_tolerance) * f.pin_coulomb_nm;
+            (half, half)
+        };
         let ticks = (f.creep_window_s / period_s) as u32;
         Self {
             q: LowPass1::new(c.dob.cutoff_rad_s, period_s),
@@ -311,16 +317,8 @@ impl Fusion {
             f_cp2_n: math::abs(c.tension.f_cp2_n),
             pin_nm: f.pin_coulomb_nm,
             pin_identified: f.pin_identified,
-            pin_slip_nm: if f.pin_identified {
-                f.pin_coulomb_nm
-            } else {
-                0.5 * (1.0 + f.kinetic_tolerance) * f.pin_coulomb_nm
-            },
-            pin_slip_half_nm: if f.pin_identified {
-                f.kinetic_tolerance * f.pin_coulomb_nm
-            } else {
-                0.5 * (1.0 + f.kinetic_tolerance) * f.pin_coulomb_nm
-            },
+            pin_slip_nm,
+            pin_slip_half_nm,
             torque_per_theta: r * r * (c.stretch.cable1_n_m + c.stretch.cable2_n_m),
             c3_rad: math::abs(c.jae.c_sign_rad),
             theta_floor_rad: f.jae_error_rad + c.jae.c_pos_rad_m * c.scales.grating_m_per_count,

@@ -521,7 +521,7 @@ fn report_total(
             .iter()
             .flat_map(|j| j.force_n)
             .filter(|b| b.lo.is_finite() && b.hi.is_finite())
-            .map(|b| b.lo.max(-b.hi))
+            .map(|b| b.abs().lo)
             .fold(0.0f32, f32::max)
     };
     let contradicted: Vec<f32> = ticks

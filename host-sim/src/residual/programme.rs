@@ -341,11 +341,8 @@ pub fn verdict(
     if !visible {
         return Verdict::BelowNoise;
     }
-    let new: Vec<&String> = classes
-        .iter()
-        .zip(also_clean.iter().chain(std::iter::repeat(&false)))
-        .filter(|(c, clean)| !**clean && c.as_str() != OBSERVER_FILTERING)
-        .map(|(c, _)| c)
+    let new: Vec<&String> = counted(classes.iter().map(String::as_str), also_clean)
+        .map(|k| &classes[k])
         .collect();
     let named = match expected {
         [one] => new.first().is_some_and(|c| c == one),
@@ -358,15 +355,26 @@ pub fn verdict(
     }
 }
 
-/// The first kept step [`verdict`] counts: not kept on the clean run
-/// too, not [`OBSERVER_FILTERING`] (the term whose rival family the row
-/// names).
-fn first_counted<'a>(accepted: &'a [Step], also_clean: &[bool]) -> Option<&'a Step> {
-    accepted
-        .iter()
+/// The positions of the kept terms [`verdict`] counts, in order: not
+/// kept on the clean run too (`also_clean`, missing entries false), not
+/// [`OBSERVER_FILTERING`].
+fn counted<'a>(
+    classes: impl Iterator<Item = &'a str> + 'a,
+    also_clean: &'a [bool],
+) -> impl Iterator<Item = usize> + 'a {
+    classes
         .zip(also_clean.iter().chain(std::iter::repeat(&false)))
-        .find(|(s, clean)| !**clean && s.class != OBSERVER_FILTERING)
-        .map(|(s, _)| s)
+        .enumerate()
+        .filter(|(_, (c, clean))| !**clean && *c != OBSERVER_FILTERING)
+        .map(|(k, _)| k)
+}
+
+/// The first kept step [`verdict`] counts (the term whose rival family
+/// the row names).
+fn first_counted<'a>(accepted: &'a [Step], also_clean: &[bool]) -> Option<&'a Step> {
+    counted(accepted.iter().map(|s| s.class.as_str()), also_clean)
+        .next()
+        .map(|k| &accepted[k])
 }
 
 /// What one drawn plant's clean run gave, per model.

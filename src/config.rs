@@ -142,6 +142,28 @@ impl Default for JaeConfig {
     }
 }
 
+impl JaeConfig {
+    /// Whether Eq. 26's coefficients and offset are still the datasheet's
+    /// (the seed's machine's): no calibration run of this machine has
+    /// fitted them.
+    pub fn is_datasheet(&self) -> bool {
+        let d = Self::default();
+        (
+            self.c_acc_rad_s2_m,
+            self.c_vel_rad_s_m,
+            self.c_sign_rad,
+            self.c_pos_rad_m,
+            self.offset_rad,
+        ) == (
+            d.c_acc_rad_s2_m,
+            d.c_vel_rad_s_m,
+            d.c_sign_rad,
+            d.c_pos_rad_m,
+            d.offset_rad,
+        )
+    }
+}
+
 /// PD position / PI velocity cascade (seed Fig. 11).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -282,6 +304,17 @@ impl Default for TensionConfig {
             sign_switch_x2_m_s: 2e-4,
             added: AddedTerms::default(),
         }
+    }
+}
+
+impl TensionConfig {
+    /// Whether model C's parameters (Eq. 29's `chi_p`) are still the
+    /// datasheet's (the seed's machine's): no calibration run of this
+    /// machine has fitted them.
+    pub fn is_datasheet(&self) -> bool {
+        let d = Self::default();
+        (self.f_sc1_n, self.f_cp2_n, self.k_s_n_m, self.f_0_n)
+            == (d.f_sc1_n, d.f_cp2_n, d.k_s_n_m, d.f_0_n)
     }
 }
 

@@ -881,7 +881,9 @@ fn ticks_per_row_gives_a_log_without_a_tick_column_its_control_rate() {
 
 /// A configuration whose force parameters were identified (here set to
 /// other values than the datasheet's) draws no warning; one that kept the
-/// datasheet's tension model names it, and only it.
+/// datasheet's tension model names it, and only it; one that kept the
+/// datasheet's JAE names that, and only that (the DOB's interval rests on
+/// both, so the bound is then the stretch estimate's alone).
 #[test]
 fn estimate_names_the_force_parameters_still_the_datasheet_plants() {
     let dir = tempfile::tempdir().unwrap();
@@ -899,15 +901,23 @@ fn estimate_names_the_force_parameters_still_the_datasheet_plants() {
     let identified = "control_rate_hz = 1000.0\n[dob]\nviscous_nm_s_rad = 1.8e-5\n\
                       [stretch]\ncable1_n_m = 9000.0\ncable2_n_m = 11000.0\n\
                       [fusion]\npin_coulomb_nm = 0.004\n";
+    let jae = "[jae]\nc_pos_rad_m = 262.0\n";
     let tension = "[tension]\nf_sc1_n = 5.0\nf_cp2_n = 2.0\nk_s_n_m = 650.0\nf_0_n = 20.0\n";
-    let all = run(&format!("{identified}{tension}"));
+    let all = run(&format!("{identified}{jae}{tension}"));
     assert!(!all.contains("datasheet plant's"), "{all}");
-    let no_tension = run(identified);
+    let no_tension = run(&format!("{identified}{jae}"));
     assert!(
         no_tension.contains("still the datasheet plant's: the tension model")
             && !no_tension.contains("stiffnesses")
             && !no_tension.contains("damping"),
         "{no_tension}"
+    );
+    let no_jae = run(&format!("{identified}{tension}"));
+    assert!(
+        no_jae.contains("still the datasheet plant's: the JAE")
+            && !no_jae.contains("the tension model ([tension]")
+            && no_jae.contains("the bound is the stretch estimate's alone"),
+        "{no_jae}"
     );
 }
 

@@ -305,7 +305,7 @@ fn a_grip_with_datasheet_force_parameters_is_warned_before_the_board_is_touched(
     };
     let grip = run("grip");
     assert!(
-        grip.contains("still the datasheet plant's: the tension model"),
+        grip.contains("still the datasheet plant's: the JAE") && grip.contains("the tension model"),
         "{grip}"
     );
     let calibration = run("jae-ident");

@@ -291,10 +291,11 @@ fn set_key(table: &mut toml::Table, field: &str, value: toml::Value) {
 /// identified (or set by hand to other values).
 pub fn datasheet_force_parts(config: &Config) -> Vec<&'static str> {
     let d = Config::default();
-    let (t, dt) = (&config.tension, &d.tension);
     let mut parts = Vec::new();
-    if (t.f_sc1_n, t.f_cp2_n, t.k_s_n_m, t.f_0_n) == (dt.f_sc1_n, dt.f_cp2_n, dt.k_s_n_m, dt.f_0_n)
-    {
+    if config.jae.is_datasheet() {
+        parts.push("the JAE ([jae] c_*, offset_rad; --procedure jae)");
+    }
+    if config.tension.is_datasheet() {
         parts.push(
             "the tension model ([tension] f_sc1_n, f_cp2_n, k_s_n_m, f_0_n; --procedure tension)",
         );
@@ -322,7 +323,9 @@ pub fn datasheet_force_warning(config: &Config, what: &str) -> Option<String> {
             "warning: {what}: still the datasheet plant's: {}. Until `host-sim identify \
              --procedure all` has fitted them on this machine's calibration runs, the DOB's \
              friction bands, the stretch estimate's scale and the slack limit are another \
-             machine's, and the force bound may miss the load",
+             machine's, and the force bound may miss the load (while the JAE or the tension \
+             model is the datasheet's, the bound is the stretch estimate's alone: the DOB's \
+             interval rests on them)",
             parts.join("; ")
         )
     })

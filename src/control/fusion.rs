@@ -853,18 +853,23 @@ mod tests {
         assert_eq!(together.flags & flags::JOINT_STUCK, 0, "{together:?}");
     }
 
+    /// At rest, the DOB reading cable 1 100 N above model C's elastic part:
+    /// its interval lies far from the stretch interval's.
+    fn dob_100_n_above_its_model(c: &Config) -> FusionIn {
+        FusionIn {
+            tension1_dob_n: c.tension.f_0_n + 100.0,
+            tension1_model_n: c.tension.f_0_n,
+            ..FusionIn::default()
+        }
+    }
+
     /// Two intervals that do not overlap: the bound is the hull and the flag
     /// says so.
     #[test]
     fn disagreement_widens_the_bound_and_is_flagged() {
         let (f, c) = fusion();
         let mut s = FusionState::default();
-        let input = FusionIn {
-            tension1_dob_n: c.tension.f_0_n + 100.0,
-            tension1_model_n: c.tension.f_0_n,
-            ..FusionIn::default()
-        };
-        let out = f.update(&mut s, &input);
+        let out = f.update(&mut s, &dob_100_n_above_its_model(&c));
         assert_ne!(out.flags & flags::INCONSISTENT, 0);
         assert!(out.lo_n < 0.0 && out.hi_n > 15.0, "{out:?}");
         // The hull of the two intervals, the point in the middle of the gap.
@@ -902,12 +907,7 @@ mod tests {
         ] {
             let f = Fusion::new(&datasheet, datasheet.period_s());
             let mut s = FusionState::default();
-            let input = FusionIn {
-                tension1_dob_n: datasheet.tension.f_0_n + 100.0,
-                tension1_model_n: datasheet.tension.f_0_n,
-                ..FusionIn::default()
-            };
-            let out = f.update(&mut s, &input);
+            let out = f.update(&mut s, &dob_100_n_above_its_model(&datasheet));
             assert_eq!(out.flags & flags::INCONSISTENT, 0, "{out:?}");
             let st = s.sources.stretch_n;
             assert_eq!(s.sources.dob_n, (f32::NEG_INFINITY, f32::INFINITY));
@@ -920,12 +920,8 @@ mod tests {
         }
         let (f, c) = fusion();
         let mut s = FusionState::default();
-        let input = FusionIn {
-            tension1_dob_n: c.tension.f_0_n + 100.0,
-            tension1_model_n: c.tension.f_0_n,
-            ..FusionIn::default()
-        };
-        assert_ne!(f.update(&mut s, &input).flags & flags::INCONSISTENT, 0);
+        let out = f.update(&mut s, &dob_100_n_above_its_model(&c));
+        assert_ne!(out.flags & flags::INCONSISTENT, 0);
     }
 
     /// A slow creep below the switching speed still counts as a slip after

@@ -19,10 +19,11 @@
 //! friction bands:
 //!
 //! * element slipping (speed above the switching speed, or a net creep of
-//!   [`crate::config::FusionConfig::creep_distance_m`] within [`crate::config::FusionConfig::creep_window_s`],
-//!   and both sliders moving one way at speeds within [`TOGETHER_RATIO`]
-//!   of each other, so the whole chain slips as one):
-//!   friction `s f_c (1 ± kappa)`, `kappa` = [`crate::config::FusionConfig::kinetic_tolerance`];
+//!   [`crate::config::FusionConfig::creep_distance_m`] within
+//!   [`crate::config::FusionConfig::creep_window_s`], and both sliders
+//!   moving one way at speeds within [`TOGETHER_RATIO`] of each other, so
+//!   the whole chain slips as one): friction `s f_c (1 ± kappa)`,
+//!   `kappa` = [`crate::config::FusionConfig::kinetic_tolerance`];
 //!   the joint pin's level may be only an upper bound
 //!   ([`crate::config::FusionConfig::pin_identified`] false: the default's,
 //!   or what `identify` writes when its runs cannot pin the pin down), and
@@ -44,8 +45,9 @@
 //! [`FusionIn::pressing_sign`]), its kinetic level against that side, and
 //! zero when nothing says which side; the value is moved into the bound
 //! when the bound rules it out. The report measures it against the
-//! intersection's midpoint (the minimax point) on every plant variant. When the two intervals do not overlap the models disagree
-//! (an unmodelled effect, a wrong parameter): the bound becomes the hull of
+//! intersection's midpoint (the minimax point) on every plant variant.
+//! When the two intervals do not overlap the models disagree (an
+//! unmodelled effect, a wrong parameter): the bound becomes the hull of
 //! both, the point the middle of the gap, and [`flags::INCONSISTENT`] is set,
 //! so the bound widens instead of hiding the disagreement.
 //!

@@ -577,9 +577,14 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let sp = &j.spring;
         let _ = writeln!(
             s,
-            "spring rate through the motor ({} sweeps, {} ticks): K_s {} N/m (%sigma {:.1}), residual rms {} N\n  -> {}",
+            "spring rate through the motor ({} sweeps, {} ticks, {}): K_s {} N/m (%sigma {:.1}), residual rms {} N\n  -> {}",
             sp.sweeps,
             sp.rows,
+            if sp.per_tick {
+                "per tick"
+            } else {
+                "one row per sweep"
+            },
             fmt_num(sp.k_s_n_m.0),
             sp.k_s_n_m.1,
             fmt_num(sp.residual_rms_n),

@@ -36,8 +36,9 @@
 //! it only when the JAE and model C are this machine's: with either still
 //! the datasheet's ([`crate::config::JaeConfig::is_datasheet`],
 //! [`crate::config::TensionConfig::is_datasheet`]) the elastic part it
-//! subtracts is another machine's, and the bound is the stretch interval. Its point estimate is the
-//! stretch estimate projected onto the intersection: the pin's friction at
+//! subtracts is another machine's, and the bound is the stretch interval.
+//! Its point estimate is the stretch estimate projected onto the
+//! intersection: the pin's friction at
 //! its kinetic level while both sliders slip one way (at any speeds: the
 //! point's best guess of the sign; the middle of its slip band when the
 //! level is only an upper bound); otherwise, when the command presses

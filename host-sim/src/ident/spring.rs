@@ -1,6 +1,6 @@
 //! The return spring's rate measured through the motor.
 
-use cable_joint::lsq::{BatchLsq, LsqConfig};
+use cable_joint::lsq::{BatchLsq, Fit, LsqConfig, LsqError};
 use cable_joint::Config;
 use serde::Serialize;
 
@@ -231,14 +231,7 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
     }
     // The rows' change of tension on their first `columns` regressors
     // (`x2`, `x2'`, then `x2''`).
-    let solve = |rows: &[[f64; 4]], columns: usize| {
-        BatchLsq::<3>::new(columns, LsqConfig::default()).and_then(|mut ls| {
-            for r in rows {
-                ls.push(&r[..3], r[3])?;
-            }
-            ls.solve()
-        })
-    };
+    let solve = |rows: &[[f64; 4]], columns: usize| fit_rows(rows.iter(), columns);
     let sol = match solve(&rows, 3) {
         Ok(s) => s,
         Err(e) => {
@@ -270,6 +263,19 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
         fit.residual_rms_n = t.rms_n;
     }
     fit
+}
+
+/// Least squares of rows `[r0, r1, r2, y]`: `y` on the first `columns`
+/// regressors.
+fn fit_rows<'a>(
+    rows: impl Iterator<Item = &'a [f64; 4]>,
+    columns: usize,
+) -> Result<Fit<3>, LsqError> {
+    let mut ls = BatchLsq::<3>::new(columns, LsqConfig::default())?;
+    for r in rows {
+        ls.push(&r[..3], r[3])?;
+    }
+    ls.solve()
 }
 
 /// Slider 1 stuck, per tick: the sign of its smoothed speed `w1` where
@@ -316,13 +322,12 @@ fn per_tick_fit(sweeps: &[Vec<[f64; 4]>]) -> Option<PerTick> {
     }
     // The sweeps but `skip` on their first `columns` regressors.
     let solve = |part: &[Vec<[f64; 4]>], columns: usize, skip: Option<usize>| {
-        let mut ls = BatchLsq::<3>::new(columns, LsqConfig::default()).ok()?;
-        for (_, sweep) in part.iter().enumerate().filter(|(i, _)| Some(*i) != skip) {
-            for r in sweep {
-                ls.push(&r[..3], r[3]).ok()?;
-            }
-        }
-        ls.solve().ok()
+        let ticks = part
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| Some(*i) != skip)
+            .flat_map(|(_, sweep)| sweep.iter());
+        fit_rows(ticks, columns).ok()
     };
     let all = solve(sweeps, 3, None)?;
     let k = all.params[0];
@@ -378,11 +383,7 @@ impl SpringFit {
                     bound's stiffness scale no interval: it keeps the datasheet's tolerance"
                 .to_owned();
         }
-        let (half_width, what) = if self.per_tick {
-            (self.uncertainty_n_m(), "its uncertainty")
-        } else {
-            (self.two_sigma_n_m(), "two standard deviations")
-        };
+        let (half_width, what) = self.interval_half_width();
         format!(
             "the force bound's stiffness scale reaches to the fit's interval ({what}), {:.0} to \
              {:.0} N/m ({:.3} of the datasheet's rate), where that is further than the \
@@ -397,8 +398,7 @@ impl SpringFit {
     pub fn value(&self) -> Option<f64> {
         let (k, pct) = self.k_s_n_m;
         let pinned = k.is_finite() && k > 0.0 && pct < SPRING_MAX_PCT_SIGMA;
-        let off = (k - self.datasheet_n_m).abs();
-        (pinned && off > self.uncertainty_n_m()).then_some(k)
+        (pinned && (k - self.datasheet_n_m).abs() > self.uncertainty_n_m()).then_some(k)
     }
 
     /// The fit's own error that no check on the run reveals, N/m: for the
@@ -433,26 +433,31 @@ impl SpringFit {
         }
     }
 
-    /// How far from the datasheet's rate the measurement's
-    /// two-standard-deviation interval reaches, N/m (zero when the rate was
-    /// not measured).
-    /// The per-tick fit's interval is its rate ± its uncertainty
-    /// ([`Self::uncertainty_n_m`]: its two standard deviations from the
-    /// jackknife are far narrower than its error), the per-sweep fit's its
-    /// two-standard-deviation interval. So a configuration the per-tick fit
-    /// wrote, identified again on the same run, keeps its tolerance.
+    /// How far from the datasheet's rate the measurement's interval
+    /// reaches, N/m (zero when the rate was not measured): the per-tick
+    /// fit's rate ± its uncertainty ([`Self::uncertainty_n_m`]), the
+    /// per-sweep fit's two-standard-deviation interval.
     pub fn reach_n_m(&self) -> f64 {
         let k = self.k_s_n_m.0;
-        let half_width = if self.per_tick {
-            self.uncertainty_n_m()
-        } else {
-            self.two_sigma_n_m()
-        };
-        let reach = (k - self.datasheet_n_m).abs() + half_width;
+        let reach = (k - self.datasheet_n_m).abs() + self.interval_half_width().0;
         if k > 0.0 && reach.is_finite() {
             reach
         } else {
             0.0
+        }
+    }
+
+    /// Half the measurement's interval, N/m, and what it is. The per-tick
+    /// fit's interval is its rate ± its uncertainty
+    /// ([`Self::uncertainty_n_m`]: two standard deviations from the
+    /// jackknife are far narrower than its error), so a configuration it
+    /// wrote, identified again on the same run, keeps its tolerance; the
+    /// per-sweep fit's is its two-standard-deviation interval.
+    fn interval_half_width(&self) -> (f64, &'static str) {
+        if self.per_tick {
+            (self.uncertainty_n_m(), "its uncertainty")
+        } else {
+            (self.two_sigma_n_m(), "two standard deviations")
         }
     }
 

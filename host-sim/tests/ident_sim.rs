@@ -849,9 +849,10 @@ fn differenced_500_hz() -> &'static (Config, Log) {
 /// quieter than they are. At 500 Hz with the position loop's derivative
 /// differenced over one tick (the derivation before stop 50, or a user's
 /// `kd_on_observer_rate = false`) the drive current limit-cycles in closed
-/// loop on the JAE, the written model's residual exceeds `f_sc1 + f_cp2`,
-/// and the result says so with the current's change per tick; on the
-/// chain's 2 kHz log it says nothing.
+/// loop on the JAE, the fitted model's residual exceeds `f_sc1 + f_cp2`,
+/// the result says so with the current's change per tick and the
+/// configuration keeps its tension model; on the chain's 2 kHz log it says
+/// nothing.
 #[test]
 fn a_tension_log_whose_residual_hides_the_friction_says_so() {
     let c = chain();
@@ -886,6 +887,10 @@ fn a_tension_log_whose_residual_hides_the_friction_says_so() {
     r.apply(&mut written);
     assert!(written.cascade.kd_on_observer_rate);
     assert!(!quiet.derivative_from_observer);
+    // A model whose friction the log did not identify is not written: the
+    // configuration keeps its own, and the note names it.
+    assert_eq!(written.tension, slow.tension, "chi_p {:?}", r.chi_p);
+    assert!(why.contains("not written"), "{why}");
 }
 
 /// A plant whose slider 2 is four times lighter than the prototype's

@@ -649,7 +649,7 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let _ = writeln!(
             s,
             "  {}: chi_p = [f_sc1 {}, f_cp2 {}, K_s {}, F_0 {}] (seed: [3.879, 5.027, 707.7, 19.52])\n",
-            if t.unphysical.is_some() {
+            if t.unphysical.is_some() || t.unidentified.is_some() {
                 "fitted, not written (see the warning below)"
             } else {
                 "-> tension"

@@ -150,7 +150,8 @@ pub struct TensionResult {
     pub core: FitReport,
     /// `chi_p = [f_sc1, f_cp2, K_s, F_0]` fitted on the core's structure,
     /// written to the configuration unless [`TensionResult::unphysical`]
-    /// (0 for a term the pruning dropped).
+    /// or [`TensionResult::unidentified`] (0 for a term the pruning
+    /// dropped).
     pub chi_p: [f64; 4],
     /// Kept regressors outside the core's structure (not written).
     pub not_written: Vec<Regressor>,
@@ -162,8 +163,9 @@ pub struct TensionResult {
     /// negative spring rate, preload or Coulomb friction): the
     /// configuration's tension model is kept (`None`: it is written).
     pub unphysical: Option<String>,
-    /// Why the log does not identify the friction terms, when the written
-    /// model's residual exceeds them (`None`: it does).
+    /// Why the log does not identify the friction terms, when the fitted
+    /// model's residual exceeds them: the configuration's tension model is
+    /// kept (`None`: the log identifies them).
     pub unidentified: Option<String>,
     /// The friction went unidentified and the drive current changed by at
     /// least [`super::LIMIT_CYCLE_SHARE`] of its limit per tick on

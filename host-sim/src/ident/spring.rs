@@ -154,12 +154,17 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
         let half = p.half_window(JOINT_DIFF_HALF_WINDOW_S);
         let (w1, _) = central_kinematics(&x1, half, period_s);
         let (w2, _) = central_kinematics(&x2, half, period_s);
-        let stuck = slider1_stuck(
-            &x1,
-            &w1,
-            f64::from(p.cfg.scales.grating_m_per_count),
-            period_s,
-        );
+        // Only the per-tick sweeps carry the stick column.
+        let stuck = if every_tick {
+            slider1_stuck(
+                &x1,
+                &w1,
+                f64::from(p.cfg.scales.grating_m_per_count),
+                period_s,
+            )
+        } else {
+            vec![0.0; x1.len()]
+        };
         let q = [
             p.dob_filter(&x2),
             p.dob_filter(&v2),

@@ -649,7 +649,7 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let _ = writeln!(
             s,
             "  {}: chi_p = [f_sc1 {}, f_cp2 {}, K_s {}, F_0 {}] (seed: [3.879, 5.027, 707.7, 19.52])\n",
-            if t.unphysical.is_some() || t.unidentified.is_some() {
+            if t.why_not_written().is_some() {
                 "fitted, not written (see the warning below)"
             } else {
                 "-> tension"
@@ -687,7 +687,7 @@ pub fn format_report(r: &IdentifyReport) -> String {
         if let Some(note) = &t.slider2_at_zero {
             let _ = writeln!(s, "  note: {note}\n");
         }
-        if let Some(why) = t.unphysical.as_ref().or(t.unidentified.as_ref()) {
+        if let Some(why) = t.why_not_written() {
             let _ = writeln!(s, "  warning: {why}\n");
         }
         if t.derivative_from_observer {

@@ -223,21 +223,26 @@ fn unphysical_terms(core: &FitReport, config: &Config) -> Option<String> {
     if why.is_empty() {
         return None;
     }
-    let t = &config.tension;
     Some(format!(
         "the tension model is not written: {} ({} rows fitted, residual {:.2} N RMS). The log \
          does not identify model C (a run cut short by a fault, a motion that did not excite \
-         both sliders, or an effect the model lacks); the configuration keeps its model, \
-         chi_p = [{}, {}, {}, {}]. Record tension-ident again, whole, before trusting the DOB \
-         and the force bound",
+         both sliders, or an effect the model lacks); {}. Record tension-ident again, whole, \
+         before trusting the DOB and the force bound",
         why.join("; "),
         core.rows,
         core.sigma,
-        t.f_sc1_n,
-        t.f_cp2_n,
-        t.k_s_n_m,
-        t.f_0_n
+        kept_model(config)
     ))
+}
+
+/// The clause naming the tension model a configuration keeps when the
+/// fitted one is not written.
+fn kept_model(config: &Config) -> String {
+    let t = &config.tension;
+    format!(
+        "the configuration keeps its model, chi_p = [{}, {}, {}, {}]",
+        t.f_sc1_n, t.f_cp2_n, t.k_s_n_m, t.f_0_n
+    )
 }
 
 /// Mean change of the drive current per tick, as a share of the current
@@ -307,16 +312,12 @@ fn friction_hidden(
         "the fitted tension model's residual ({residual_n:.2} N RMS) is larger than the \
          friction terms it fits (f_sc1 + f_cp2 = {friction_n:.2} N): this log does not \
          identify them, and the force bound's DOB side would rest on them{chatter}. The \
-         model is not written: the configuration keeps its own, chi_p = [{}, {}, {}, {}] \
-         (the datasheet's leaves the bound to the cable stretch alone). Record the run \
-         again with a quiet current (in the motor-encoder loop, or on the JAE with \
-         `cascade.kd_on_observer_rate = true` and a lower \
+         model is not written: {} (the datasheet's leaves the bound to the cable stretch \
+         alone). Record the run again with a quiet current (in the motor-encoder loop, or \
+         on the JAE with `cascade.kd_on_observer_rate = true` and a lower \
          `differentiators.grating_bandwidth_hz`), whole, and identify the tension models \
          from it",
-        config.tension.f_sc1_n,
-        config.tension.f_cp2_n,
-        config.tension.k_s_n_m,
-        config.tension.f_0_n
+        kept_model(config)
     ))
 }
 
@@ -347,6 +348,13 @@ pub fn validate_tension(
 }
 
 impl TensionResult {
+    /// Why `chi_p` is not written ([`TensionResult::unphysical`], else
+    /// [`TensionResult::unidentified`]); `None`: [`TensionResult::apply`]
+    /// writes it.
+    pub fn why_not_written(&self) -> Option<&String> {
+        self.unphysical.as_ref().or(self.unidentified.as_ref())
+    }
+
     /// Write `chi_p` into the configuration (unless physics forbids it,
     /// [`TensionResult::unphysical`], or the log does not identify its
     /// friction terms, [`TensionResult::unidentified`]: the
@@ -365,7 +373,7 @@ impl TensionResult {
             Ok(k) => k.n_m as f32,
             Err(_) => 0.0,
         };
-        if self.unphysical.is_some() || self.unidentified.is_some() {
+        if self.why_not_written().is_some() {
             return;
         }
         let t = &mut config.tension;

@@ -5,8 +5,9 @@ them a report draw; docs/force.md, "Held out on the same 40 plants" and
 "Probing on the same 40 plants").
 
 Per seed, at its control rate (seed mod 6: 2000, 1000, 2000, 1000, 500,
-5000 Hz), every run recorded at a row every tick, as README's "Calibrate
-your own machine" orders them:
+5000 Hz), every calibration run recorded at a row every tick (or every
+`--every` N ticks, as a board streams by default with N = 10), as
+README's "Calibrate your own machine" orders them:
 
     host-sim simulate --scenario bm-noload|jae-ident --plant pN.toml [--config R.toml]
     host-sim identify --procedure bm --log bm.csv [--config R.toml] --config-out cb.toml
@@ -61,7 +62,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="1-40", help="first-last")
     ap.add_argument("--out", required=True, help="working directory")
+    ap.add_argument("--every", type=int, default=1,
+                    help="the calibration runs' row spacing, ticks (the holds keep every tick)")
     a = ap.parse_args()
+    every = ["--record-every", str(a.every)] if a.every > 1 else []
     first, last = (int(x) for x in a.seeds.split("-"))
     os.makedirs(a.out, exist_ok=True)
     defaults = plants.default_plant()
@@ -83,13 +87,13 @@ def main():
         p = lambda name: os.path.join(d, name)  # noqa: E731
         for scenario, log in [("bm-noload", "bm.csv"), ("jae-ident", "j.csv")]:
             run([HOST_SIM, "simulate", "--scenario", scenario, "--plant", plant_path,
-                 *rate_config, "--out", p(log)])
+                 *rate_config, *every, "--out", p(log)])
         run([HOST_SIM, "identify", "--procedure", "bm", "--log", p("bm.csv"), *rate_config,
              "--config-out", p("cb.toml")], p("idb.txt"))
         run([HOST_SIM, "identify", "--procedure", "jae", "--log", p("j.csv"), "--config",
              p("cb.toml"), "--config-out", p("cj.toml")], p("idj.txt"))
         run([HOST_SIM, "simulate", "--scenario", "tension-ident", "--plant", plant_path,
-             "--config", p("cj.toml"), "--out", p("t.csv")])
+             "--config", p("cj.toml"), *every, "--out", p("t.csv")])
         run([HOST_SIM, "identify", "--procedure", "tension", "--log", p("t.csv"), "--config",
              p("cj.toml"), "--config-out", p("c.toml")], p("idt.txt"))
         for log in ["bm.csv", "j.csv", "t.csv"]:

@@ -2,7 +2,7 @@
 """The passive and the probed force estimate through the user's calibration
 chain, on plants drawn by scripts/spring-heldout.py's generator (none of
 them a report draw; docs/force.md, "Held out on the same 40 plants" and
-"Probing on the same 40 plants").
+"Probing on the 40 held-out plants").
 
 Per seed, at its control rate (seed mod 6: 2000, 1000, 2000, 1000, 500,
 5000 Hz), every calibration run recorded at a row every tick (or every
@@ -30,7 +30,6 @@ host-sim`.
 import argparse
 import importlib.util
 import os
-import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -50,12 +49,12 @@ HOST_SIM = plants.HOST_SIM
 
 
 def run(cmd, log=None):
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    """spring-heldout.py's `run` (exits on a failure), its output kept in
+    `log` when given."""
+    text = plants.run(cmd)
     if log:
         with open(log, "w") as f:
-            f.write(r.stdout + r.stderr)
-    if r.returncode != 0:
-        sys.exit(f"{' '.join(cmd)} failed:\n{r.stderr[-2000:]}")
+            f.write(text)
 
 
 def main():
@@ -78,12 +77,7 @@ def main():
         plant_path = os.path.join(d, "plant.toml")
         with open(plant_path, "w") as f:
             f.write(plant)
-        rate_config = []
-        if rate != 2000:
-            path = os.path.join(d, "rate.toml")
-            with open(path, "w") as f:
-                f.write(f"control_rate_hz = {rate:.1f}\n")
-            rate_config = ["--config", path]
+        rate_config = plants.rate_config(rate, d)
         p = lambda name: os.path.join(d, name)  # noqa: E731
         for scenario, log in [("bm-noload", "bm.csv"), ("jae-ident", "j.csv")]:
             run([HOST_SIM, "simulate", "--scenario", scenario, "--plant", plant_path,

@@ -88,6 +88,18 @@ def default_plant():
     return out
 
 
+def rate_config(rate, directory):
+    """The `--config` arguments that set control rate `rate` (a file
+    holding only `control_rate_hz`, written to `directory`); none at the
+    simulator's own 2 kHz."""
+    if rate == 2000:
+        return []
+    path = os.path.join(directory, f"rate{rate:g}.toml")
+    with open(path, "w") as f:
+        f.write(f"control_rate_hz = {rate:.1f}\n")
+    return ["--config", path]
+
+
 def run(cmd):
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
@@ -113,12 +125,7 @@ def main():
         plant_path = os.path.join(a.out, f"p{seed}.toml")
         with open(plant_path, "w") as f:
             f.write(plant)
-        config = []
-        if rate != 2000:
-            config_path = os.path.join(a.out, f"rate{rate:g}.toml")
-            with open(config_path, "w") as f:
-                f.write(f"control_rate_hz = {rate:.1f}\n")
-            config = ["--config", config_path]
+        config = rate_config(rate, a.out)
         for n in every:
             log = os.path.join(a.out, f"p{seed}-e{n}.csv")
             run([HOST_SIM, "simulate", "--scenario", "jae-ident", "--plant", plant_path,

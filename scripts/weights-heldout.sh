@@ -23,7 +23,7 @@ first="${1:?first draw}"; last="${2:?last draw}"; out="${3:?output directory}"
 cd "$(dirname "$0")/.."
 ROOT="$PWD"
 cargo build --release --quiet -p host-sim
-H="$PWD/target/release/host-sim"
+H="$ROOT/target/release/host-sim"
 mkdir -p "$out"; out="$(cd "$out" && pwd)"
 "$H" report --quiet --draws "$first-$last" --no-effects --out "$out/report" \
   >"$out/report.log" 2>&1

@@ -26,6 +26,16 @@ the plant.
 
     python3 scripts/spring-heldout.py --seeds 1-40 --every 1,4,10,20 --out /tmp/sh
 
+`--plants FILE...` runs given plant files instead of drawn ones (their
+`[spring] stiffness_n_m` the truth, the default's where a file has none)
+and `--rates` the control rates each runs at: the study behind
+`ident::DECIMATED_ERROR`, on the report's plants (`host-sim report --draws
+31-36 --no-effects --out d` writes `d/variants/draw-N/plant.toml`):
+
+    python3 scripts/spring-heldout.py --plants report/variants/*/plant.toml \
+        d/variants/draw-3?/plant.toml --rates 500,1000,2000,5000 \
+        --every 4,10,20 --out /tmp/st
+
 About a second per run on two cores after `cargo build --release -p
 host-sim`.
 """
@@ -107,11 +117,34 @@ def run(cmd):
     return r.stdout + r.stderr
 
 
+def runs(a, first, last, defaults):
+    """(label, rate, plant file, its spring rate) of each plant to run: the
+    drawn seeds, or `--plants` at each of `--rates`."""
+    if a.plants:
+        rates = [float(x) for x in (a.rates or "2000").split(",")]
+        for i, path in enumerate(a.plants):
+            m = re.search(r"\[spring\][^\[]*?stiffness_n_m = ([-\d.e]+)", open(path).read())
+            truth = float(m.group(1)) if m else defaults["spring"]["stiffness_n_m"]
+            print(f"plant {i + 1}: {path}", flush=True)
+            for rate in rates:
+                yield i + 1, rate, path, truth
+        return
+    for seed in range(first, last + 1):
+        plant, truth = drawn_plant(seed, defaults)
+        rate = a.rate or RATES[seed % 6]
+        plant_path = os.path.join(a.out, f"p{seed}.toml")
+        with open(plant_path, "w") as f:
+            f.write(plant)
+        yield seed, rate, plant_path, truth
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="1-40", help="first-last")
     ap.add_argument("--every", default="1,10", help="row spacings, comma separated")
     ap.add_argument("--rate", type=float, help="one control rate for every seed, Hz")
+    ap.add_argument("--plants", nargs="+", help="plant files to run instead of drawn plants")
+    ap.add_argument("--rates", help="with --plants: control rates, Hz, comma separated")
     ap.add_argument("--out", required=True, help="working directory")
     a = ap.parse_args()
     first, last = (int(x) for x in a.seeds.split("-"))
@@ -119,19 +152,14 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     defaults = default_plant()
     results = []
-    for seed in range(first, last + 1):
-        plant, truth = drawn_plant(seed, defaults)
-        rate = a.rate or RATES[seed % 6]
-        plant_path = os.path.join(a.out, f"p{seed}.toml")
-        with open(plant_path, "w") as f:
-            f.write(plant)
+    for seed, rate, plant_path, truth in runs(a, first, last, defaults):
         config = rate_config(rate, a.out)
         for n in every:
-            log = os.path.join(a.out, f"p{seed}-e{n}.csv")
+            log = os.path.join(a.out, f"p{seed}-{rate:g}-e{n}.csv")
             run([HOST_SIM, "simulate", "--scenario", "jae-ident", "--plant", plant_path,
                  *config, "--record-every", str(n), "--out", log])
             text = run([HOST_SIM, "identify", "--procedure", "jae", "--log", log, *config,
-                        "--config-out", os.path.join(a.out, f"p{seed}-e{n}.toml")])
+                        "--config-out", os.path.join(a.out, f"p{seed}-{rate:g}-e{n}.toml")])
             m = re.search(r"spring rate through the motor .*?K_s ([\d.]+) N/m", text)
             tol = re.search(r"fusion.stiffness_tolerance = ([\d.]+)", text)
             if not m or not tol:

@@ -596,10 +596,10 @@ fn spring_fit(log: &Log) -> SpringFit {
 /// current changes from tick to tick. A record every 10th tick with its own
 /// current alone cannot pin the rate down, and the fit says why; with the
 /// mean current applied since the row before (`i_applied_a`, what the
-/// firmware sends since telemetry format 3) its one-row-per-sweep fit
-/// measures the rate as the same fit on the log with every tick does
-/// (within 5 %; on every tick the rate written is the per-tick fit's,
-/// which a decimated log cannot give).
+/// firmware sends since telemetry format 3) the per-tick fit runs without
+/// the stick column (a stick of a few ticks does not show between rows)
+/// and measures the rate as the log with every tick does, within 3 %, its
+/// one-row-per-sweep fit within 5 %.
 #[test]
 fn a_decimated_log_with_the_applied_mean_current_measures_the_spring_as_every_tick_does() {
     let c = chain();
@@ -619,11 +619,21 @@ fn a_decimated_log_with_the_applied_mean_current_measures_the_spring_as_every_ti
         sampled.note
     );
     let (k, pct) = mean.k_s_n_m;
-    assert!(!mean.per_tick && every.per_tick, "{mean:?}\n{every:?}");
+    assert!(
+        mean.per_tick && !mean.stick_column && every.stick_column,
+        "{mean:?}\n{every:?}"
+    );
+    assert!(!sampled.per_tick, "{sampled:?}");
     assert!(pct < 5.0, "%sigma {pct:.1} with the mean current");
     assert!(
-        rel(k, every.per_sweep_n_m.0) < 0.05,
-        "K_s {k:.0} with the mean current vs {:.0} one row per sweep with every tick",
+        rel(k, every.k_s_n_m.0) < 0.03,
+        "K_s {k:.0} with the mean current vs {:.0} with every tick",
+        every.k_s_n_m.0
+    );
+    assert!(
+        rel(mean.per_sweep_n_m.0, every.per_sweep_n_m.0) < 0.05,
+        "one row per sweep: {:.0} with the mean current vs {:.0} with every tick",
+        mean.per_sweep_n_m.0,
         every.per_sweep_n_m.0
     );
 }
@@ -731,16 +741,16 @@ fn the_per_tick_spring_fit_does_not_take_the_mass_columns_share() {
 /// Held-out drawn plant 72 (1 kHz; the report's `--draws 72-72`), whose
 /// spring is 23 % softer than the datasheet's, its calibration recorded as
 /// the board streams it by default (a row every 10th tick with the mean
-/// current applied since the row before): the spring fit through the motor
-/// is too loose to replace the datasheet's rate (602 N/m with a %sigma of
-/// 9.3 from the command line), so the datasheet's 657 N/m stays. The force
-/// bound's stiffness scale (`fusion.stiffness_tolerance`) then reaches to
-/// the fit's two-standard-deviation interval and covers the stretch
-/// estimate's scale error, plant over configured rate. With the datasheet's
-/// tolerance widened only to the fit's disagreement with it (0.109), a
-/// 250 g hold at 0° had the load inside the bound in 60 % of its samples.
+/// current applied since the row before): the per-tick fit without the
+/// stick column reads the spring within 5 % and replaces the datasheet's
+/// rate, which lies outside the rates such a fit reads so
+/// (`ident::DECIMATED_ERROR`), and the force bound's stiffness scale
+/// covers what scale error is left. Until stop 75 a decimated log took
+/// the per-sweep fit (602 N/m, %sigma 9.3), too loose to replace the
+/// datasheet's 657: the scale stayed 29 % off, covered only by a tolerance
+/// reaching to that fit's two-standard-deviation interval.
 #[test]
-fn the_stiffness_tolerance_reaches_to_a_loose_spring_fit_when_the_datasheet_rate_is_kept() {
+fn a_decimated_calibration_replaces_a_datasheet_spring_its_fit_contradicts() {
     let plant = host_sim::report::variants::drawn(72);
     let base = Config::default().at_rate(1000.0).0;
     let log = recorded_every(
@@ -749,25 +759,30 @@ fn the_stiffness_tolerance_reaches_to_a_loose_spring_fit_when_the_datasheet_rate
         true,
     );
     let r = identify_jae_with(&[("jae", &log)], &base, &IdentOptions::default()).unwrap();
-    assert!(r.spring.value().is_none(), "{:?}", r.spring);
+    let truth = plant.spring.stiffness_n_m;
+    eprintln!("{:?}", r.spring);
+    assert!(
+        r.spring.per_tick && !r.spring.stick_column,
+        "{:?}",
+        r.spring
+    );
+    assert!(
+        rel(f64::from(base.machine.spring_n_m), truth) > 0.15,
+        "drawn plant 72's spring {truth:.0} N/m is no longer well away from the datasheet's"
+    );
+    assert!(r.spring.value().is_some(), "{:?}", r.spring);
     let mut cfg = base;
     r.apply(&mut cfg);
     let used = f64::from(cfg.machine.spring_n_m);
-    assert_eq!(
-        used,
-        f64::from(base.machine.spring_n_m),
-        "the datasheet's rate is kept"
+    assert!(
+        rel(used, truth) < 0.05,
+        "spring {used:.0} N/m written for the plant's {truth:.0}"
     );
-    let truth = plant.spring.stiffness_n_m;
     let tol = f64::from(cfg.fusion.stiffness_tolerance);
     let scale_error = (truth / used - 1.0).abs();
     assert!(
-        scale_error > 0.15,
-        "drawn plant 72's spring {truth:.0} N/m is no longer well away from the datasheet's {used:.0}"
-    );
-    assert!(
         scale_error <= tol,
-        "spring {used:.0} N/m kept for the plant's {truth:.0}: scale off by {scale_error:.3}, \
+        "spring {used:.0} N/m written for the plant's {truth:.0}: scale off by {scale_error:.3}, \
          tolerance {tol:.3} ({:?})",
         r.spring
     );
@@ -780,8 +795,9 @@ fn the_stiffness_tolerance_reaches_to_a_loose_spring_fit_when_the_datasheet_rate
 /// as the datasheet's on the second pass, as when `identify --procedure
 /// all` is given the first pass's configuration; drawn plant 76 until stop
 /// 72, whose spring the per-tick fit reads within 6.1 % of the datasheet's)
-/// and drawn plant 72 at a row every 10th tick (the datasheet's rate
-/// kept). Until stop 45 each pass added `c4`'s part once more (drawn plant
+/// and drawn plant 72 at a row every 10th tick (written since stop 75 by
+/// the per-tick fit without the stick column, whose interval is not
+/// centred on its rate; until then the datasheet's rate kept). Until stop 45 each pass added `c4`'s part once more (drawn plant
 /// 72: 0.263 → 0.286 over five passes).
 #[test]
 fn identifying_again_from_the_written_configuration_keeps_the_stiffness_tolerance() {

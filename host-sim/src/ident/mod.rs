@@ -108,7 +108,7 @@ pub use results::{
     BmResult, FitReport, IdentifyReport, JaeResult, ParamEstimate, TensionResult, Validation,
 };
 pub use sequence::{identify_in_order, Runs};
-pub use spring::{SpringFit, PER_TICK_SYSTEMATIC, SPRING_MIN_TRAVEL_M};
+pub use spring::{SpringFit, DECIMATED_ERROR, PER_TICK_SYSTEMATIC, SPRING_MIN_TRAVEL_M};
 pub use tension::{identify_tension, identify_tension_with, validate_tension, LIMIT_CYCLE_SHARE};
 use terms::term;
 pub use terms::{

@@ -37,13 +37,22 @@ use super::Prepared;
 /// the per-sweep rows read that excess as a softer spring (drawn plant 31,
 /// 829 N/m, read 730), the stick column takes it up (796). Its standard
 /// deviation is the jackknife's over sweeps (the ticks of one sweep are not
-/// independent). A decimated log cannot show a stick of a few ticks between
-/// its rows, so there the per-sweep fit stands.
+/// independent).
+///
+/// A decimated log cannot show a stick of a few ticks between its rows, so
+/// there the per-tick fit runs without the stick column ([`Self::stick_column`]
+/// false) and reads soft where slider 1 sticks hard after a reversal: on the
+/// report's plants recorded at a row every 4th, 10th and 20th tick it read
+/// [`DECIMATED_ERROR`] of the plant's rate. The plant's rate lies within
+/// that reach of the fit ([`Self::bounds_n_m`]), an interval not centred on
+/// it. (The per-sweep fit, which decimated logs once took, read −54 % to
+/// +29 % on the same runs.)
 ///
 /// Written only when the data pin it down (`%sigma` within the seed's 5 %
-/// rule) and contradict the datasheet: the datasheet's rate lies farther
-/// from it than its uncertainty ([`Self::uncertainty_n_m`]; for the
-/// per-tick fit at least its own error, which no check on the run reveals,
+/// rule) and contradict the datasheet: the datasheet's rate lies outside
+/// the rates the plant may have by the fit ([`Self::bounds_n_m`]: its
+/// uncertainty, [`Self::uncertainty_n_m`], either side, for the per-tick
+/// fit at least its own error, which no check on the run reveals,
 /// [`PER_TICK_SYSTEMATIC`]). Otherwise the datasheet stands, and the force
 /// bound's stiffness scale reaches to the measurement's interval
 /// ([`Self::reach_n_m`]).
@@ -73,12 +82,17 @@ pub struct SpringFit {
     pub without_inertia_n_m: f64,
     /// The per-sweep fit (one row per sweep: its last third's means less
     /// its first third's, columns `x2`, `x2'`, `x2''`): `K_s`, N/m, and its
-    /// `%sigma`. The rate itself where the logs are decimated, else a check
-    /// on the per-tick fit ([`Self::uncertainty_n_m`]).
+    /// `%sigma`. The rate itself where the per-tick fit does not run, a
+    /// check on the per-tick fit with the stick column
+    /// ([`Self::uncertainty_n_m`]).
     pub per_sweep_n_m: (f64, f64),
-    /// Whether [`Self::k_s_n_m`] is the per-tick fit (every log has a row
-    /// every control tick), else the per-sweep fit.
+    /// Whether [`Self::k_s_n_m`] is the per-tick fit, else the per-sweep
+    /// fit (a log without every tick's current, or too few sweeps for the
+    /// per-tick fit's jackknife).
     pub per_tick: bool,
+    /// Whether the per-tick fit carried slider 1's stick column (every log
+    /// has a row every control tick).
+    pub stick_column: bool,
     /// The per-tick fit without the stick column, N/m (NaN when the
     /// per-tick fit was not run): how much slider 1's stick moved the rate.
     pub without_stick_n_m: f64,
@@ -106,6 +120,20 @@ pub const SPRING_MIN_TRAVEL_M: f64 = 20e-6;
 /// scale.
 pub const PER_TICK_SYSTEMATIC: f64 = 0.061;
 
+/// The per-tick fit's error without the stick column (a decimated log), a
+/// share of the plant's rate, least and most: on 14 of the report's plants
+/// (its variants' eight plants, drawn plants 31 to 36), each at 500, 1000,
+/// 2000 and 5000 Hz with a row every 4th, 10th and 20th tick (154 runs;
+/// at 500 Hz a row every 20th tick leaves too few sweeps), it read −21.2 %
+/// (drawn plant 36 at 500 Hz) to +3.9 %; stiff stiction and drawn plants
+/// 31, 34 and 36 read 8 % to 21 % soft at every rate, slider-1 friction 3 %
+/// to 11 % (docs/force.md, "The spring fit on a decimated log").
+pub const DECIMATED_ERROR: (f64, f64) = (-0.212, 0.039);
+
+/// Share of the control ticks whose applied current the logs must carry
+/// for the per-tick fit ([`SpringFit::current_ticks_share`]).
+const FULL_CURRENT_SHARE: f64 = 0.9;
+
 /// Largest `%sigma` at which the measured spring rate is written.
 const SPRING_MAX_PCT_SIGMA: f64 = 5.0;
 
@@ -125,6 +153,7 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
         without_inertia_n_m: f64::NAN,
         per_sweep_n_m: (f64::NAN, f64::NAN),
         per_tick: false,
+        stick_column: false,
         without_stick_n_m: f64::NAN,
         current_ticks_share: preps
             .iter()
@@ -188,15 +217,13 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
                 let (a, b) = (mean(&sweep[..third]), mean(&sweep[sweep.len() - third..]));
                 rows.push([b[0] - a[0], b[1] - a[1], b[2] - a[2], b[4] - a[4]]);
                 fit.rows += 2 * third as u64;
-                if every_tick {
-                    let m = mean(sweep);
-                    sweeps.push(
-                        sweep
-                            .iter()
-                            .map(|r| [r[0] - m[0], r[1] - m[1], r[3] - m[3], r[4] - m[4]])
-                            .collect(),
-                    );
-                }
+                let m = mean(sweep);
+                sweeps.push(
+                    sweep
+                        .iter()
+                        .map(|r| [r[0] - m[0], r[1] - m[1], r[3] - m[3], r[4] - m[4]])
+                        .collect(),
+                );
             }
             sweep.clear();
         };
@@ -260,8 +287,16 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
     fit.per_sweep_n_m = (sol.params[0], 100.0 * sol.std_dev[0] / sol.params[0].abs());
     fit.k_s_n_m = fit.per_sweep_n_m;
     fit.residual_rms_n = sol.rmse;
-    if let Some(t) = per_tick_fit(&sweeps) {
+    // Without every tick's current (a decimated log without the applied
+    // mean, `i_applied_a`) the replay's tension is the held sample's, and a
+    // per-tick fit would read it with a confidence it does not have: the
+    // per-sweep fit's spread shows it instead.
+    let per_tick = (fit.current_ticks_share >= FULL_CURRENT_SHARE)
+        .then(|| per_tick_fit(&sweeps, every_tick))
+        .flatten();
+    if let Some(t) = per_tick {
         fit.per_tick = true;
+        fit.stick_column = every_tick;
         fit.k_s_n_m = (t.k_n_m, 100.0 * t.jackknife_std_n_m / t.k_n_m.abs());
         fit.halves_n_m = t.halves_n_m;
         fit.without_stick_n_m = t.without_stick_n_m;
@@ -318,10 +353,12 @@ struct PerTick {
     rms_n: f64,
 }
 
-/// `dF_1_hat = K_s dx2 + b dx2' + c s` on each sweep's ticks, means out;
-/// `None` with fewer than [`SPRING_MIN_SWEEPS`] sweeps or a singular fit.
-fn per_tick_fit(sweeps: &[Vec<[f64; 4]>]) -> Option<PerTick> {
+/// `dF_1_hat = K_s dx2 + b dx2' + c s` on each sweep's ticks, means out
+/// (without `c s` unless `stick`); `None` with fewer than
+/// [`SPRING_MIN_SWEEPS`] sweeps or a singular fit.
+fn per_tick_fit(sweeps: &[Vec<[f64; 4]>], stick: bool) -> Option<PerTick> {
     let n = sweeps.len();
+    let columns = if stick { 3 } else { 2 };
     if n < SPRING_MIN_SWEEPS {
         return None;
     }
@@ -334,18 +371,18 @@ fn per_tick_fit(sweeps: &[Vec<[f64; 4]>]) -> Option<PerTick> {
             .flat_map(|(_, sweep)| sweep.iter());
         fit_rows(ticks, columns).ok()
     };
-    let all = solve(sweeps, 3, None)?;
+    let all = solve(sweeps, columns, None)?;
     let k = all.params[0];
     // The jackknife over sweeps: the ticks of one sweep share its friction
     // state and are not independent.
     let left_out: Vec<f64> = (0..n)
-        .map(|i| solve(sweeps, 3, Some(i)).map_or(f64::NAN, |s| s.params[0]))
+        .map(|i| solve(sweeps, columns, Some(i)).map_or(f64::NAN, |s| s.params[0]))
         .collect();
     let mean = left_out.iter().sum::<f64>() / n as f64;
     let spread = left_out.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
     let jackknife_std_n_m = ((n as f64 - 1.0) / n as f64 * spread).sqrt();
     let (early, late) = sweeps.split_at(n / 2);
-    let half = |part| solve(part, 3, None).map_or(f64::NAN, |s| s.params[0]);
+    let half = |part| solve(part, columns, None).map_or(f64::NAN, |s| s.params[0]);
     Some(PerTick {
         k_n_m: k,
         jackknife_std_n_m: if jackknife_std_n_m.is_finite() {
@@ -354,7 +391,11 @@ fn per_tick_fit(sweeps: &[Vec<[f64; 4]>]) -> Option<PerTick> {
             f64::INFINITY
         },
         halves_n_m: (half(early), half(late)),
-        without_stick_n_m: solve(sweeps, 2, None).map_or(f64::NAN, |s| s.params[0]),
+        without_stick_n_m: if stick {
+            solve(sweeps, 2, None).map_or(f64::NAN, |s| s.params[0])
+        } else {
+            f64::NAN
+        },
         rms_n: all.rmse,
     })
 }
@@ -363,7 +404,7 @@ impl SpringFit {
     /// Why a log with some ticks' current only may not pin the rate down
     /// (empty when the logs carry every tick's).
     fn sampled_current_note(&self) -> String {
-        if self.current_ticks_share >= 0.9 {
+        if self.current_ticks_share >= FULL_CURRENT_SHARE {
             return String::new();
         }
         format!(
@@ -388,13 +429,11 @@ impl SpringFit {
                     bound's stiffness scale no interval: it keeps the datasheet's tolerance"
                 .to_owned();
         }
-        let (half_width, what) = self.interval_half_width();
+        let (lo, hi, what) = self.interval_n_m();
         format!(
-            "the force bound's stiffness scale reaches to the fit's interval ({what}), {:.0} to \
-             {:.0} N/m ({:.3} of the datasheet's rate), where that is further than the \
+            "the force bound's stiffness scale reaches to the fit's interval ({what}), {lo:.0} to \
+             {hi:.0} N/m ({:.3} of the datasheet's rate), where that is further than the \
              datasheet's tolerance",
-            k - half_width,
-            k + half_width,
             self.reach_n_m() / self.datasheet_n_m
         )
     }
@@ -403,26 +442,47 @@ impl SpringFit {
     pub fn value(&self) -> Option<f64> {
         let (k, pct) = self.k_s_n_m;
         let pinned = k.is_finite() && k > 0.0 && pct < SPRING_MAX_PCT_SIGMA;
-        (pinned && (k - self.datasheet_n_m).abs() > self.uncertainty_n_m()).then_some(k)
+        let (lo, hi) = self.bounds_n_m();
+        let outside = self.datasheet_n_m < lo || self.datasheet_n_m > hi;
+        (pinned && outside).then_some(k)
     }
 
     /// The fit's own error that no check on the run reveals, N/m: for the
     /// per-tick fit [`PER_TICK_SYSTEMATIC`] of the datasheet's rate, for
     /// the per-sweep fit none beyond its uncertainty (its halves and its
-    /// inertial column spread wide where it errs).
+    /// inertial column spread wide where it errs). Without the stick column
+    /// the error is not symmetric ([`Self::bounds_n_m`]).
     fn systematic_n_m(&self) -> f64 {
-        if self.per_tick {
+        if self.per_tick && self.stick_column {
             PER_TICK_SYSTEMATIC * self.datasheet_n_m
         } else {
             0.0
         }
     }
 
+    /// Where the plant's rate lies by this fit, N/m, least and most: the
+    /// rate ± its uncertainty ([`Self::uncertainty_n_m`]); for the per-tick
+    /// fit without the stick column, the rates it would read as this one
+    /// within [`DECIMATED_ERROR`], and at least its statistical
+    /// uncertainty either side. A datasheet's rate outside is contradicted.
+    pub fn bounds_n_m(&self) -> (f64, f64) {
+        let (k, u) = (self.k_s_n_m.0, self.uncertainty_n_m());
+        if self.per_tick && !self.stick_column {
+            let (soft, stiff) = DECIMATED_ERROR;
+            (
+                (k / (1.0 + stiff)).min(k - u),
+                (k / (1.0 + soft)).max(k + u),
+            )
+        } else {
+            (k - u, k + u)
+        }
+    }
+
     /// Relative uncertainty of the spring rate the configuration ends up
     /// with, given the datasheet's own tolerance `datasheet_tol`: the
-    /// measurement's ([`Self::uncertainty_n_m`] over the rate) when it
-    /// replaced the datasheet. When the datasheet's rate stands, its
-    /// tolerance, widened to the far end of the measurement's interval
+    /// measurement's (the far end of [`Self::bounds_n_m`] over the rate)
+    /// when it replaced the datasheet. When the datasheet's rate stands,
+    /// its tolerance, widened to the far end of the measurement's interval
     /// ([`Self::reach_n_m`]) when that is further: a fit too loose to
     /// replace the datasheet still says the spring may be anywhere in its
     /// interval (on 20 drawn plants such fits were nearer the plant's
@@ -433,6 +493,10 @@ impl SpringFit {
     /// fit).
     pub fn relative_uncertainty(&self, datasheet_tol: f64) -> f64 {
         match self.value() {
+            Some(k) if self.per_tick && !self.stick_column => {
+                let (lo, hi) = self.bounds_n_m();
+                (k - lo).max(hi - k) / k
+            }
             Some(k) => self.uncertainty_n_m() / k,
             None => datasheet_tol.max(self.reach_n_m() / self.datasheet_n_m),
         }
@@ -440,29 +504,40 @@ impl SpringFit {
 
     /// How far from the datasheet's rate the measurement's interval
     /// reaches, N/m (zero when the rate was not measured): the per-tick
-    /// fit's rate ± its uncertainty ([`Self::uncertainty_n_m`]), the
-    /// per-sweep fit's two-standard-deviation interval.
+    /// fit's [`Self::bounds_n_m`], the per-sweep fit's two-standard-deviation
+    /// interval.
     pub fn reach_n_m(&self) -> f64 {
-        let k = self.k_s_n_m.0;
-        let reach = (k - self.datasheet_n_m).abs() + self.interval_half_width().0;
-        if k > 0.0 && reach.is_finite() {
+        let (lo, hi, _) = self.interval_n_m();
+        let reach = (self.datasheet_n_m - lo)
+            .abs()
+            .max((hi - self.datasheet_n_m).abs());
+        if self.k_s_n_m.0 > 0.0 && reach.is_finite() {
             reach
         } else {
             0.0
         }
     }
 
-    /// Half the measurement's interval, N/m, and what it is. The per-tick
-    /// fit's interval is its rate ± its uncertainty
-    /// ([`Self::uncertainty_n_m`]: two standard deviations from the
-    /// jackknife are far narrower than its error), so a configuration it
-    /// wrote, identified again on the same run, keeps its tolerance; the
-    /// per-sweep fit's is its two-standard-deviation interval.
-    fn interval_half_width(&self) -> (f64, &'static str) {
-        if self.per_tick {
-            (self.uncertainty_n_m(), "its uncertainty")
-        } else {
-            (self.two_sigma_n_m(), "two standard deviations")
+    /// The measurement's interval, N/m, and what it is. The per-tick fit's
+    /// is [`Self::bounds_n_m`] (two standard deviations from the jackknife
+    /// are far narrower than its error), so a configuration it wrote,
+    /// identified again on the same run, keeps its tolerance; the per-sweep
+    /// fit's is its two-standard-deviation interval.
+    fn interval_n_m(&self) -> (f64, f64, &'static str) {
+        let k = self.k_s_n_m.0;
+        match (self.per_tick, self.stick_column) {
+            (true, true) => {
+                let (lo, hi) = self.bounds_n_m();
+                (lo, hi, "its uncertainty")
+            }
+            (true, false) => {
+                let (lo, hi) = self.bounds_n_m();
+                (lo, hi, "the rates it reads so without the stick column")
+            }
+            (false, _) => {
+                let w = self.two_sigma_n_m();
+                (k - w, k + w, "two standard deviations")
+            }
         }
     }
 
@@ -478,19 +553,23 @@ impl SpringFit {
     /// of the sweeps (a machine constant does not depend on the
     /// trajectory); for the per-sweep fit the disagreement with its fit
     /// without the inertial column (the sweeps' rows cannot tell the spring
-    /// from a mass there); for the per-tick fit the change the stick column
-    /// made, the disagreement with the per-sweep fit (two readings of the
-    /// same sweeps with different blind spots) and its own error that no
-    /// check reveals ([`PER_TICK_SYSTEMATIC`]).
+    /// from a mass there); for the per-tick fit with the stick column the
+    /// change that column made, the disagreement with the per-sweep fit
+    /// (two readings of the same sweeps with different blind spots) and its
+    /// own error that no check reveals ([`PER_TICK_SYSTEMATIC`]). Without
+    /// the stick column (a decimated log, whose per-sweep fit is too loose
+    /// to check anything: −54 % to +29 % on the runs of
+    /// [`DECIMATED_ERROR`]) the statistical part only; its error is in
+    /// [`Self::bounds_n_m`].
     pub fn uncertainty_n_m(&self) -> f64 {
         let k = self.k_s_n_m.0;
         let finite_or_inf = |d: f64| if d.is_finite() { d } else { f64::INFINITY };
         let spread = finite_or_inf((self.halves_n_m.0 - self.halves_n_m.1).abs());
-        let structure = if self.per_tick {
-            finite_or_inf((k - self.without_stick_n_m).abs())
-                .max(finite_or_inf((k - self.per_sweep_n_m.0).abs()))
-        } else {
-            finite_or_inf((k - self.without_inertia_n_m).abs())
+        let structure = match (self.per_tick, self.stick_column) {
+            (true, true) => finite_or_inf((k - self.without_stick_n_m).abs())
+                .max(finite_or_inf((k - self.per_sweep_n_m.0).abs())),
+            (true, false) => 0.0,
+            (false, _) => finite_or_inf((k - self.without_inertia_n_m).abs()),
         };
         self.two_sigma_n_m()
             .max(spread)
@@ -508,10 +587,10 @@ impl SpringFit {
         match self.value() {
             Some(k) => {
                 config.machine.spring_n_m = k as f32;
+                let (lo, hi) = self.bounds_n_m();
                 format!(
-                    "machine.spring_n_m = {k:.0} ± {:.0} (%sigma {pct:.1}, {} sweeps, {}; the \
-                     datasheet's {:.0} is outside)",
-                    self.uncertainty_n_m(),
+                    "machine.spring_n_m = {k:.0}, the plant's within {lo:.0} to {hi:.0} (%sigma \
+                     {pct:.1}, {} sweeps, {}; the datasheet's {:.0} is outside)",
                     self.sweeps,
                     self.checks(),
                     self.datasheet_n_m
@@ -526,9 +605,10 @@ impl SpringFit {
                 self.sampled_current_note()
             ),
             None => format!(
-                "spring rate {k:.0} ± {:.0} N/m ({}) agrees with the datasheet's {:.0} N/m, \
-                 which is kept; {}",
-                self.uncertainty_n_m(),
+                "spring rate {k:.0} N/m, the plant's within {:.0} to {:.0} ({}), agrees with the \
+                 datasheet's {:.0} N/m, which is kept; {}",
+                self.bounds_n_m().0,
+                self.bounds_n_m().1,
                 self.checks(),
                 self.datasheet_n_m,
                 self.interval_note()
@@ -538,10 +618,10 @@ impl SpringFit {
 
     /// Which fit gave the rate.
     fn method(&self) -> &'static str {
-        if self.per_tick {
-            "per tick, slider 1's stick a column"
-        } else {
-            "one row per sweep"
+        match (self.per_tick, self.stick_column) {
+            (true, true) => "per tick, slider 1's stick a column",
+            (true, false) => "per tick, without the stick column a decimated log cannot show",
+            (false, _) => "one row per sweep",
         }
     }
 
@@ -551,7 +631,7 @@ impl SpringFit {
             "{:.0} and {:.0} on the earlier and later half of the sweeps",
             self.halves_n_m.0, self.halves_n_m.1
         );
-        if self.per_tick {
+        if self.per_tick && self.stick_column {
             format!(
                 "{}; {halves}, {:.0} without the stick column, {:.0} one row per sweep; the \
                  uncertainty at least the per-tick fit's own error, {:.1} %",
@@ -559,6 +639,16 @@ impl SpringFit {
                 self.without_stick_n_m,
                 self.per_sweep_n_m.0,
                 100.0 * PER_TICK_SYSTEMATIC
+            )
+        } else if self.per_tick {
+            let (soft, stiff) = DECIMATED_ERROR;
+            format!(
+                "{}; {halves}, {:.0} one row per sweep; such a fit read {:+.1} % to {:+.1} % of \
+                 the plant's rate",
+                self.method(),
+                self.per_sweep_n_m.0,
+                100.0 * soft,
+                100.0 * stiff
             )
         } else {
             format!(
@@ -590,6 +680,7 @@ mod tests {
             without_inertia_n_m: -800.0,
             per_sweep_n_m: (-829.0, 169.2),
             per_tick: false,
+            stick_column: false,
             without_stick_n_m: f64::NAN,
             current_ticks_share: 1.0,
             note: String::new(),
@@ -618,6 +709,7 @@ mod tests {
             without_inertia_n_m: f64::NAN,
             per_sweep_n_m: (k_n_m + 5.0, 1.0),
             per_tick: true,
+            stick_column: true,
             without_stick_n_m: k_n_m - 1.0,
             current_ticks_share: 1.0,
             note: String::new(),
@@ -650,6 +742,46 @@ mod tests {
             far.relative_uncertainty(0.1) >= super::PER_TICK_SYSTEMATIC * 656.6 / 480.0,
             "{note}"
         );
+    }
+
+    /// The per-tick fit of a decimated log (no stick column) reads up to
+    /// a fifth soft on a plant whose slider 1 sticks hard: the plant lies
+    /// between the rates it would read as this one ([`DECIMATED_ERROR`]),
+    /// a datasheet outside that interval is contradicted and replaced, one
+    /// inside it stands with its tolerance reaching to the interval's far
+    /// end.
+    ///
+    /// [`DECIMATED_ERROR`]: super::DECIMATED_ERROR
+    #[test]
+    fn a_decimated_per_tick_rate_bounds_the_plant_on_its_soft_side() {
+        let (soft, stiff) = super::DECIMATED_ERROR;
+        let decimated = |k_n_m: f64| SpringFit {
+            stick_column: false,
+            without_stick_n_m: f64::NAN,
+            ..per_tick(k_n_m)
+        };
+        let far = decimated(480.0);
+        let (lo, hi) = far.bounds_n_m();
+        assert!((lo - 480.0 / (1.0 + stiff)).abs() < 1e-9, "{lo}");
+        assert!((hi - 480.0 / (1.0 + soft)).abs() < 1e-9, "{hi}");
+        assert_eq!(far.value(), Some(480.0), "{far:?}");
+        let mut config = Config::default();
+        let note = far.apply(&mut config);
+        assert_eq!(config.machine.spring_n_m, 480.0);
+        assert!(note.contains("without the stick column"), "{note}");
+        let tol = far.relative_uncertainty(0.1);
+        assert!((tol - (hi - 480.0) / 480.0).abs() < 1e-9, "{tol}");
+
+        // 560 N/m could be a plant of up to 711 read soft: 657 stands.
+        let near = decimated(560.0);
+        assert_eq!(near.value(), None, "{near:?}");
+        let reach = near.reach_n_m();
+        let (lo, hi) = near.bounds_n_m();
+        assert!(
+            (reach - (656.6 - lo).max(hi - 656.6)).abs() < 1e-9,
+            "{reach}"
+        );
+        assert!(near.relative_uncertainty(0.05) > 0.15);
     }
 
     /// Slider 1 stands stuck where grating 1 advanced less than one count

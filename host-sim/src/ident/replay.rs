@@ -179,8 +179,8 @@ impl Prepared {
 
     /// Samples either side of a central difference over about `window_s`
     /// of the replay: at least one of the log's row steps, so that the
-    /// difference spans measured rows and not only the straight line the
-    /// replay filled between two of them.
+    /// difference spans measured rows and not only the curve the replay
+    /// filled between two of them.
     pub(super) fn half_window(&self, window_s: f64) -> usize {
         let ticks = (window_s / f64::from(self.cfg.period_s())).round();
         (ticks.max(1.0) as usize).max(self.replay.clock.decimation as usize)

@@ -32,9 +32,15 @@ and `--rates` the control rates each runs at: the study behind
 `ident::DECIMATED_ERROR`, on the report's plants (`host-sim report --draws
 31-36 --no-effects --out d` writes `d/variants/draw-N/plant.toml`):
 
-    python3 scripts/spring-heldout.py --plants report/variants/*/plant.toml \
+    V=report/variants
+    python3 scripts/spring-heldout.py --plants \
+        $V/{default,draw-11,draw-12,pin-friction,presliding}/plant.toml \
+        $V/{slider-1-friction,slider-2-friction,stiff-stiction}/plant.toml \
         d/variants/draw-3?/plant.toml --rates 500,1000,2000,5000 \
         --every 4,10,20 --out /tmp/st
+
+(the report's two 1 kHz variants left out: one is the default's plant,
+and draw 13 was not among the 154 runs of `DECIMATED_ERROR`)
 
 About a second per run on two cores after `cargo build --release -p
 host-sim`.

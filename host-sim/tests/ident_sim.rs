@@ -760,7 +760,6 @@ fn a_decimated_calibration_replaces_a_datasheet_spring_its_fit_contradicts() {
     );
     let r = identify_jae_with(&[("jae", &log)], &base, &IdentOptions::default()).unwrap();
     let truth = plant.spring.stiffness_n_m;
-    eprintln!("{:?}", r.spring);
     assert!(
         r.spring.per_tick && !r.spring.stick_column,
         "{:?}",
@@ -797,8 +796,9 @@ fn a_decimated_calibration_replaces_a_datasheet_spring_its_fit_contradicts() {
 /// 72, whose spring the per-tick fit reads within 6.1 % of the datasheet's)
 /// and drawn plant 72 at a row every 10th tick (written since stop 75 by
 /// the per-tick fit without the stick column, whose interval is not
-/// centred on its rate; until then the datasheet's rate kept). Until stop 45 each pass added `c4`'s part once more (drawn plant
-/// 72: 0.263 → 0.286 over five passes).
+/// centred on its rate; until then the datasheet's rate kept). Until stop
+/// 45 each pass added `c4`'s part once more (drawn plant 72: 0.263 → 0.286
+/// over five passes).
 #[test]
 fn identifying_again_from_the_written_configuration_keeps_the_stiffness_tolerance() {
     let base = Config::default().at_rate(1000.0).0;

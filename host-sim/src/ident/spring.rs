@@ -466,15 +466,22 @@ impl SpringFit {
     /// within [`DECIMATED_ERROR`], and at least its statistical
     /// uncertainty either side. A datasheet's rate outside is contradicted.
     pub fn bounds_n_m(&self) -> (f64, f64) {
+        let k = self.k_s_n_m.0;
+        let (below, above) = self.widths_n_m();
+        (k - below, k + above)
+    }
+
+    /// How far below and above the rate [`Self::bounds_n_m`] reach, N/m.
+    fn widths_n_m(&self) -> (f64, f64) {
         let (k, u) = (self.k_s_n_m.0, self.uncertainty_n_m());
         if self.per_tick && !self.stick_column {
             let (soft, stiff) = DECIMATED_ERROR;
             (
-                (k / (1.0 + stiff)).min(k - u),
-                (k / (1.0 + soft)).max(k + u),
+                (k - k / (1.0 + stiff)).max(u),
+                (k / (1.0 + soft) - k).max(u),
             )
         } else {
-            (k - u, k + u)
+            (u, u)
         }
     }
 
@@ -493,11 +500,10 @@ impl SpringFit {
     /// fit).
     pub fn relative_uncertainty(&self, datasheet_tol: f64) -> f64 {
         match self.value() {
-            Some(k) if self.per_tick && !self.stick_column => {
-                let (lo, hi) = self.bounds_n_m();
-                (k - lo).max(hi - k) / k
+            Some(k) => {
+                let (below, above) = self.widths_n_m();
+                below.max(above) / k
             }
-            Some(k) => self.uncertainty_n_m() / k,
             None => datasheet_tol.max(self.reach_n_m() / self.datasheet_n_m),
         }
     }
@@ -524,21 +530,17 @@ impl SpringFit {
     /// identified again on the same run, keeps its tolerance; the per-sweep
     /// fit's is its two-standard-deviation interval.
     fn interval_n_m(&self) -> (f64, f64, &'static str) {
-        let k = self.k_s_n_m.0;
-        match (self.per_tick, self.stick_column) {
-            (true, true) => {
-                let (lo, hi) = self.bounds_n_m();
-                (lo, hi, "its uncertainty")
-            }
-            (true, false) => {
-                let (lo, hi) = self.bounds_n_m();
-                (lo, hi, "the rates it reads so without the stick column")
-            }
-            (false, _) => {
-                let w = self.two_sigma_n_m();
-                (k - w, k + w, "two standard deviations")
-            }
+        if !self.per_tick {
+            let (k, w) = (self.k_s_n_m.0, self.two_sigma_n_m());
+            return (k - w, k + w, "two standard deviations");
         }
+        let (lo, hi) = self.bounds_n_m();
+        let what = if self.stick_column {
+            "its uncertainty"
+        } else {
+            "the rates it reads so without the stick column"
+        };
+        (lo, hi, what)
     }
 
     /// Two standard deviations of the fitted rate, N/m (from its
@@ -604,15 +606,16 @@ impl SpringFit {
                 self.interval_note(),
                 self.sampled_current_note()
             ),
-            None => format!(
-                "spring rate {k:.0} N/m, the plant's within {:.0} to {:.0} ({}), agrees with the \
-                 datasheet's {:.0} N/m, which is kept; {}",
-                self.bounds_n_m().0,
-                self.bounds_n_m().1,
-                self.checks(),
-                self.datasheet_n_m,
-                self.interval_note()
-            ),
+            None => {
+                let (lo, hi) = self.bounds_n_m();
+                format!(
+                    "spring rate {k:.0} N/m, the plant's within {lo:.0} to {hi:.0} ({}), agrees \
+                     with the datasheet's {:.0} N/m, which is kept; {}",
+                    self.checks(),
+                    self.datasheet_n_m,
+                    self.interval_note()
+                )
+            }
         }
     }
 

@@ -23,6 +23,11 @@ are deleted once counted.
 
     python3 scripts/heldout-chain.py --seeds 1-40 --out /tmp/chain
 
+With `--family presliding` the plants are spring-heldout.py's harsher
+family (docs/force.md, "Presliding guides and the spring fit"):
+
+    python3 scripts/heldout-chain.py --family presliding --seeds 1-12 --out /tmp/pre
+
 About 20 seconds per seed (14 minutes for 40) after `cargo build --release -p
 host-sim`.
 """
@@ -63,6 +68,9 @@ def main():
     ap.add_argument("--out", required=True, help="working directory")
     ap.add_argument("--every", type=int, default=1,
                     help="the calibration runs' row spacing, ticks (the holds keep every tick)")
+    ap.add_argument("--family", choices=plants.FAMILIES, default="heldout",
+                    help="spring-heldout.py's generator: `presliding` draws +/-50 %%, a static "
+                         "friction up to twice the kinetic and presliding contacts on even seeds")
     a = ap.parse_args()
     every = ["--record-every", str(a.every)] if a.every > 1 else []
     first, last = (int(x) for x in a.seeds.split("-"))
@@ -72,8 +80,8 @@ def main():
     for seed in range(first, last + 1):
         d = os.path.join(a.out, f"p{seed}")
         os.makedirs(d, exist_ok=True)
-        plant, _ = plants.drawn_plant(seed, defaults)
-        rate = plants.RATES[seed % 6]
+        plant, _ = plants.drawn_plant(seed, defaults, a.family)
+        rate = plants.seed_rate(seed, a.family)
         plant_path = os.path.join(d, "plant.toml")
         with open(plant_path, "w") as f:
             f.write(plant)

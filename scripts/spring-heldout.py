@@ -26,6 +26,11 @@ the plant.
 
     python3 scripts/spring-heldout.py --seeds 1-40 --every 1,4,10,20 --out /tmp/sh
 
+`--family presliding` draws a harsher family instead (`drawn_plant`:
++/-50 %, a static friction up to twice the kinetic, presliding guides and
+pin on even seeds; seed mod 6: 800, 1000, 1500, 2500, 800, 1000 Hz;
+docs/force.md, "Presliding guides and the spring fit").
+
 `--plants FILE...` runs given plant files instead of drawn ones (their
 `[spring] stiffness_n_m` the truth, the default's where a file has none)
 and `--rates` the control rates each runs at: the study behind
@@ -57,34 +62,63 @@ HOST_SIM = os.path.join(os.path.dirname(__file__), "..", "target", "release", "h
 DATASHEET_N_M = 656.6
 # seed mod 6 -> control rate, Hz
 RATES = [2000, 1000, 2000, 1000, 500, 5000]
+# --family presliding: seed mod 6 -> control rate, Hz
+PRESLIDING_RATES = [800, 1000, 1500, 2500, 800, 1000]
+FAMILIES = ("heldout", "presliding")
 
 
-def drawn_plant(seed, defaults):
+def drawn_plant(seed, defaults, family="heldout"):
     """TOML text of plant `seed`: the drawn parameters, merged by the
-    simulator onto its defaults."""
-    r = random.Random(1000 + seed)
+    simulator onto its defaults, and its spring rate.
+
+    `heldout`: every force-path parameter within +/-30 %, one static/kinetic
+    ratio within 1.05..1.45 for all three contacts, `random.Random(1000 +
+    seed)`. `presliding` (docs/force.md, "Presliding guides and the spring
+    fit"): the same parameters and the joint's inertia within +/-50 %, a
+    ratio within 1.0..2.0 per contact, and on even seeds LuGre presliding
+    of the guides (5 to 50 um) and the pin (1 to 10 mrad), the plant's
+    physical ranges; `random.Random(5000 + seed)`."""
+    stress = family == "presliding"
+    r = random.Random((5000 if stress else 1000) + seed)
+    spread = 0.5 if stress else 0.3
+    joint = ["coulomb_nm", "viscous_nm_s_rad"] + (["inertia_kg_m2"] if stress else [])
     drawn = {
-        s: {k: defaults[s][k] * r.uniform(0.7, 1.3) for k in keys}
+        s: {k: defaults[s][k] * r.uniform(1 - spread, 1 + spread) for k in keys}
         for s, keys in [
             ("motor", ["coulomb_nm", "viscous_nm_s_rad"]),
             ("slider1", ["mass_kg", "coulomb_n", "viscous_n_s_m"]),
             ("slider2", ["mass_kg", "coulomb_n", "viscous_n_s_m"]),
-            ("joint", ["coulomb_nm", "viscous_nm_s_rad"]),
+            ("joint", joint),
             ("cable0", ["stiffness_n_m"]),
             ("cable1", ["stiffness_n_m"]),
             ("cable2", ["stiffness_n_m"]),
             ("spring", ["stiffness_n_m", "preload_n"]),
         ]
     }
-    ratio = r.uniform(1.05, 1.45)
-    drawn["slider1"]["static_n"] = ratio * drawn["slider1"]["coulomb_n"]
-    drawn["slider2"]["static_n"] = ratio * drawn["slider2"]["coulomb_n"]
-    drawn["joint"]["static_nm"] = ratio * drawn["joint"]["coulomb_nm"]
+    statics = [("slider1", "static_n", "coulomb_n"), ("slider2", "static_n", "coulomb_n"),
+               ("joint", "static_nm", "coulomb_nm")]
+    if stress:
+        for s, static, kinetic in statics:
+            drawn[s][static] = r.uniform(1.0, 2.0) * drawn[s][kinetic]
+    else:
+        ratio = r.uniform(1.05, 1.45)
+        for s, static, kinetic in statics:
+            drawn[s][static] = ratio * drawn[s][kinetic]
     text = "".join(
         f"[{s}]\n" + "".join(f"{k} = {v!r}\n" for k, v in kv.items()) + "\n"
         for s, kv in drawn.items()
     )
+    if stress and seed % 2 == 0:
+        text += (f"[effects.presliding]\nslider_presliding_m = {r.uniform(5e-6, 5e-5)!r}\n"
+                 f"joint_presliding_rad = {r.uniform(1e-3, 1e-2)!r}\n")
     return text, drawn["spring"]["stiffness_n_m"]
+
+
+def seed_rate(seed, family="heldout"):
+    """The control rate plant `seed` of `family` runs at, Hz."""
+    if family == "presliding":
+        return PRESLIDING_RATES[seed % 6]
+    return RATES[seed % 6]
 
 
 def default_plant():
@@ -136,8 +170,8 @@ def runs(a, first, last, defaults):
                 yield i + 1, rate, path, truth
         return
     for seed in range(first, last + 1):
-        plant, truth = drawn_plant(seed, defaults)
-        rate = a.rate or RATES[seed % 6]
+        plant, truth = drawn_plant(seed, defaults, a.family)
+        rate = a.rate or seed_rate(seed, a.family)
         plant_path = os.path.join(a.out, f"p{seed}.toml")
         with open(plant_path, "w") as f:
             f.write(plant)
@@ -149,6 +183,8 @@ def main():
     ap.add_argument("--seeds", default="1-40", help="first-last")
     ap.add_argument("--every", default="1,10", help="row spacings, comma separated")
     ap.add_argument("--rate", type=float, help="one control rate for every seed, Hz")
+    ap.add_argument("--family", choices=FAMILIES, default="heldout",
+                    help="the drawn plants' generator (see drawn_plant)")
     ap.add_argument("--plants", nargs="+", help="plant files to run instead of drawn plants")
     ap.add_argument("--rates", help="with --plants: control rates, Hz, comma separated")
     ap.add_argument("--out", required=True, help="working directory")

@@ -142,9 +142,14 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
 pub const JOINT_DIFF_HALF_WINDOW_S: f64 = 0.005;
 
 /// Joint travel since the last reversal before a row enters the joint fit,
-/// rad: 20 µm at a 4 mm pulley, several times the micrometre presliding
-/// distance of a pin or a guide, so the friction is at its kinetic level.
-pub const JOINT_MIN_TRAVEL_RAD: f64 = 5e-3;
+/// rad: three presliding distances of a worn pin (10 mrad, the upper end of
+/// the plant's effects table; the datasheet's pin 3 mrad), after which a
+/// bristle (LuGre) friction state has come within 5 % of its sliding
+/// level, so the friction is at its kinetic level. At 5 mrad cable 1's
+/// stiffness read 8 % to 26 % soft on drawn plants whose pins preslide
+/// over 4 to 8.5 mrad (docs/force.md, "Presliding guides and the spring
+/// fit").
+pub const JOINT_MIN_TRAVEL_RAD: f64 = 30e-3;
 
 /// Zero-phase speed and acceleration of `x` sampled every `period_s`: central
 /// differences over `half` samples either side (NaN within `2 half` of

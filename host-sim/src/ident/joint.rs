@@ -146,7 +146,7 @@ pub const JOINT_DIFF_HALF_WINDOW_S: f64 = 0.005;
 /// the plant's effects table; the datasheet's pin 3 mrad), after which a
 /// bristle (LuGre) friction state has come within 5 % of its sliding
 /// level, so the friction is at its kinetic level. At 5 mrad cable 1's
-/// stiffness read 8 % to 26 % soft on drawn plants whose pins preslide
+/// stiffness read 12 % to 26 % soft on drawn plants whose pins preslide
 /// over 4 to 8.5 mrad (docs/force.md, "Presliding guides and the spring
 /// fit").
 pub const JOINT_MIN_TRAVEL_RAD: f64 = 30e-3;

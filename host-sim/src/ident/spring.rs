@@ -313,6 +313,11 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
     fit
 }
 
+/// Two standard deviations, N/m, of a rate fitted as `(K_s, %sigma)`.
+fn two_sigma((k_n_m, pct): (f64, f64)) -> f64 {
+    0.02 * pct * k_n_m.abs()
+}
+
 /// Least squares of rows `[r0, r1, r2, y]`: `y` on the first `columns`
 /// regressors.
 fn fit_rows<'a>(
@@ -554,8 +559,7 @@ impl SpringFit {
     /// Two standard deviations of the fitted rate, N/m (from its
     /// `%sigma`).
     fn two_sigma_n_m(&self) -> f64 {
-        let (k, pct) = self.k_s_n_m;
-        0.02 * pct * k.abs()
+        two_sigma(self.k_s_n_m)
     }
 
     /// How far the rate may be off, N/m, whichever is largest: two
@@ -579,11 +583,10 @@ impl SpringFit {
         let spread = finite_or_inf((self.halves_n_m.0 - self.halves_n_m.1).abs());
         let structure = match (self.per_tick, self.stick_column) {
             (true, true) => {
-                let (sweep_k, sweep_pct) = self.per_sweep_n_m;
-                let sweep_two_sigma = 0.02 * sweep_pct * sweep_k.abs();
                 // A per-sweep fit that did not run (NaN) leaves the rate
                 // unpinned; one of unbounded noise contradicts nothing.
-                let beyond = match (k - sweep_k).abs() - sweep_two_sigma {
+                let sweep_k = self.per_sweep_n_m.0;
+                let beyond = match (k - sweep_k).abs() - two_sigma(self.per_sweep_n_m) {
                     d if d.is_nan() => f64::INFINITY,
                     d => d.max(0.0),
                 };

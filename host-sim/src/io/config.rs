@@ -308,10 +308,17 @@ pub fn datasheet_force_parts(config: &Config) -> Vec<&'static str> {
     if config.fusion.pin_coulomb_nm == d.fusion.pin_coulomb_nm {
         parts.push("the pin's friction (fusion.pin_coulomb_nm; --procedure jae)");
     }
-    if config.dob.viscous_nm_s_rad == d.dob.viscous_nm_s_rad {
+    if motor_damping_is_datasheet(config) {
         parts.push("the motor's damping (dob.viscous_nm_s_rad; --procedure bm)");
     }
     parts
+}
+
+/// Whether the DOB's motor damping `B_m` (`dob.viscous_nm_s_rad`) is still
+/// the datasheet plant's: no no-load motor run (`identify --procedure bm`)
+/// has fitted it.
+pub fn motor_damping_is_datasheet(config: &Config) -> bool {
+    config.dob.viscous_nm_s_rad == Config::default().dob.viscous_nm_s_rad
 }
 
 /// A warning naming [`datasheet_force_parts`] of the configuration `what`

@@ -33,12 +33,16 @@ numpy needed.
 """
 
 import argparse
-import csv
 import math
 import os
 import subprocess
+import sys
+import tomllib
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import logcsv  # noqa: E402
 
 HOST_SIM = os.path.join(os.path.dirname(__file__), "..", "target", "release", "host-sim")
 # identify's constants (host-sim/src/ident/spring.rs, joint.rs): the sweep
@@ -48,6 +52,8 @@ SWITCH_M_S = 2e-4
 MIN_TRAVEL_M = 60e-6
 HALF_WINDOW_S = 0.005
 GRATING_M = 1e-6
+COLS = ["x1_m", "x2_m", "x2_vel_m_s", "tension1_hat_n", "fs_true_n", "fw2_true_n",
+        "fw1_true_n", "theta_true_rad"]
 
 
 def low_pass(u, pole):
@@ -126,9 +132,8 @@ def main():
         cfg = ["--config", path]
     subprocess.run([HOST_SIM, "simulate", "--scenario", "jae-ident", "--plant", a.plant, *cfg,
                     "--out", log], check=True, capture_output=True)
-    with open(log) as f:
-        rows = list(csv.DictReader(f))
-    col = lambda n: np.array([float(r[n]) for r in rows])  # noqa: E731
+    cols = logcsv.read_columns(log, COLS, min_rows=2)
+    col = lambda n: np.array(cols[n])  # noqa: E731
     period_s = 1.0 / a.rate
     half = max(1, round(HALF_WINDOW_S / period_s))
     x1, x2, v2 = col("x1_m"), col("x2_m"), col("x2_vel_m_s")
@@ -138,7 +143,6 @@ def main():
     s1, s2 = stuck(x1, w1, period_s), stuck(x2, w2, period_s)
     q = np.column_stack([low_pass(c, pole) for c in (x2, v2, s1, s2)])
     with open(a.plant, "rb") as f:
-        import tomllib
         plant = tomllib.load(f)
     k_plant = plant.get("spring", {}).get("stiffness_n_m", 656.6)
     print(f"{len(sw)} sweeps; the plant's spring {k_plant:.0f} N/m")

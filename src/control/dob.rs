@@ -154,20 +154,27 @@ pub fn tension_model(
 mod tests {
     use super::*;
 
-    /// A motor-only plant `J w' = K i - B w - tau_load`: the observer recovers
-    /// a step of load torque with the first-order response of `Q`.
-    #[test]
-    fn recovers_load_step_on_motor_only_plant() {
+    /// The datasheet machine's observer at `rate_hz`, fresh state, and the
+    /// motor's inertia, torque constant and damping `(J, K, B)` a test's
+    /// motor-only plant steps with.
+    fn motor_only(rate_hz: f32) -> (Machine, DobConfig, Dob, DobState, (f32, f32, f32)) {
         let m = Machine::default();
         let cfg = DobConfig::default();
-        let t = 1.0 / 2000.0;
-        let dob = Dob::new(&cfg, &m, t);
-        let mut s = DobState::default();
-        let (j, k, b) = (
+        let dob = Dob::new(&cfg, &m, 1.0 / rate_hz);
+        let jkb = (
             m.rotor_inertia_kg_m2,
             m.torque_constant_nm_a,
             cfg.viscous_nm_s_rad,
         );
+        (m, cfg, dob, DobState::default(), jkb)
+    }
+
+    /// A motor-only plant `J w' = K i - B w - tau_load`: the observer recovers
+    /// a step of load torque with the first-order response of `Q`.
+    #[test]
+    fn recovers_load_step_on_motor_only_plant() {
+        let (m, cfg, dob, mut s, (j, k, b)) = motor_only(2000.0);
+        let t = 1.0 / 2000.0;
         let mut w = 0.0f32;
         let load = 3e-3f32; // N·m, applied from t = 0.1 s
         let mut last = DobOut::default();
@@ -182,7 +189,7 @@ mod tests {
             if (0.1 + 0.02..0.1 + 0.03).contains(&time) {
                 // After 1.26 time constants the estimate has risen by 1 - e^-x.
                 let x = cfg.cutoff_rad_s * (time - 0.1);
-                let expect = load * (1.0 - libm::expf(-x));
+                let expect = load * (1.0 - crate::math::exp(-x));
                 assert!(
                     (last.load_torque_nm - expect).abs() < 0.08 * load,
                     "t={time}: {} vs {expect}",
@@ -209,16 +216,8 @@ mod tests {
     /// read `g T / 2` of the inertial torque (6.3 % at 500 Hz).
     #[test]
     fn the_inertial_term_is_exact_for_the_discrete_motor_at_a_slow_rate() {
-        let m = Machine::default();
-        let cfg = DobConfig::default();
+        let (_, _, dob, mut s, (j, k, b)) = motor_only(500.0);
         let t = 1.0 / 500.0;
-        let dob = Dob::new(&cfg, &m, t);
-        let mut s = DobState::default();
-        let (j, k, b) = (
-            m.rotor_inertia_kg_m2,
-            m.torque_constant_nm_a,
-            cfg.viscous_nm_s_rad,
-        );
         let load = 1e-3f32;
         let mut w = 0.0f32;
         let mut worst_error = 0.0f32;

@@ -604,8 +604,9 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let jf = &j.joint;
         let _ = writeln!(
             s,
-            "joint torque balance ({} rows, joint slipping): K_w2 {} N/m (from c4), K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
+            "joint torque balance ({} rows, joint slipping; {}): K_w2 {} N/m (from c4), K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
             jf.rows,
+            jf.method,
             fmt_num(jf.k_w2_n_m),
             fmt_num(jf.k_w1_n_m.0),
             jf.k_w1_n_m.1,

@@ -173,8 +173,9 @@ mod tests {
     /// a step of load torque with the first-order response of `Q`.
     #[test]
     fn recovers_load_step_on_motor_only_plant() {
-        let (m, cfg, dob, mut s, (j, k, b)) = motor_only(2000.0);
-        let t = 1.0 / 2000.0;
+        let rate_hz = 2000.0;
+        let (m, cfg, dob, mut s, (j, k, b)) = motor_only(rate_hz);
+        let t = 1.0 / rate_hz;
         let mut w = 0.0f32;
         let load = 3e-3f32; // N·m, applied from t = 0.1 s
         let mut last = DobOut::default();
@@ -216,8 +217,9 @@ mod tests {
     /// read `g T / 2` of the inertial torque (6.3 % at 500 Hz).
     #[test]
     fn the_inertial_term_is_exact_for_the_discrete_motor_at_a_slow_rate() {
-        let (_, _, dob, mut s, (j, k, b)) = motor_only(500.0);
-        let t = 1.0 / 500.0;
+        let rate_hz = 500.0;
+        let (_, _, dob, mut s, (j, k, b)) = motor_only(rate_hz);
+        let t = 1.0 / rate_hz;
         let load = 1e-3f32;
         let mut w = 0.0f32;
         let mut worst_error = 0.0f32;

@@ -28,7 +28,8 @@ use super::Prepared;
 /// error at once, and the slope shrinks by `var(y) / (var(y) +
 /// var(eps))`. On the report's pin-friction plant (a 12 mN·m pin, 3 N at
 /// the cable against the calibration run's 0.7 N RMS swing of cable 2)
-/// that read cable 1 11 % soft, and the held force 3 % to 14 % low. The
+/// that read cable 1 7 % to 11 % soft, and the probed holds' force 1.8 %
+/// to 14.1 % low. The
 /// commanded angle moves the spring's share and the stretch with it, but
 /// not the pin's stick-slip, which the program does not command. Without
 /// it in the log, or when it explains too little of the stretch (a weak
@@ -135,38 +136,27 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
             rows.len()
         ));
     }
-    let (fit, method) = if rows.iter().all(|row| row.instrument.is_finite()) {
-        match iv_fit(&rows) {
-            Ok(fit) => {
-                let method = format!(
-                    "instrumental variables, theta_ref_rad the stretch's instrument (first-stage F {:.0})",
-                    fit.first_stage_f
-                );
-                (fit, method)
-            }
-            Err(why) => match ols_fit(&rows) {
-                Ok(fit) => (fit, format!("least squares: {why}")),
-                Err(e) => return empty(format!("not identified: {e}")),
-            },
-        }
+    // The instrumental fit, or why least squares stands in for it.
+    let instrumental = if rows.iter().all(|row| row.instrument.is_finite()) {
+        iv_fit(&rows).map_err(|why| format!("least squares: {why}"))
     } else {
-        match ols_fit(&rows) {
-            Ok(fit) => (
-                fit,
-                "least squares: no theta_ref_rad in every row (a pin in stick-slip then reads as a softer cable 1)"
-                    .into(),
-            ),
-            Err(e) => return empty(format!("not identified: {e}")),
+        Err("least squares: no theta_ref_rad in every row (a pin in stick-slip then reads as a softer cable 1)".into())
+    };
+    let (fit, method) = match instrumental {
+        Ok(fit) => {
+            let method = format!(
+                "instrumental variables, theta_ref_rad the stretch's instrument (first-stage F {:.0})",
+                fit.first_stage_f
+            );
+            (fit, method)
         }
+        Err(method) => match ols_fit(&rows) {
+            Ok(fit) => (fit, method),
+            Err(e) => return empty(format!("not identified: {e}")),
+        },
     };
     let pct = |k: usize| 100.0 * fit.std[k] / fit.params[k].abs();
-    let sq: f64 = rows
-        .iter()
-        .map(|row| {
-            let pred: f64 = row.phi.iter().zip(&fit.params).map(|(a, b)| a * b).sum();
-            (row.y - pred).powi(2)
-        })
-        .sum();
+    let sq = residual_sum_of_squares(&rows, &fit.params);
     JointFit {
         rows: rows.len() as u64,
         method,
@@ -186,6 +176,16 @@ struct JointRow {
     phi: [f64; 5],
     instrument: f64,
     y: f64,
+}
+
+/// `sum (y - phi . params)^2` over the rows.
+fn residual_sum_of_squares(rows: &[JointRow], params: &[f64; 5]) -> f64 {
+    rows.iter()
+        .map(|row| {
+            let pred: f64 = row.phi.iter().zip(params).map(|(a, b)| a * b).sum();
+            (row.y - pred).powi(2)
+        })
+        .sum()
 }
 
 /// A solved joint fit: parameters and their standard deviations.
@@ -271,16 +271,11 @@ fn iv_fit(rows: &[JointRow]) -> Result<Solved, String> {
         .try_inverse()
         .ok_or_else(|| "Z'X is singular".to_string())?;
     let beta = inv * zy;
-    let sq: f64 = rows
-        .iter()
-        .map(|row| {
-            let x = Vector5::from_fn(|k, _| row.phi[k] / sx[k]);
-            (row.y - x.dot(&beta)).powi(2)
-        })
-        .sum();
+    let params: [f64; 5] = core::array::from_fn(|k| beta[k] / sx[k]);
+    let sq = residual_sum_of_squares(rows, &params);
     let cov = inv * zz * inv.transpose() * (sq / (n - 5.0));
     Ok(Solved {
-        params: core::array::from_fn(|k| beta[k] / sx[k]),
+        params,
         std: core::array::from_fn(|k| cov[(k, k)].max(0.0).sqrt() / sx[k]),
         first_stage_f,
     })

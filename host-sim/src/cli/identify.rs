@@ -590,8 +590,8 @@ pub fn format_report(r: &IdentifyReport) -> String {
             fmt_num(sp.residual_rms_n),
             sp.note
         );
-        let [tol, tol_spring, tol_c4] = j.stiffness_tolerance;
-        let floor = if tol > tol_spring + tol_c4 {
+        let [tol, tol_spring, tol_c2] = j.stiffness_tolerance;
+        let floor = if tol > tol_spring + tol_c2 {
             " (at least the configuration's tolerance, the datasheet's or an earlier \
              identification's, with its spring rate kept)"
         } else {
@@ -599,15 +599,25 @@ pub fn format_report(r: &IdentifyReport) -> String {
         };
         let _ = writeln!(
             s,
-            "  -> fusion.stiffness_tolerance = {tol:.3}: the spring rate's relative uncertainty {tol_spring:.3} plus c4's through c4 r - 1, {tol_c4:.3}{floor}"
+            "  -> fusion.stiffness_tolerance = {tol:.3}: the spring rate's relative uncertainty {tol_spring:.3} plus cable 2's ({}), {tol_c2:.3}{floor}",
+            if j.joint.cable2.k_w2_n_m.1.is_finite() { "its slipping fit" } else { "c4's through c4 r - 1" }
         );
         let jf = &j.joint;
+        let c2 = &jf.cable2;
         let _ = writeln!(
             s,
-            "joint torque balance ({} rows, joint slipping; {}): K_w2 {} N/m (from c4), K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
+            "cable 2 stiffness ({}): K_w2 {} N/m (%sigma eff {:.2}); K_s / (c4 r - 1) = {} N/m, kept for the firmware's cable-2 term on theta_hat",
+            c2.method,
+            fmt_num(c2.k_w2_n_m.0),
+            c2.k_w2_n_m.1,
+            fmt_num(c2.k_w2_from_c4_n_m),
+        );
+        let _ = writeln!(
+            s,
+            "joint torque balance ({} rows, joint slipping; {}): K_w2 {} N/m, K_w1 {} N/m (%sigma {:.1}), pin friction {} N·m (%sigma {:.1}), residual rms {} N·m\n  -> {}\n",
             jf.rows,
             jf.method,
-            fmt_num(jf.k_w2_n_m),
+            fmt_num(c2.k_w2_n_m.0),
             fmt_num(jf.k_w1_n_m.0),
             jf.k_w1_n_m.1,
             fmt_num(jf.pin_coulomb_nm.0),

@@ -103,9 +103,12 @@ impl JaeResult {
     /// configuration's `prior_tol`: the spring rate's
     /// ([`SpringFit::relative_uncertainty`](super::SpringFit::relative_uncertainty),
     /// with the datasheet's tolerance the lesser of `prior_tol` and a stock
-    /// spring's, the default configuration's 10 %) plus `c4`'s carried
-    /// through `K_w2 = K_s / (c4 r - 1)`, two effective standard
-    /// deviations, `2 r std_eff(c4) / (c4 r - 1)`. When the configuration's
+    /// spring's, the default configuration's 10 %) plus cable 2's, two
+    /// effective standard deviations of its slipping fit
+    /// ([`Cable2Fit`](super::Cable2Fit), which scales cable 1's through
+    /// the joint fit) or, when that fit fell back on `c4`, `c4`'s carried
+    /// through `K_w2 = K_s / (c4 r - 1)`, `2 r std_eff(c4) / (c4 r - 1)`.
+    /// When the configuration's
     /// spring rate stands, `prior_tol` is also the floor of the total: a
     /// configuration an earlier identification wrote carries its measured
     /// rate as the datasheet's and the uncertainty it was measured with,
@@ -116,20 +119,23 @@ impl JaeResult {
     fn scale_tolerance(&self, prior_tol: f64, pulley_radius_m: f64) -> [f64; 3] {
         let stock_tol = f64::from(Config::default().fusion.stiffness_tolerance);
         let spring = self.spring.relative_uncertainty(prior_tol.min(stock_tol));
-        let c4 = self.chi_s[3];
-        let excess = c4 * pulley_radius_m - 1.0;
-        let c4_part = self
-            .fit
-            .std_eff(Regressor::X2)
-            .map(|std| 2.0 * pulley_radius_m * std / excess)
-            .filter(|v| excess > 0.0 && v.is_finite())
-            .unwrap_or(0.0);
-        let measured = spring + c4_part;
+        let excess = self.chi_s[3] * pulley_radius_m - 1.0;
+        let cable2_pct = self.joint.cable2.k_w2_n_m.1;
+        let cable2_part = if cable2_pct.is_finite() {
+            2.0 * cable2_pct / 100.0
+        } else {
+            self.fit
+                .std_eff(Regressor::X2)
+                .map(|std| 2.0 * pulley_radius_m * std / excess)
+                .filter(|v| excess > 0.0 && v.is_finite())
+                .unwrap_or(0.0)
+        };
+        let measured = spring + cable2_part;
         let total = match self.spring.value() {
             Some(_) => measured,
             None => measured.max(prior_tol),
         };
-        [total.min(1.0), spring, c4_part]
+        [total.min(1.0), spring, cable2_part]
     }
 
     /// The JAE error the force bound allows beyond the sign band it builds

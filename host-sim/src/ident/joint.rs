@@ -5,13 +5,14 @@ use cable_joint::Config;
 use serde::Serialize;
 
 use super::Prepared;
+use crate::stats::correlation_time;
 
 /// The joint's torque balance (seed Eq. 9, 12, 13 with no load) on runs with
 /// the magnetic encoder, while the joint slips:
 /// `r K_w2 (r theta - x2) = K_w1 r (x1 - r theta) - f_efc sgn(theta') -
-/// f_efv theta' - J_e theta'' - c`, with `K_w2` from the JAE's `c4` and the
-/// datasheet spring and `K_w1`, the pin's friction, its viscous term, the
-/// joint inertia and an offset fitted. The joint speed and acceleration are
+/// f_efv theta' - J_e theta'' - c`, with `K_w2` from [`Cable2Fit`] (cable 2's
+/// stretch against the spring while slider 2 slips) and `K_w1`, the pin's
+/// friction, its viscous term, the joint inertia and an offset fitted. The joint speed and acceleration are
 /// zero-phase central differences of the magnetic encoder over
 /// [`JOINT_DIFF_HALF_WINDOW_S`]: a causal observer lags the slip bursts of a
 /// joint in stick-slip and gives the pin's friction to the viscous term.
@@ -42,8 +43,8 @@ pub struct JointFit {
     /// How the parameters were estimated: instrumental variables with the
     /// commanded angle, or least squares and why.
     pub method: String,
-    /// Cable 2 stiffness from `c4` and the datasheet spring, N/m.
-    pub k_w2_n_m: f64,
+    /// Cable 2's stiffness, the scale of `y`, and how it was measured.
+    pub cable2: Cable2Fit,
     /// Cable 1 stiffness, N/m, and its `%sigma`.
     pub k_w1_n_m: (f64, f64),
     /// Pin Coulomb friction, N·m, and its `%sigma`.
@@ -62,18 +63,13 @@ const JOINT_MAX_PCT_SIGMA: f64 = 30.0;
 /// Fit [`JointFit`] on the prepared runs; `c4` is the identified JAE
 /// position coefficient.
 pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> JointFit {
-    let m = &config.machine;
-    let r = f64::from(m.pulley_radius_m);
-    let k_w2 = cable_joint::config::StretchConfig::from_jae(
-        c4_rad_m as f32,
-        m.spring_n_m,
-        m.pulley_radius_m,
-    )
-    .map_or(f64::NAN, |s| f64::from(s.cable2_n_m));
+    let r = f64::from(config.machine.pulley_radius_m);
+    let cable2 = identify_cable2(preps, config, c4_rad_m);
+    let k_w2 = cable2.k_w2_n_m.0;
     let empty = |note: String| JointFit {
         rows: 0,
         method: String::new(),
-        k_w2_n_m: k_w2,
+        cable2: cable2.clone(),
         k_w1_n_m: (f64::NAN, f64::NAN),
         pin_coulomb_nm: (f64::NAN, f64::NAN),
         pin_viscous_nm_s_rad: f64::NAN,
@@ -81,10 +77,7 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
         note,
     };
     if k_w2.is_nan() {
-        return empty(format!(
-            "not identified: c4 r = {} gives no cable stiffness",
-            c4_rad_m * r
-        ));
+        return empty(format!("not identified: {}", cable2.method));
     }
     // The joint slips when theta' is above the JAE's switching speed seen
     // at the joint (c4 x2').
@@ -160,12 +153,153 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
     JointFit {
         rows: rows.len() as u64,
         method,
-        k_w2_n_m: k_w2,
+        cable2,
         k_w1_n_m: (fit.params[0], pct(0)),
         pin_coulomb_nm: (fit.params[1], pct(1)),
         pin_viscous_nm_s_rad: fit.params[2],
         residual_rms_nm: (sq / rows.len() as f64).sqrt(),
         note: String::new(),
+    }
+}
+
+/// Cable 2's stiffness (seed Eq. 10-12) on runs with the magnetic encoder,
+/// while slider 2 slips: its stretch against the spring's force and slider
+/// 2's friction and inertia, `r theta - x2 = (K_s x2 + f_sc2 sgn(x2') +
+/// f_sv2 x2' + m_1 x2'') / K_w2 + c`, so `K_w2 = K_s / slope` with the
+/// spring rate measured or the datasheet's. Speed and acceleration are
+/// zero-phase central differences of grating 2 over
+/// [`JOINT_DIFF_HALF_WINDOW_S`]; rows count where `|x2'|` is above the
+/// JAE's switching speed and slider 2 has travelled
+/// [`CABLE2_MIN_TRAVEL_M`] since its last reversal.
+///
+/// The JAE's `c4` gives the same stiffness as `K_s / (c4 r - 1)`, but
+/// `c4 r - 1` is the stretch's share of the motion (0.06 with the
+/// datasheet's constants), so `c4`'s error is multiplied about 18 times,
+/// and the JAE fits every row: where slider 2 sticks the joint still
+/// turns and only its cable stretches, which the sign term cannot follow.
+/// On the report's slider-2-friction plant `c4` read 0.6 % low and cable 2
+/// 12.7 % stiff, and cable 1's stiffness, fitted against this cable's
+/// tension, inherited it (+12.2 %). The slipping rows read every report
+/// variant's cable 2 within 0.6 % (docs/force.md, "Cable 2's stiffness
+/// while slider 2 slips"). The configuration keeps `K_s / (c4 r - 1)`
+/// for the firmware's cable-2 term: evaluated on the JAE's `theta_hat`,
+/// that term is the spring's force whatever `c4`'s error, where the
+/// cable's own stiffness would double the angle error's share of the
+/// joint torque.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Cable2Fit {
+    /// Rows used (slider 2 slipping, not faulted).
+    pub rows: u64,
+    /// How `k_w2_n_m` was found: the slipping fit, or `c4` and why.
+    pub method: String,
+    /// Cable 2's stiffness, N/m, and its effective `%sigma` (the
+    /// residual's correlation time taken into account); NaN `%sigma` when
+    /// it comes from `c4`.
+    pub k_w2_n_m: (f64, f64),
+    /// `K_s / (c4 r - 1)`, N/m, the value the configuration keeps.
+    pub k_w2_from_c4_n_m: f64,
+}
+
+/// Slider travel since its last reversal before a row enters the cable-2
+/// fit, m: three presliding distances of a rolling guide at the upper end
+/// of its range (50 µm; the plant's default 20 µm), past which the
+/// slider's friction is at its kinetic level.
+pub const CABLE2_MIN_TRAVEL_M: f64 = 150e-6;
+
+/// Fewest slipping rows for [`Cable2Fit`] before it falls back on `c4`.
+const CABLE2_MIN_ROWS: usize = 200;
+
+/// Fit [`Cable2Fit`] on the prepared runs.
+fn identify_cable2(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> Cable2Fit {
+    let m = &config.machine;
+    let r = f64::from(m.pulley_radius_m);
+    let k_s = f64::from(m.spring_n_m);
+    let from_c4 = cable_joint::config::StretchConfig::from_jae(
+        c4_rad_m as f32,
+        m.spring_n_m,
+        m.pulley_radius_m,
+    )
+    .map_or(f64::NAN, |s| f64::from(s.cable2_n_m));
+    let fallback = |why: String| Cable2Fit {
+        rows: 0,
+        method: if from_c4.is_nan() {
+            format!(
+                "{why}; c4 r = {:.4} gives no cable stiffness either",
+                c4_rad_m * r
+            )
+        } else {
+            format!("from c4 (K_s / (c4 r - 1)): {why}")
+        },
+        k_w2_n_m: (from_c4, f64::NAN),
+        k_w2_from_c4_n_m: from_c4,
+    };
+    let switch = f64::from(config.jae.sign_switch_m_s);
+    let mut phi_rows: Vec<[f64; 5]> = Vec::new();
+    let mut stretch_m: Vec<f64> = Vec::new();
+    for p in preps.iter().filter(|p| p.theta_source == "theta_rad") {
+        let (Ok(theta), Ok(x2)) = (p.theta(), p.col("x2_m")) else {
+            continue;
+        };
+        let period_s = f64::from(p.config().period_s());
+        let half = p.half_window(JOINT_DIFF_HALF_WINDOW_S);
+        let (vel, acc) = central_kinematics(&x2, half, period_s);
+        let mut travel_m = 0.0;
+        for k in 0..p.len() {
+            travel_m = if k > 0 && vel[k].signum() == vel[k - 1].signum() {
+                travel_m + (x2[k] - x2[k - 1]).abs()
+            } else {
+                0.0
+            };
+            if !p.usable[k]
+                || !p.measured(k)
+                || !vel[k].is_finite()
+                || !acc[k].is_finite()
+                || vel[k].abs() <= switch
+                || travel_m < CABLE2_MIN_TRAVEL_M
+            {
+                continue;
+            }
+            let phi = [x2[k], vel[k].signum(), vel[k], acc[k], 1.0];
+            let y = r * theta[k] - x2[k];
+            if phi.iter().chain([&y]).all(|v| v.is_finite()) {
+                phi_rows.push(phi);
+                stretch_m.push(y);
+            }
+        }
+    }
+    if phi_rows.len() < CABLE2_MIN_ROWS {
+        return fallback(format!(
+            "{} rows with slider 2 slipping (needs {CABLE2_MIN_ROWS})",
+            phi_rows.len()
+        ));
+    }
+    let solved = BatchLsq::<5>::new(5, LsqConfig::default()).and_then(|mut ls| {
+        for (phi, y) in phi_rows.iter().zip(&stretch_m) {
+            ls.push(phi, *y)?;
+        }
+        ls.solve()
+    });
+    let fit = match solved {
+        Ok(fit) => fit,
+        Err(e) => return fallback(format!("the slipping fit failed ({e:?})")),
+    };
+    let slope = fit.params[0];
+    if slope.is_nan() || slope <= 0.0 || k_s.is_nan() || k_s <= 0.0 {
+        return fallback(format!(
+            "the slipping fit's stretch per spring travel is {slope:.5} with a spring rate of {k_s} N/m, no positive stiffness"
+        ));
+    }
+    let residual: Vec<f64> = phi_rows
+        .iter()
+        .zip(&stretch_m)
+        .map(|(phi, y)| y - phi.iter().zip(&fit.params).map(|(a, b)| a * b).sum::<f64>())
+        .collect();
+    let pct_sigma_eff = 100.0 * fit.std_dev[0] / slope * correlation_time(&residual).sqrt();
+    Cable2Fit {
+        rows: phi_rows.len() as u64,
+        method: format!("slider 2 slipping, {} rows", phi_rows.len()),
+        k_w2_n_m: (k_s / slope, pct_sigma_eff),
+        k_w2_from_c4_n_m: from_c4,
     }
 }
 
@@ -320,7 +454,8 @@ pub(super) fn central_kinematics(x: &[f64], half: usize, period_s: f64) -> (Vec<
 impl JointFit {
     /// Write cable 1's stiffness and the pin friction the data identified;
     /// a pin friction the data could not identify becomes model C's upper
-    /// bound, a cable 1 it could not identify stays equal to cable 2.
+    /// bound, a cable 1 it could not identify is taken as cable 2's (its
+    /// slipping fit's, else the configuration's).
     /// Returns what was written.
     pub(super) fn apply(&self, config: &mut Config) -> String {
         let (k1, pk1) = self.k_w1_n_m;
@@ -328,9 +463,15 @@ impl JointFit {
             config.stretch.cable1_n_m = k1 as f32;
             format!("stretch.cable1_n_m = {k1:.0} (%sigma {pk1:.1})")
         } else {
-            config.stretch.cable1_n_m = config.stretch.cable2_n_m;
+            let k2 = self.cable2.k_w2_n_m.0;
+            if k2.is_finite() && k2 > 0.0 {
+                config.stretch.cable1_n_m = k2 as f32;
+            } else {
+                config.stretch.cable1_n_m = config.stretch.cable2_n_m;
+            }
             format!(
-                "cable 1 stiffness not identifiable (K_w1 {k1:.0} N/m, %sigma {pk1:.1}): taken as cable 2's"
+                "cable 1 stiffness not identifiable (K_w1 {k1:.0} N/m, %sigma {pk1:.1}): taken as cable 2's, {:.0} N/m",
+                config.stretch.cable1_n_m
             )
         };
         let (f, pf) = self.pin_coulomb_nm;

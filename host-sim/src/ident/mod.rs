@@ -101,7 +101,10 @@ pub use cable0::{
     MIN_TOTAL_S as CABLE0_MIN_TOTAL_S,
 };
 pub use jae::{identify_jae, identify_jae_with, validate_jae};
-pub use joint::{JointFit, JOINT_DIFF_HALF_WINDOW_S, JOINT_MIN_INSTRUMENT_F, JOINT_MIN_TRAVEL_RAD};
+pub use joint::{
+    Cable2Fit, JointFit, CABLE2_MIN_TRAVEL_M, JOINT_DIFF_HALF_WINDOW_S, JOINT_MIN_INSTRUMENT_F,
+    JOINT_MIN_TRAVEL_RAD,
+};
 pub use options::IdentOptions;
 pub use replay::Prepared;
 pub use results::{

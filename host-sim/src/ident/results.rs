@@ -123,7 +123,7 @@ pub struct JaeResult {
     pub joint: JointFit,
     /// The cables' stiffness scale's relative uncertainty
     /// (`fusion.stiffness_tolerance`) and its two parts: `[total, spring
-    /// rate, c4]`.
+    /// rate, cable 2]` (cable 2's from its slipping fit, or from `c4`).
     pub stiffness_tolerance: [f64; 3],
 }
 

@@ -2,7 +2,8 @@
 //!
 //! The cables' stiffnesses, and with them the stretch estimate, the fused
 //! estimate and the slack check, take their force scale from the return
-//! spring's rate (`K_w2 = K_s / (c4 r - 1)`, Eq. 16). `identify` measures
+//! spring's rate (`K_w2 = K_s / slope`, cable 2's stretch per unit of
+//! spring travel while slider 2 slips, Eq. 10-12). `identify` measures
 //! that rate through the motor, but where slider 1 sticks and slips along
 //! the calibration's sweeps the DOB's tension saws by its friction band and
 //! the fit cannot pin the rate down (a drawn plant with slider 1's static

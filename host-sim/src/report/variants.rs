@@ -484,15 +484,16 @@ fn identified_vs_plant(c: &Config, p: &PlantParams) -> String {
     };
     format!(
         "identified pin Coulomb {:.2} mN·m (plant {:.2} kinetic, {:.2} static); \
-         K_w1 {:.0} N/m, K_w2 {:.0} N/m (plant {:.0}, {:.0}) from {spring}, {:.0} N/m (plant {:.0}); \
+         K_w1 {:.0} N/m (plant {:.0}; read against cable 2's fit while slider 2 slips), \
+         the cable-2 term's K_s / (c4 r - 1) {:.0} N/m (plant's cable {:.0}) from {spring}, {:.0} N/m (plant {:.0}); \
          {cable0}; \
          JAE sign term {:.3}°, JAE floor {:.3}° (model error and the sign term's uncertainty)",
         1e3 * c.fusion.pin_coulomb_nm,
         1e3 * p.joint.coulomb_nm,
         1e3 * p.joint.static_nm,
         c.stretch.cable1_n_m,
-        c.stretch.cable2_n_m,
         p.cable1.stiffness_n_m,
+        c.stretch.cable2_n_m,
         p.cable2.stiffness_n_m,
         c.machine.spring_n_m,
         p.spring.stiffness_n_m,

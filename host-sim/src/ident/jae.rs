@@ -106,7 +106,9 @@ impl JaeResult {
     /// spring's, the default configuration's 10 %) plus cable 2's, two
     /// effective standard deviations of its slipping fit
     /// ([`Cable2Fit`](super::Cable2Fit), which scales cable 1's through
-    /// the joint fit) or, when that fit fell back on `c4`, `c4`'s carried
+    /// the joint fit) and at least that fit's measured systematic error
+    /// ([`CABLE2_SYSTEMATIC`](super::CABLE2_SYSTEMATIC)) or, when that fit
+    /// fell back on `c4`, `c4`'s carried
     /// through `K_w2 = K_s / (c4 r - 1)`, `2 r std_eff(c4) / (c4 r - 1)`.
     /// When the configuration's
     /// spring rate stands, `prior_tol` is also the floor of the total: a
@@ -122,7 +124,7 @@ impl JaeResult {
         let excess = self.chi_s[3] * pulley_radius_m - 1.0;
         let cable2_pct = self.joint.cable2.k_w2_n_m.1;
         let cable2_part = if cable2_pct.is_finite() {
-            2.0 * cable2_pct / 100.0
+            (2.0 * cable2_pct / 100.0).max(super::CABLE2_SYSTEMATIC)
         } else {
             self.fit
                 .std_eff(Regressor::X2)

@@ -22,10 +22,12 @@ use super::Prepared;
 /// moved [`SPRING_MIN_TRAVEL_M`] and three DOB time constants have passed
 /// since the sweep began (past presliding and the breakaway).
 ///
-/// The cables' stiffnesses follow from the spring through the JAE's `c4`
-/// (Eq. 16), so this rate, not the datasheet's, sets the force scale of the
-/// stretch estimate, the fused bound and the slack check. Its own scale is
-/// the torque constant's, as the DOB's.
+/// The cables' stiffnesses follow from the spring (cable 2's through its
+/// stretch while slider 2 slips, [`Cable2Fit`](super::Cable2Fit), cable
+/// 1's through the joint's torque balance against it), so this rate, not
+/// the datasheet's, sets the force scale of the stretch estimate, the
+/// fused bound and the slack check. Its own scale is the torque
+/// constant's, as the DOB's.
 ///
 /// On logs with a row every tick the rate written is the **per-tick** fit
 /// ([`Self::per_tick`]): over the same sweeps' ticks, each sweep's means

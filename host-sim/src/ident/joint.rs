@@ -10,10 +10,10 @@ use crate::stats::correlation_time;
 /// The joint's torque balance (seed Eq. 9, 12, 13 with no load) on runs with
 /// the magnetic encoder, while the joint slips:
 /// `r K_w2 (r theta - x2) = K_w1 r (x1 - r theta) - f_efc sgn(theta') -
-/// f_efv theta' - J_e theta'' - c`, with `K_w2` from [`Cable2Fit`] (cable 2's
-/// stretch against the spring while slider 2 slips) and `K_w1`, the pin's
-/// friction, its viscous term, the joint inertia and an offset fitted. The joint speed and acceleration are
-/// zero-phase central differences of the magnetic encoder over
+/// f_efv theta' - J_e theta'' - c`, with `K_w2` from [`Cable2Fit`] (cable
+/// 2's stretch against the spring while slider 2 slips) and `K_w1`, the
+/// pin's friction, its viscous term, the joint inertia and an offset
+/// fitted. The joint speed and acceleration are zero-phase central differences of the magnetic encoder over
 /// [`JOINT_DIFF_HALF_WINDOW_S`]: a causal observer lags the slip bursts of a
 /// joint in stick-slip and gives the pin's friction to the viscous term.
 /// Rows count once the joint has moved [`JOINT_MIN_TRAVEL_RAD`] since its
@@ -154,8 +154,9 @@ pub(super) fn identify_joint(preps: &[Prepared], config: &Config, c4_rad_m: f64)
 /// On the report's slider-2-friction plant `c4` read 0.6 % low and cable 2
 /// 12.7 % stiff, and cable 1's stiffness, fitted against this cable's
 /// tension, inherited it (+12.2 %). The slipping rows read every report
-/// variant's cable 2 within 0.6 % (docs/force.md, "Cable 2's stiffness
-/// while slider 2 slips"). The configuration keeps `K_s / (c4 r - 1)`
+/// variant's cable 2 within −0.39 % to +0.71 % of the plant's, the
+/// configured spring rate's error taken out (docs/force.md, "Cable 2's
+/// stiffness while slider 2 slips"). The configuration keeps `K_s / (c4 r - 1)`
 /// for the firmware's cable-2 term: evaluated on the JAE's `theta_hat`,
 /// that term is the spring's force whatever `c4`'s error, where the
 /// cable's own stiffness would double the angle error's share of the

@@ -107,7 +107,7 @@ impl JaeResult {
     /// effective standard deviations of its slipping fit
     /// ([`Cable2Fit`](super::Cable2Fit), which scales cable 1's through
     /// the joint fit) and at least that fit's measured systematic error
-    /// ([`CABLE2_SYSTEMATIC`](super::CABLE2_SYSTEMATIC)) or, when that fit
+    /// ([`Cable2Fit::systematic`](super::Cable2Fit::systematic)) or, when that fit
     /// fell back on `c4`, `c4`'s carried
     /// through `K_w2 = K_s / (c4 r - 1)`, `2 r std_eff(c4) / (c4 r - 1)`.
     /// When the configuration's
@@ -124,7 +124,7 @@ impl JaeResult {
         let excess = self.chi_s[3] * pulley_radius_m - 1.0;
         let cable2_pct = self.joint.cable2.k_w2_n_m.1;
         let cable2_part = if cable2_pct.is_finite() {
-            (2.0 * cable2_pct / 100.0).max(super::CABLE2_SYSTEMATIC)
+            (2.0 * cable2_pct / 100.0).max(self.joint.cable2.systematic)
         } else {
             self.fit
                 .std_eff(Regressor::X2)

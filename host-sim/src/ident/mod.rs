@@ -102,8 +102,8 @@ pub use cable0::{
 };
 pub use jae::{identify_jae, identify_jae_with, validate_jae};
 pub use joint::{
-    Cable2Fit, JointFit, CABLE2_MIN_TRAVEL_M, CABLE2_SYSTEMATIC, JOINT_DIFF_HALF_WINDOW_S,
-    JOINT_MIN_INSTRUMENT_F, JOINT_MIN_TRAVEL_RAD,
+    Cable2Fit, JointFit, CABLE2_DECIMATED_SYSTEMATIC, CABLE2_MIN_TRAVEL_M, CABLE2_SYSTEMATIC,
+    JOINT_DIFF_HALF_WINDOW_S, JOINT_MIN_INSTRUMENT_F, JOINT_MIN_TRAVEL_RAD,
 };
 pub use options::IdentOptions;
 pub use replay::Prepared;

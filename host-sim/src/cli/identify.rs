@@ -600,7 +600,7 @@ pub fn format_report(r: &IdentifyReport) -> String {
         let _ = writeln!(
             s,
             "  -> fusion.stiffness_tolerance = {tol:.3}: the spring rate's relative uncertainty {tol_spring:.3} plus cable 2's ({}), {tol_c2:.3}{floor}",
-            if j.joint.cable2.k_w2_n_m.1.is_finite() { "its slipping fit, at least the fit's measured systematic error" } else { "c4's through c4 r - 1" }
+            if j.joint.cable2.measured() { "its slipping fit, at least the fit's measured systematic error" } else { "c4's through c4 r - 1" }
         );
         let jf = &j.joint;
         let c2 = &jf.cable2;

@@ -107,10 +107,9 @@ impl JaeResult {
     /// effective standard deviations of its slipping fit
     /// ([`Cable2Fit`](super::Cable2Fit), which scales cable 1's through
     /// the joint fit) and at least that fit's measured systematic error
-    /// ([`Cable2Fit::systematic`](super::Cable2Fit::systematic)) or, when that fit
-    /// fell back on `c4`, `c4`'s carried
-    /// through `K_w2 = K_s / (c4 r - 1)`, `2 r std_eff(c4) / (c4 r - 1)`.
-    /// When the configuration's
+    /// ([`Cable2Fit::systematic`](super::Cable2Fit::systematic)) or, when
+    /// that fit fell back on `c4`, `c4`'s carried through `K_w2 = K_s / (c4
+    /// r - 1)`, `2 r std_eff(c4) / (c4 r - 1)`. When the configuration's
     /// spring rate stands, `prior_tol` is also the floor of the total: a
     /// configuration an earlier identification wrote carries its measured
     /// rate as the datasheet's and the uncertainty it was measured with,
@@ -122,9 +121,9 @@ impl JaeResult {
         let stock_tol = f64::from(Config::default().fusion.stiffness_tolerance);
         let spring = self.spring.relative_uncertainty(prior_tol.min(stock_tol));
         let excess = self.chi_s[3] * pulley_radius_m - 1.0;
-        let cable2_pct = self.joint.cable2.k_w2_n_m.1;
-        let cable2_part = if cable2_pct.is_finite() {
-            (2.0 * cable2_pct / 100.0).max(self.joint.cable2.systematic)
+        let cable2 = &self.joint.cable2;
+        let cable2_part = if cable2.measured() {
+            (2.0 * cable2.k_w2_n_m.1 / 100.0).max(cable2.systematic)
         } else {
             self.fit
                 .std_eff(Regressor::X2)

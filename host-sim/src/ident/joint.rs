@@ -13,9 +13,10 @@ use crate::stats::correlation_time;
 /// f_efv theta' - J_e theta'' - c`, with `K_w2` from [`Cable2Fit`] (cable
 /// 2's stretch against the spring while slider 2 slips) and `K_w1`, the
 /// pin's friction, its viscous term, the joint inertia and an offset
-/// fitted. The joint speed and acceleration are zero-phase central differences of the magnetic encoder over
-/// [`JOINT_DIFF_HALF_WINDOW_S`]: a causal observer lags the slip bursts of a
-/// joint in stick-slip and gives the pin's friction to the viscous term.
+/// fitted. The joint speed and acceleration are zero-phase central
+/// differences of the magnetic encoder over [`JOINT_DIFF_HALF_WINDOW_S`]:
+/// a causal observer lags the slip bursts of a joint in stick-slip and
+/// gives the pin's friction to the viscous term.
 /// Rows count once the joint has moved [`JOINT_MIN_TRAVEL_RAD`] since its
 /// last reversal (past presliding).
 ///
@@ -30,8 +31,7 @@ use crate::stats::correlation_time;
 /// var(eps))`. On the report's pin-friction plant (a 12 mN·m pin, 3 N at
 /// the cable against the calibration run's 0.7 N RMS swing of cable 2)
 /// that read cable 1 7 % to 11 % soft, and the probed holds' force 1.8 %
-/// to 14.1 % low. The
-/// commanded angle moves the spring's share and the stretch with it, but
+/// to 14.1 % low. The commanded angle moves the spring's share and the stretch with it, but
 /// not the pin's stick-slip, which the program does not command. Without
 /// it in the log, or when it explains too little of the stretch (a weak
 /// instrument, first-stage F under [`JOINT_MIN_INSTRUMENT_F`]), the fit
@@ -179,6 +179,14 @@ pub struct Cable2Fit {
     pub systematic: f64,
 }
 
+impl Cable2Fit {
+    /// Whether the slipping fit measured the stiffness (rather than `c4`
+    /// standing in for it).
+    pub fn measured(&self) -> bool {
+        self.k_w2_n_m.1.is_finite()
+    }
+}
+
 /// Slider travel since its last reversal before a row enters the cable-2
 /// fit, m: three presliding distances of a rolling guide at the upper end
 /// of its range (50 µm; the plant's default 20 µm), past which the
@@ -218,7 +226,7 @@ fn identify_cable2(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> Cable2
     let every_tick = preps
         .iter()
         .filter(|p| p.theta_source == "theta_rad")
-        .all(|p| p.replay.clock.decimation <= 1);
+        .all(Prepared::every_tick);
     let systematic = if every_tick {
         CABLE2_SYSTEMATIC
     } else {
@@ -279,7 +287,7 @@ fn identify_cable2(preps: &[Prepared], config: &Config, c4_rad_m: f64) -> Cable2
     let residual: Vec<f64> = phi_rows
         .iter()
         .zip(&stretch_m)
-        .map(|(phi, y)| y - phi.iter().zip(&fit.params).map(|(a, b)| a * b).sum::<f64>())
+        .map(|(phi, y)| y - predict(phi, fit.params.as_slice()))
         .collect();
     let pct_sigma_eff = 100.0 * fit.std_dev[0] / slope * correlation_time(&residual).sqrt();
     Cable2Fit {
@@ -331,13 +339,15 @@ struct JointRow {
     y: f64,
 }
 
+/// A fitted row's prediction, `phi . params`.
+fn predict(phi: &[f64; 5], params: &[f64]) -> f64 {
+    phi.iter().zip(params).map(|(a, b)| a * b).sum()
+}
+
 /// `sum (y - phi . params)^2` over the rows.
 fn residual_sum_of_squares(rows: &[JointRow], params: &[f64; 5]) -> f64 {
     rows.iter()
-        .map(|row| {
-            let pred: f64 = row.phi.iter().zip(params).map(|(a, b)| a * b).sum();
-            (row.y - pred).powi(2)
-        })
+        .map(|row| (row.y - predict(&row.phi, params)).powi(2))
         .sum()
 }
 

@@ -186,6 +186,11 @@ impl Prepared {
         (ticks.max(1.0) as usize).max(self.replay.clock.decimation as usize)
     }
 
+    /// Whether the log has a row every control tick (not decimated).
+    pub(super) fn every_tick(&self) -> bool {
+        self.replay.clock.decimation <= 1
+    }
+
     /// The log's own rows among them.
     pub(super) fn measured_rows(&self) -> usize {
         self.replay.source_row.iter().flatten().count()

@@ -200,7 +200,7 @@ pub(super) fn identify_spring(preps: &[Prepared], config: &Config) -> SpringFit 
     };
     // Slider 1's stick needs every tick's grating count: a stick of a few
     // ticks does not show between a decimated log's rows.
-    let every_tick = preps.iter().all(|p| p.replay.clock.decimation <= 1);
+    let every_tick = preps.iter().all(Prepared::every_tick);
     // One row per sweep [x2, x2', x2'', y] (its last third's means less its
     // first third's), and each sweep's ticks [x2, x2', s, y], means out.
     let mut rows: Vec<[f64; 4]> = Vec::new();

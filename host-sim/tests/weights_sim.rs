@@ -77,6 +77,13 @@ fn draw_82() -> Draw82 {
     config.stretch.cable1_n_m = scaled(config.stretch.cable1_n_m);
     config.stretch.cable2_n_m = scaled(config.stretch.cable2_n_m);
     config.fusion.pin_coulomb_nm = scaled(config.fusion.pin_coulomb_nm);
+    // With the datasheet's rate standing against a measurement, identify
+    // widens the spring's tolerance to reach the measurement's interval
+    // (`SpringFit::relative_uncertainty`), then adds cable 2's part.
+    let datasheet_tol = f64::from(base.fusion.stiffness_tolerance);
+    let reach = r.spring.reach_n_m() / f64::from(base.machine.spring_n_m);
+    config.fusion.stiffness_tolerance =
+        (datasheet_tol.max(reach) + r.stiffness_tolerance[2]) as f32;
 
     let mut fit = Vec::new();
     for m in [100.0, 250.0] {
@@ -179,6 +186,31 @@ fn known_weights_recover_the_force_scale_where_the_spring_fit_through_the_motor_
         after < 0.5 * before,
         "held-out holds at 30°: {before:.3} -> {after:.3} N"
     );
+}
+
+/// A configuration the weights calibrated carries their scale and
+/// tolerance but not which logs they came from. Weighed again on the same
+/// logs it is either refused (the weights no narrower than what they
+/// wrote) or written with the scale it had and a tolerance no narrower:
+/// the same holds are not counted twice.
+#[test]
+fn weighing_a_configuration_again_on_its_own_logs_counts_them_once() {
+    let d = draw_82();
+    let (w, calibrated) =
+        calibrate_weights(&label(&d.fit), &[], &d.config, &WeightsOptions::default()).unwrap();
+    assert!(w.combined.weights_share > 0.9, "{w:?}");
+    let first_tol = calibrated.fusion.stiffness_tolerance;
+    match calibrate_weights(&label(&d.fit), &[], &calibrated, &WeightsOptions::default()) {
+        Err(e) => assert!(e.to_string().contains("not written"), "{e}"),
+        Ok((again, twice)) => {
+            assert!((again.combined.scale - 1.0).abs() < 0.005, "{again:?}");
+            assert!(
+                twice.fusion.stiffness_tolerance >= 0.95 * first_tol,
+                "{first_tol} -> {}",
+                twice.fusion.stiffness_tolerance
+            );
+        }
+    }
 }
 
 /// The grip's force scale is the stretch estimate's: on drawn plant 82 a

@@ -403,8 +403,14 @@ fn keep_common_holds(
 /// The scale fitted on the settled holds' points: `s`, its `%sigma`, the
 /// tolerance it gives, and the logs that entered; an error when the holds
 /// cannot give one (no change of load, too few degrees of freedom, or a
-/// stretch estimate that moves against the reference).
-fn fit_scale(fitted: &[Point], opts: &WeightsOptions, logs_given: usize) -> Result<ScaleFit> {
+/// stretch estimate that moves against the reference) or cannot pin it
+/// down better than `prior` (the configuration's tolerance).
+fn fit_scale(
+    fitted: &[Point],
+    opts: &WeightsOptions,
+    prior: f64,
+    logs_given: usize,
+) -> Result<ScaleFit> {
     let (pairs, logs_fitted) = about_log_means(fitted, opts.min_step_n);
     let dof = pairs.len() as i64 - logs_fitted as i64 - 1;
     let Some(s) = slope(&pairs).filter(|_| logs_fitted > 0) else {
@@ -449,6 +455,17 @@ fn fit_scale(fitted: &[Point], opts: &WeightsOptions, logs_given: usize) -> Resu
     let spread = direction_spread(fitted, opts.min_step_n);
     let half_width = student_t_975(dof as usize) * std;
     let tolerance = half_width.max(spread) / s + opts.reference_tolerance;
+    if tolerance.is_nan() || tolerance >= prior {
+        bail!(
+            "the weights do not pin the force scale down better than the configuration: the \
+             stretch estimate changes by {s:.3} N per newton of reference (%sigma {pct:.1}, {} \
+             holds in {} logs), a tolerance of {tolerance:.3} against the configuration's \
+             {prior:.3}: heavier weights or more holds (a configuration these weights \
+             calibrated already carries them); the configuration is not written",
+            pairs.len(),
+            logs_fitted
+        );
+    }
     Ok(ScaleFit {
         scale: s,
         pct_sigma: pct,
@@ -505,12 +522,12 @@ impl CombinedScale {
 /// nothing. Two scales further apart than the difference's own 95 %
 /// half-width (`sqrt(a_w^2 + a_c^2)`) say that one of them is off by more
 /// than it claims, and nothing here tells which: the tolerance then
-/// widens by that ratio ([`CombinedScale::disagreement`]). A weighing much tighter than the
-/// identification sets the scale almost alone, as before stop 81; one
-/// about as tight moves it part of the way instead of replacing it (until
-/// stop 81 a weighing just tighter than the configuration replaced its
-/// scale). [`calibrate_weights`] still refuses a weighing no tighter than
-/// the configuration.
+/// widens by that ratio ([`CombinedScale::disagreement`]). A weighing
+/// much tighter than the identification sets the scale almost alone, as
+/// before stop 81; one about as tight moves it part of the way instead of
+/// replacing it (until stop 81 a weighing just tighter than the
+/// configuration replaced its scale). [`calibrate_weights`] still refuses
+/// a weighing no tighter than the configuration.
 pub fn combine_scale(s: f64, weights_tol: f64, config_tol: f64) -> CombinedScale {
     let (a_w, a_c) = (weights_tol * s, config_tol);
     let var = a_w * a_w + a_c * a_c;
@@ -546,22 +563,13 @@ pub fn calibrate_weights(
     for (i, (label, log)) in fit.iter().enumerate() {
         fitted.extend(holds(label, i, log, config, opts)?);
     }
+    let prior = f64::from(config.fusion.stiffness_tolerance);
     let ScaleFit {
         scale: weights_scale,
         pct_sigma: pct,
         tolerance: weights_tolerance,
         logs_fitted,
-    } = fit_scale(&fitted, opts, fit.len())?;
-    let prior = f64::from(config.fusion.stiffness_tolerance);
-    if weights_tolerance >= prior {
-        bail!(
-            "the weights do not pin the force scale down better than the configuration: the \
-             stretch estimate changes by {weights_scale:.3} N per newton of reference (%sigma \
-             {pct:.1}, {logs_fitted} logs fitted), a tolerance of {weights_tolerance:.3} against \
-             the configuration's {prior:.3}: heavier weights or more holds (a configuration \
-             these weights calibrated already carries them); the configuration is not written"
-        );
-    }
+    } = fit_scale(&fitted, opts, prior, fit.len())?;
     let combined = combine_scale(weights_scale, weights_tolerance, prior);
     let s = combined.scale;
     let mut calibrated = *config;
@@ -670,7 +678,7 @@ mod tests {
                 ]
             })
             .collect();
-        let f = fit_scale(&pts, &WeightsOptions::default(), 4).unwrap();
+        let f = fit_scale(&pts, &WeightsOptions::default(), 0.5, 4).unwrap();
         assert!((f.scale - 1.3).abs() < 1e-12, "{f:?}");
         assert!(f.pct_sigma < 1e-9, "{f:?}");
         // Exact data: only the reference's own tolerance is left.
@@ -686,11 +694,21 @@ mod tests {
             .into_iter()
             .flat_map(|(l, f, s)| [point(l, 0.0, 0.0), point(l, f, s * f)])
             .collect();
-        let f = fit_scale(&pts, &WeightsOptions::default(), 4).unwrap();
+        let f = fit_scale(&pts, &WeightsOptions::default(), 1.0, 4).unwrap();
         assert!((f.scale - 1.1).abs() < 1e-12, "{f:?}");
         let spread = direction_spread(&pts, 0.1);
         assert!((spread - 0.2).abs() < 1e-12, "spread {spread}");
         assert!(f.tolerance >= 0.2 / 1.1, "{f:?}");
+    }
+
+    #[test]
+    fn a_calibration_no_narrower_than_the_configurations_is_refused() {
+        let pts: Vec<Point> = [(0, 1.0, 1.2), (1, 2.0, 1.2), (2, -1.0, 1.0), (3, -2.0, 1.0)]
+            .into_iter()
+            .flat_map(|(l, f, s)| [point(l, 0.0, 0.0), point(l, f, s * f)])
+            .collect();
+        let e = fit_scale(&pts, &WeightsOptions::default(), 0.05, 4).unwrap_err();
+        assert!(e.to_string().contains("not written"), "{e}");
     }
 
     /// Each scale counts by the inverse square of its tolerance: a
@@ -745,7 +763,7 @@ mod tests {
             .into_iter()
             .flat_map(|(l, f)| [point(l, 0.0, 0.0), point(l, f, -0.9 * f)])
             .collect();
-        let e = fit_scale(&pts, &WeightsOptions::default(), 4).unwrap_err();
+        let e = fit_scale(&pts, &WeightsOptions::default(), 1.0, 4).unwrap_err();
         assert!(e.to_string().contains("does not follow the weights"), "{e}");
     }
 
@@ -754,7 +772,7 @@ mod tests {
         let flat: Vec<Point> = (0..3)
             .flat_map(|l| [point(l, 0.0, 0.1), point(l, 0.02, 0.1)])
             .collect();
-        let e = fit_scale(&flat, &WeightsOptions::default(), 3).unwrap_err();
+        let e = fit_scale(&flat, &WeightsOptions::default(), 1.0, 3).unwrap_err();
         assert!(
             e.to_string().contains("no log changes its reference force"),
             "{e}"
@@ -762,7 +780,7 @@ mod tests {
         let two: Vec<Point> = (0..2)
             .flat_map(|l| [point(l, 0.0, 0.0), point(l, 1.0, 1.1)])
             .collect();
-        let e = fit_scale(&two, &WeightsOptions::default(), 2).unwrap_err();
+        let e = fit_scale(&two, &WeightsOptions::default(), 1.0, 2).unwrap_err();
         assert!(e.to_string().contains("degrees of freedom"), "{e}");
     }
 

@@ -462,26 +462,18 @@ fn format_weights(w: &WeightsFit) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "force scale from known weights ({} holds, {} logs fitted): the stretch estimate changes by {:.4} N per newton of reference (%sigma {:.2}, tolerance {:.3})",
+        "force scale from known weights ({} holds, {} logs fitted): the stretch estimate changes by {:.4} N per newton of reference (%sigma {:.2})",
         w.holds.iter().filter(|h| h.fitted).count(),
         w.logs_fitted,
         w.scale.0,
-        w.scale.1,
-        w.weights_tolerance
+        w.scale.1
     );
-    let c = &w.combined;
-    let _ = writeln!(
-        s,
-        "  combined with the configuration's scale (1 within its tolerance {:.3}), each by the inverse square of its tolerance: {:.4}, the weights' share {:.0} %",
-        w.stiffness_tolerance.0,
-        c.scale,
-        100.0 * c.weights_share
-    );
-    if c.disagrees() {
+    if w.disagreement > 1.0 {
         let _ = writeln!(
             s,
-            "  warning: the weights and the configuration disagree by {:.1} times what both tolerances allow (one of them is off by more than it says: the weights' mass or lever arm, or the identification's spring rate); the tolerance written is widened by that ratio",
-            c.disagreement
+            "  warning: the weights' scale and the configuration's (1 within its tolerance {:.3}) disagree by {:.1} times what both tolerances allow: one of them is off by more than it says (the weights' mass or lever arm, or the identification's spring rate); the tolerance written is widened by that ratio",
+            w.stiffness_tolerance.0,
+            w.disagreement
         );
     }
     let _ = writeln!(

@@ -119,6 +119,6 @@ pub use terms::{
     MAX_REGRESSORS, MODEL_A, MODEL_B, MODEL_C, SIMPLIFIED_C,
 };
 pub use weights::{
-    calibrate_weights, combine_scale, parse_reference_steps, set_reference_steps, CombinedScale,
-    WeightsFit, WeightsHold, WeightsOptions,
+    calibrate_weights, parse_reference_steps, scale_disagreement, set_reference_steps, WeightsFit,
+    WeightsHold, WeightsOptions,
 };

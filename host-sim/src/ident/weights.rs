@@ -37,14 +37,6 @@
 //! times its standard deviation), or the difference of the scales fitted on
 //! the logs loaded one way and the other if larger, relative to `s`, plus
 //! the reference's own tolerance ([`WeightsOptions::reference_tolerance`]).
-//! That is the weights' own measurement of the scale; the configuration
-//! carries another, 1 within its `fusion.stiffness_tolerance` (the
-//! identification's spring rate and cable 2's stiffness, or the
-//! datasheet's tolerance). The two are combined, each by the inverse square
-//! of its tolerance, with a wider tolerance where they disagree by more
-//! than both allow ([`combine_scale`]), and the combination is what the
-//! calibration applies and writes, when the weights' tolerance is the
-//! narrower of the two; otherwise it is an error and nothing is written.
 //! A pin friction the joint's torque balance fitted
 //! ([`cable_joint::config::FusionConfig::pin_identified`]) is divided by
 //! `s` too: that balance reads cable 2's torque through the same spring
@@ -53,9 +45,17 @@
 //! before, above the plant's static 5.31, and 4.22 after, between its
 //! kinetic 3.70 and its static level). Model C's upper bound, which the
 //! tension model sets through the motor's torque constant, is left as it
-//! is. Until stop 81 the weights' scale replaced the configuration's
-//! (`docs/force.md`, "The weights combined with the identification", has
-//! both measured on held-out plants).
+//! is. The calibration is written only when its
+//! tolerance is narrower than the configuration's (the weights know the
+//! scale better than what the configuration had); otherwise it is an error
+//! and nothing is written. Where the weights' scale and the configuration's
+//! (1 within its tolerance) differ by more than the 95 % half-width of
+//! their difference, one of them is off by more than it says and nothing
+//! here tells which ([`scale_disagreement`]): the tolerance written widens
+//! by that ratio and `identify` warns. Combining the two scales by their
+//! tolerances instead of replacing one by the other was measured at stop
+//! 81 and not kept (`docs/force.md`, "The weights combined with the
+//! identification").
 //!
 //! Every log fitted and every validation log is replayed again with the
 //! calibrated configuration, and the report gives each hold's stretch and
@@ -129,18 +129,16 @@ pub struct WeightsFit {
     /// Logs whose holds entered the fit (two reference levels or more).
     pub logs_fitted: usize,
     /// The stretch estimate's change per unit of the reference's, and its
-    /// `%sigma`: the weights' own scale.
+    /// `%sigma`.
     pub scale: (f64, f64),
-    /// The weights' own relative tolerance (95 % half-width, the
-    /// reference's included).
-    pub weights_tolerance: f64,
-    /// The weights' scale combined with the configuration's, which the
-    /// calibration applies.
-    pub combined: CombinedScale,
     /// `machine.spring_n_m` before and after, N/m.
     pub spring_n_m: (f64, f64),
     /// `fusion.stiffness_tolerance` before and after.
     pub stiffness_tolerance: (f64, f64),
+    /// The weights' scale against the configuration's
+    /// ([`scale_disagreement`]): above 1 they disagree by more than both
+    /// tolerances allow, and the tolerance written was widened by it.
+    pub disagreement: f64,
     /// `fusion.pin_coulomb_nm` before and after, N·m, when it is a fitted
     /// level; `None` when it is model C's upper bound, left as it is.
     pub pin_coulomb_nm: Option<(f64, f64)>,
@@ -402,9 +400,7 @@ fn keep_common_holds(
 
 /// The scale fitted on the settled holds' points: `s`, its `%sigma`, the
 /// tolerance it gives, and the logs that entered; an error when the holds
-/// cannot give one (no change of load, too few degrees of freedom, or a
-/// stretch estimate that moves against the reference) or cannot pin it
-/// down better than `prior` (the configuration's tolerance).
+/// cannot pin it down better than `prior` (the configuration's tolerance).
 fn fit_scale(
     fitted: &[Point],
     opts: &WeightsOptions,
@@ -437,15 +433,6 @@ fn fit_scale(
             dof.max(0)
         );
     }
-    if s <= 0.0 {
-        bail!(
-            "the stretch estimate changes by {s:.3} N per newton of reference over {} holds in \
-             {} logs: it does not follow the weights (a reference of the wrong sign, or holds \
-             the joint did not take up); the configuration is not written",
-            pairs.len(),
-            logs_fitted
-        );
-    }
     let sxx: f64 = pairs.iter().map(|(r, _)| r * r).sum();
     let sse: f64 = pairs.iter().map(|(r, e)| (e - s * r).powi(2)).sum();
     let std = (sse / dof as f64 / sxx).sqrt();
@@ -455,13 +442,12 @@ fn fit_scale(
     let spread = direction_spread(fitted, opts.min_step_n);
     let half_width = student_t_975(dof as usize) * std;
     let tolerance = half_width.max(spread) / s + opts.reference_tolerance;
-    if tolerance.is_nan() || tolerance >= prior {
+    if !(s > 0.0 && tolerance < prior) {
         bail!(
             "the weights do not pin the force scale down better than the configuration: the \
              stretch estimate changes by {s:.3} N per newton of reference (%sigma {pct:.1}, {} \
              holds in {} logs), a tolerance of {tolerance:.3} against the configuration's \
-             {prior:.3}: heavier weights or more holds (a configuration these weights \
-             calibrated already carries them); the configuration is not written",
+             {prior:.3}: heavier weights or more holds; the configuration is not written",
             pairs.len(),
             logs_fitted
         );
@@ -483,70 +469,18 @@ struct ScaleFit {
     logs_fitted: usize,
 }
 
-/// The weights' scale combined with the configuration's
-/// ([`combine_scale`]).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct CombinedScale {
-    /// The scale the calibration divides the stiffnesses by.
-    pub scale: f64,
-    /// Its relative tolerance (`fusion.stiffness_tolerance` written).
-    pub tolerance: f64,
-    /// The weights' share of it, 0 to 1 (the rest is the configuration's).
-    pub weights_share: f64,
-    /// The two scales' difference over the 95 % half-width of a
-    /// difference (both tolerances in quadrature): above 1 they disagree
-    /// by more than both tolerances allow.
-    pub disagreement: f64,
-}
-
-impl CombinedScale {
-    /// Do the weights and the configuration disagree by more than both
-    /// tolerances allow?
-    pub fn disagrees(&self) -> bool {
-        self.disagreement > 1.0
-    }
-}
-
-/// Combine the weights' scale `s` (relative tolerance `weights_tol`) with
-/// the configuration's own, 1 within `config_tol` (its
-/// `fusion.stiffness_tolerance`: the identification's measurement of the
-/// spring and cable 2, or the datasheet's tolerance where it had none).
-/// Both tolerances are 95 % half-widths of measurements of one ratio, so
-/// each scale counts by the inverse square of its tolerance (`a_w`, `a_c`
-/// in units of the scale). The tolerance written is the narrower of the
-/// two, not the `1 / sqrt(1/a_w^2 + 1/a_c^2)` of independent random
-/// errors: part of each is a systematic floor that does not average down
-/// (the reference's own 1 %, the spring and cable-2 fits' measured
-/// systematic errors), and a configuration does not record which logs
-/// weighed it, so weighing it again on the same logs would narrow it for
-/// nothing. Two scales further apart than the difference's own 95 %
-/// half-width (`sqrt(a_w^2 + a_c^2)`) say that one of them is off by more
-/// than it claims, and nothing here tells which: the tolerance then
-/// widens by that ratio ([`CombinedScale::disagreement`]). A weighing
-/// much tighter than the identification sets the scale almost alone, as
-/// before stop 81; one about as tight moves it part of the way instead of
-/// replacing it (until stop 81 a weighing just tighter than the
-/// configuration replaced its scale). [`calibrate_weights`] still refuses
-/// a weighing no tighter than the configuration.
-pub fn combine_scale(s: f64, weights_tol: f64, config_tol: f64) -> CombinedScale {
-    let (a_w, a_c) = (weights_tol * s, config_tol);
-    let var = a_w * a_w + a_c * a_c;
-    if var.is_nan() || var <= 0.0 {
-        return CombinedScale {
-            scale: s,
-            tolerance: 0.0,
-            weights_share: 1.0,
-            disagreement: 0.0,
-        };
-    }
-    let weights_share = a_c * a_c / var;
-    let scale = weights_share * s + (1.0 - weights_share);
-    let disagreement = (s - 1.0).abs() / var.sqrt();
-    CombinedScale {
-        scale,
-        tolerance: disagreement.max(1.0) * a_w.min(a_c) / scale,
-        weights_share,
-        disagreement,
+/// How far the weights' scale `s` (relative tolerance `weights_tol`)
+/// lies from the configuration's, 1 within `config_tol`, in units of the
+/// 95 % half-width of their difference (both tolerances, 95 % half-widths
+/// in units of the scale, in quadrature). Above 1, one of the two is off by
+/// more than it claims: a weight's mass or lever arm mistyped, or an
+/// identification biased beyond its tolerance.
+pub fn scale_disagreement(s: f64, weights_tol: f64, config_tol: f64) -> f64 {
+    let apart = (weights_tol * s).hypot(config_tol);
+    if apart > 0.0 {
+        (s - 1.0).abs() / apart
+    } else {
+        0.0
     }
 }
 
@@ -563,20 +497,24 @@ pub fn calibrate_weights(
     for (i, (label, log)) in fit.iter().enumerate() {
         fitted.extend(holds(label, i, log, config, opts)?);
     }
-    let prior = f64::from(config.fusion.stiffness_tolerance);
     let ScaleFit {
-        scale: weights_scale,
+        scale: s,
         pct_sigma: pct,
-        tolerance: weights_tolerance,
+        tolerance,
         logs_fitted,
-    } = fit_scale(&fitted, opts, prior, fit.len())?;
-    let combined = combine_scale(weights_scale, weights_tolerance, prior);
-    let s = combined.scale;
+    } = fit_scale(
+        &fitted,
+        opts,
+        f64::from(config.fusion.stiffness_tolerance),
+        fit.len(),
+    )?;
     let mut calibrated = *config;
     calibrated.machine.spring_n_m = (f64::from(config.machine.spring_n_m) / s) as f32;
     calibrated.stretch.cable1_n_m = (f64::from(config.stretch.cable1_n_m) / s) as f32;
     calibrated.stretch.cable2_n_m = (f64::from(config.stretch.cable2_n_m) / s) as f32;
-    calibrated.fusion.stiffness_tolerance = combined.tolerance.min(1.0) as f32;
+    let disagreement =
+        scale_disagreement(s, tolerance, f64::from(config.fusion.stiffness_tolerance));
+    calibrated.fusion.stiffness_tolerance = (tolerance * disagreement.max(1.0)).min(1.0) as f32;
     if config.fusion.pin_identified {
         calibrated.fusion.pin_coulomb_nm = (f64::from(config.fusion.pin_coulomb_nm) / s) as f32;
     }
@@ -625,9 +563,7 @@ pub fn calibrate_weights(
         WeightsFit {
             holds: holds_out,
             logs_fitted,
-            scale: (weights_scale, pct),
-            weights_tolerance,
-            combined,
+            scale: (s, pct),
             spring_n_m: (
                 f64::from(config.machine.spring_n_m),
                 f64::from(calibrated.machine.spring_n_m),
@@ -636,6 +572,7 @@ pub fn calibrate_weights(
                 f64::from(config.fusion.stiffness_tolerance),
                 f64::from(calibrated.fusion.stiffness_tolerance),
             ),
+            disagreement,
             pin_coulomb_nm: config.fusion.pin_identified.then(|| {
                 (
                     f64::from(config.fusion.pin_coulomb_nm),
@@ -711,60 +648,19 @@ mod tests {
         assert!(e.to_string().contains("not written"), "{e}");
     }
 
-    /// Each scale counts by the inverse square of its tolerance: a
-    /// weighing as tight as the identification moves the scale half way;
-    /// one ten times tighter sets it nearly alone; one ten times looser
-    /// barely moves it. The tolerance is the narrower one's.
+    /// A weighing within what both tolerances allow of the configuration
+    /// is below 1; one three half-widths off reads 3; exact agreement 0.
     #[test]
-    fn the_weights_and_the_configuration_count_by_their_tolerances() {
-        let c = combine_scale(1.02, 0.05 / 1.02, 0.05);
-        assert!((c.weights_share - 0.5).abs() < 1e-12, "{c:?}");
-        assert!((c.scale - 1.01).abs() < 1e-12, "{c:?}");
-        assert!((c.tolerance - 0.05 / 1.01).abs() < 1e-12, "{c:?}");
-        assert!(!c.disagrees(), "{c:?}");
-
-        let tight = combine_scale(1.05, 0.01, 0.10);
-        assert!(tight.weights_share > 0.98, "{tight:?}");
-        assert!((tight.scale - 1.05).abs() < 0.001, "{tight:?}");
-        let want = 0.01 * 1.05 / tight.scale;
-        assert!((tight.tolerance - want).abs() < 1e-12, "{tight:?}");
-
-        let loose = combine_scale(1.05, 0.10 / 1.05, 0.01);
-        assert!(loose.weights_share < 0.02, "{loose:?}");
-        assert!((loose.scale - 1.0).abs() < 0.001, "{loose:?}");
+    fn the_scales_disagreement_is_their_difference_over_its_half_width() {
+        let (t_w, t_c) = (0.03_f64, 0.04);
+        assert_eq!(scale_disagreement(1.0, t_w, t_c), 0.0);
+        let s = 1.0 + 3.0 * (t_w * t_w + t_c * t_c).sqrt();
+        assert!((scale_disagreement(s, t_w / s, t_c) - 3.0).abs() < 1e-12);
+        assert!(scale_disagreement(1.04, t_w, t_c) < 1.0);
         assert!(
-            (loose.tolerance - 0.01 / loose.scale).abs() < 1e-12,
-            "{loose:?}"
+            scale_disagreement(0.4, t_w, t_c) > 1.0,
+            "a 250 g weight typed for 100 g"
         );
-    }
-
-    /// Two scales further apart than both tolerances allow widen the
-    /// combination's tolerance by the ratio of their difference to its
-    /// half-width, and say so; a weighing the configuration allows for
-    /// does neither.
-    #[test]
-    fn a_weighing_the_configuration_does_not_allow_for_widens_the_tolerance() {
-        let (t_w, t_c) = (0.02_f64, 0.03);
-        let apart = (t_w * t_w + t_c * t_c).sqrt();
-        let agree = combine_scale(1.0 + 0.9 * apart, t_w, t_c);
-        let s = 1.0 + 3.0 * apart;
-        let off = combine_scale(s, t_w / s, t_c);
-        assert!(!agree.disagrees() && off.disagrees(), "{agree:?} {off:?}");
-        assert!((off.disagreement - 3.0).abs() < 1e-9, "{off:?}");
-        assert!(
-            (off.tolerance - 3.0 * t_w / off.scale).abs() < 1e-12,
-            "{off:?}"
-        );
-    }
-
-    #[test]
-    fn a_stretch_estimate_moving_against_the_weights_is_refused() {
-        let pts: Vec<Point> = [(0, 1.0), (1, 2.0), (2, -1.0), (3, -2.0)]
-            .into_iter()
-            .flat_map(|(l, f)| [point(l, 0.0, 0.0), point(l, f, -0.9 * f)])
-            .collect();
-        let e = fit_scale(&pts, &WeightsOptions::default(), 1.0, 4).unwrap_err();
-        assert!(e.to_string().contains("does not follow the weights"), "{e}");
     }
 
     #[test]

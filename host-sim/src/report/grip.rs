@@ -254,8 +254,7 @@ fn weighings_markdown(o: &mut String, weighings: &[Weighing]) {
     let _ = writeln!(
         o,
         "\nThe weights' calibration behind the \"weighed\" rows (scale: the stretch \
-         estimate's change per unit of the weights' change, then combined with the \
-         identification's by their tolerances, with the weights' share; the spring rate the configuration \
+         estimate's change per unit of the weights' change; the spring rate the configuration \
          carries before → after, against the plant's, which the simulator knows and a rig \
          does not; a calibrated rate off the plant's spring where the two cables were drawn \
          apart is the stretch estimate's scale, not the spring's; the pin's fitted friction \
@@ -263,16 +262,13 @@ fn weighings_markdown(o: &mut String, weighings: &[Weighing]) {
     );
     let _ = writeln!(
         o,
-        "| variant | scale (%σ) → combined (weights' share) | spring rate [N/m] | plant's spring [N/m] | stiffness tolerance | pin [mN·m] | plant's pin [mN·m] | written |"
+        "| variant | scale (%σ) | spring rate [N/m] | plant's spring [N/m] | stiffness tolerance | pin [mN·m] | plant's pin [mN·m] | written |"
     );
     let _ = writeln!(o, "|---|---|---|---|---|---|---|---|");
     for w in weighings {
-        let scale = match (w.scale, w.combined) {
-            (Some((s, p)), Some((c, share))) => {
-                format!("{s:.3} ({p:.1}) → {c:.3} ({:.0} %)", 100.0 * share)
-            }
-            _ => "-".to_owned(),
-        };
+        let scale = w
+            .scale
+            .map_or_else(|| "-".to_owned(), |(s, p)| format!("{s:.3} ({p:.1})"));
         let written = if w.refused.is_empty() {
             "yes".to_owned()
         } else {

@@ -24,9 +24,6 @@ pub struct Weighing {
     /// The stretch estimate's change per unit of the weights' and its
     /// `%sigma`; `None` when the calibration was refused.
     pub scale: Option<(f64, f64)>,
-    /// That scale combined with the configuration's, and the weights'
-    /// share of it ([`crate::ident::combine_scale`]); `None` when refused.
-    pub combined: Option<(f64, f64)>,
     /// `machine.spring_n_m` before and after, N/m (unchanged when refused).
     pub spring_n_m: (f64, f64),
     /// The plant's spring, N/m: the simulator's truth, which a calibrated
@@ -56,7 +53,6 @@ fn unweighed(v: &VariantResult, config: &Config) -> Weighing {
     Weighing {
         variant: v.name.clone(),
         scale: None,
-        combined: None,
         spring_n_m: (spring, spring),
         plant_spring_n_m: v.plant.spring.stiffness_n_m,
         stiffness_tolerance: (tolerance, tolerance),
@@ -104,7 +100,6 @@ fn weigh(v: &VariantResult, config: &Config, base_seed: u64) -> Result<(Weighing
     match calibrate_weights(&fit, &[], config, &WeightsOptions::default()) {
         Ok((f, calibrated)) => {
             w.scale = Some(f.scale);
-            w.combined = Some((f.combined.scale, f.combined.weights_share));
             w.spring_n_m = f.spring_n_m;
             w.stiffness_tolerance = f.stiffness_tolerance;
             w.pin_coulomb_nm = f.pin_coulomb_nm;

@@ -31,11 +31,12 @@ use crate::stats::correlation_time;
 /// var(eps))`. On the report's pin-friction plant (a 12 mN·m pin, 3 N at
 /// the cable against the calibration run's 0.7 N RMS swing of cable 2)
 /// that read cable 1 7 % to 11 % soft, and the probed holds' force 1.8 %
-/// to 14.1 % low. The commanded angle moves the spring's share and the stretch with it, but
-/// not the pin's stick-slip, which the program does not command. Without
-/// it in the log, or when it explains too little of the stretch (a weak
-/// instrument, first-stage F under [`JOINT_MIN_INSTRUMENT_F`]), the fit
-/// is ordinary least squares and says so.
+/// to 14.1 % low. The commanded angle moves the spring's share and the
+/// stretch with it, but not the pin's stick-slip, which the program does
+/// not command. Without it in the log, or when it explains too little of
+/// the stretch (a weak instrument, first-stage F under
+/// [`JOINT_MIN_INSTRUMENT_F`]), the fit is ordinary least squares and says
+/// so.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct JointFit {
     /// Rows used (joint slipping, not faulted).

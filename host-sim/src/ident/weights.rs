@@ -659,7 +659,7 @@ mod tests {
         assert!(scale_disagreement(1.04, t_w, t_c) < 1.0);
         assert!(
             scale_disagreement(0.4, t_w, t_c) > 1.0,
-            "a 250 g weight typed for 100 g"
+            "weights typed at 2.5 times their mass"
         );
     }
 
